@@ -1,0 +1,163 @@
+"""The paper's Figure 5 loop, assembled by signal names.
+
+::
+
+              handle x = u + sigma*kappa*h          cylinder loop
+     u ──►(+)──────────► K_PSF ──r──►(+)──err──► PI ──e──► valve/cyl ──┬── y
+           ▲                          ▲ -                              │
+           │                          └────────────────────────────────┤
+           │                                                           ▼
+           └─── sigma*kappa ◄── h ── human ◄── c ── structure ◄────────┘
+
+``u`` is the operator's intended handle motion, ``h`` the hand's motion relative
+to the seat caused by cab acceleration ``c``. Without BDFT the outer path is
+removed (``x = u``).
+
+The paper leaves three things out, made explicit here as :class:`LoopCalibration`:
+the PI gains, the sign ``sigma`` at the handle junction, and one loop-scale
+factor ``kappa`` that lumps the unknown unit conversions between the blocks (the
+printed gains multiply to about 1e6 at low frequency). Their defaults are the
+values found by :func:`robust.calibration.calibrate`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control as ct
+
+from ._checks import NONNEGATIVE as NONNEG
+from ._checks import POSITIVE, check_scalar, validate_fields
+from .components import (
+    K_PSF_NOMINAL,
+    PIParams,
+    StructureParams,
+    ValveCylinderParams,
+    pi_controller,
+    position_scale,
+    structure,
+    valve_cylinder,
+)
+from .errors import ParameterError
+from .human import HumanModel, LiteralHuman
+
+__all__ = ["LoopCalibration", "BDFTLoop", "DEFAULT_CALIBRATION", "LOOP_OUTPUTS"]
+
+#: Signals every assembled loop exposes as outputs.
+LOOP_OUTPUTS = ["y", "c", "h", "x", "e"]
+
+
+@dataclasses.dataclass(frozen=True)
+class LoopCalibration:
+    """What the paper does not print, as named parameters.
+
+    Parameters
+    ----------
+    kp, ki : float
+        PI gains of the cylinder position loop (valve command = PI output).
+    loop_scale : float
+        ``kappa``: hand motion in the human model's units -> handle motion in the
+        units of ``u``; lumps every unit conversion around the BDFT loop.
+    handle_sign : int
+        ``sigma`` in ``x = u + sigma*kappa*h``: +1 or -1.
+    source : str
+        Where the values come from (free text, kept in reports and artifacts).
+    """
+
+    kp: float
+    ki: float
+    loop_scale: float
+    handle_sign: int
+    source: str = ""
+
+    def __post_init__(self):
+        validate_fields(self, {"kp": POSITIVE, "ki": NONNEG, "loop_scale": POSITIVE})
+        if self.handle_sign not in (1, -1) or isinstance(self.handle_sign, bool):
+            raise ParameterError(f"LoopCalibration.handle_sign must be +1 or -1; got {self.handle_sign!r}")
+
+    @property
+    def pi(self) -> PIParams:
+        return PIParams(kp=self.kp, ki=self.ki)
+
+
+#: Values returned by ``robust.calibration.calibrate()`` with its default search grid
+#: (test ``test_calibration_reproduces_defaults`` re-runs the search and compares).
+DEFAULT_CALIBRATION = LoopCalibration(
+    kp=0.3,
+    ki=0.3,
+    loop_scale=1.0e-4,
+    handle_sign=-1,
+    source="robust.calibration.calibrate() default search",
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class BDFTLoop:
+    """Everything needed to build the Figure 5 loop.
+
+    Parameters
+    ----------
+    k_psf : float
+        Position scale factor (default 0.1097, the 71 mm workspace).
+    valve, struct : parameter dataclasses
+        Valve/cylinder (Eqn 3) and structure (Eqn 4) parameters.
+    human : HumanModel
+        Human variant (default: the paper's Eqn 5 as printed).
+    calibration : LoopCalibration
+        PI gains, junction sign and loop-scale factor.
+    """
+
+    k_psf: float = K_PSF_NOMINAL
+    valve: ValveCylinderParams = dataclasses.field(default_factory=ValveCylinderParams)
+    struct: StructureParams = dataclasses.field(default_factory=StructureParams)
+    human: HumanModel = dataclasses.field(default_factory=LiteralHuman)
+    calibration: LoopCalibration = DEFAULT_CALIBRATION
+
+    def __post_init__(self):
+        validate_fields(self, {"k_psf": POSITIVE})
+        if not isinstance(self.human, HumanModel):
+            raise ParameterError(
+                f"BDFTLoop.human must implement robust.human.HumanModel; got {type(self.human).__name__}"
+            )
+
+    def replace(self, **changes) -> "BDFTLoop":
+        return dataclasses.replace(self, **changes)
+
+    def with_workspace_factor(self, factor: float) -> "BDFTLoop":
+        """The same loop with the handle workspace multiplied by ``factor`` (``K_PSF / factor``)."""
+        f = check_scalar("factor", factor, POSITIVE)
+        return self.replace(k_psf=self.k_psf / f)
+
+    # -- blocks ---------------------------------------------------------------------
+    def blocks(self, *, bdft: bool = True) -> list[ct.InputOutputSystem]:
+        cal = self.calibration
+        cyl_err = ct.summing_junction(inputs=["r", "-y"], output="err", name="cyl_err")
+        blocks = [
+            position_scale(self.k_psf),
+            cyl_err,
+            pi_controller(cal.pi),
+            valve_cylinder(self.valve),
+        ]
+        if not bdft:
+            handle = ct.summing_junction(inputs=["u"], output="x", name="handle")
+            return blocks + [handle]
+        gain = cal.handle_sign * cal.loop_scale
+        scale = ct.ss([], [], [], [[gain]], inputs="h", outputs="h_cmd", name="loop_scale")
+        handle = ct.summing_junction(inputs=["u", "h_cmd"], output="x", name="handle")
+        return blocks + [structure(self.struct), self.human.system(), scale, handle]
+
+    def system(self, *, bdft: bool = True, outputs: list[str] | None = None) -> ct.StateSpace:
+        """Closed Figure 5 loop, input ``u``; outputs ``y, c, h, x, e`` by default.
+
+        With ``bdft=False`` the outer loop is removed (``x = u``) and ``c``, ``h``
+        are not available.
+        """
+        outs = outputs or (LOOP_OUTPUTS if bdft else ["y", "x", "e"])
+        inputs = ["u"]
+        if bdft and self.human.has_force_port:
+            # the force port is left open (zero) in the uncompensated loop
+            inputs = ["u", "f"]
+        sys = ct.interconnect(
+            self.blocks(bdft=bdft), inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop"
+        )
+        return sys

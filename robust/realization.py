@@ -1,0 +1,123 @@
+"""Minimal realisations by orthogonal staircase reduction.
+
+python-control's ``minreal`` for state-space systems needs SLICOT (``tb01pd``),
+which is only a test dependency here; the BDFT loop needs a minimal realisation
+at run time because the paper's Eqn 4 (a double zero at s = 0) and Eqn 5 (a
+double pole at s = 0) cancel exactly in series. This module removes
+uncontrollable then unobservable states with orthogonal transformations, the
+staircase idea of
+
+    P. Van Dooren, "The generalized eigenstructure problem in linear system
+    theory", IEEE Trans. Automatic Control 26(1), 1981, pp. 111-129;
+
+and A. Varga, "Minimal realization procedures based on balancing and related
+techniques", in *Numerical Methods for Control*, 1991.
+
+The system is first balanced with ``scipy.linalg.matrix_balance`` (a diagonal
+similarity), so the rank decisions are made on comparable scales. The removed
+modes are returned, so callers can report them instead of hiding them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.linalg as sla
+
+__all__ = ["MinimalRealization", "minimal_realization", "controllable_part"]
+
+
+@dataclasses.dataclass(frozen=True)
+class MinimalRealization:
+    """A minimal ``(A, B, C, D)`` and the eigenvalues of the modes removed to get it."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    removed_eigenvalues: np.ndarray
+    n_uncontrollable: int
+    n_unobservable: int
+
+    @property
+    def nstates(self) -> int:
+        return self.A.shape[0]
+
+
+def _krylov_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
+    """Orthonormal basis of the controllable subspace of ``(A, B)``.
+
+    Block Krylov iteration with re-orthogonalisation; a direction counts when its
+    singular value exceeds ``tol`` (absolute, on the balanced system).
+    """
+    n = A.shape[0]
+    U, s, _ = np.linalg.svd(B, full_matrices=False)
+    block = U[:, s > tol]
+    basis = block
+    while block.shape[1] and basis.shape[1] < n:
+        new = A @ block
+        for _ in range(2):  # classical Gram-Schmidt twice is numerically orthogonal
+            new = new - basis @ (basis.T @ new)
+        U, s, _ = np.linalg.svd(new, full_matrices=False)
+        block = U[:, s > tol]
+        basis = np.hstack([basis, block])
+    return basis
+
+
+def controllable_part(A, B, C, *, rtol: float = 1e-9):
+    """Return ``(Ac, Bc, Cc, removed_eigs)``: the controllable part of ``(A, B, C)``.
+
+    ``rtol`` scales with the balanced system's norm: a direction is controllable when
+    its Krylov singular value exceeds ``rtol * max(||A||, ||B||, 1)``.
+    """
+    A = np.asarray(A, float)
+    B = np.asarray(B, float)
+    C = np.asarray(C, float)
+    n = A.shape[0]
+    if n == 0:
+        return A, B, C, np.zeros(0, complex)
+    Ab, T = sla.matrix_balance(A, permute=False, separate=True)
+    scale = T[0]
+    Bb = B / scale[:, None]
+    Cb = C * scale[None, :]
+    tol = rtol * max(np.linalg.norm(Ab, 2), np.linalg.norm(Bb, 2), 1.0)
+    V = _krylov_basis(Ab, Bb, tol)
+    r = V.shape[1]
+    if r == n:
+        return Ab, Bb, Cb, np.zeros(0, complex)
+    full = sla.qr(V, mode="full")[0]
+    Q = np.hstack([V, full[:, r:]])
+    # make the complement exactly orthogonal to V
+    Q[:, r:] = sla.null_space(V.T) if r else np.eye(n)
+    At = Q.T @ Ab @ Q
+    removed = np.linalg.eigvals(At[r:, r:])
+    return At[:r, :r], (Q.T @ Bb)[:r], (Cb @ Q)[:, :r], removed
+
+
+def minimal_realization(A, B, C, D, *, rtol: float = 1e-9) -> MinimalRealization:
+    """Remove uncontrollable, then unobservable, states of ``(A, B, C, D)``.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        State-space matrices, shapes (n, n), (n, m), (p, n), (p, m).
+    rtol : float
+        Relative rank tolerance (see :func:`controllable_part`).
+
+    Returns
+    -------
+    MinimalRealization
+        The reduced matrices (in a transformed basis) and the removed eigenvalues.
+    """
+    Ac, Bc, Cc, rem_c = controllable_part(A, B, C, rtol=rtol)
+    Ao, Co_T, Bo_T, rem_o = controllable_part(Ac.T, Cc.T, Bc.T, rtol=rtol)
+    return MinimalRealization(
+        A=Ao.T,
+        B=Bo_T.T,
+        C=Co_T.T,
+        D=np.asarray(D, float),
+        removed_eigenvalues=np.concatenate([rem_c, rem_o]),
+        n_uncontrollable=len(rem_c),
+        n_unobservable=len(rem_o),
+    )
