@@ -41,7 +41,14 @@ from .components import (
 from .errors import ParameterError
 from .human import HumanModel, LiteralHuman
 
-__all__ = ["LoopCalibration", "BDFTLoop", "DEFAULT_CALIBRATION", "LOOP_OUTPUTS"]
+__all__ = [
+    "LoopCalibration",
+    "BDFTLoop",
+    "DEFAULT_CALIBRATION",
+    "LOOP_OUTPUTS",
+    "CONTROLLER_INPUTS",
+    "CONTROLLER_OUTPUTS",
+]
 
 #: Signals every assembled loop exposes as outputs.
 LOOP_OUTPUTS = ["y", "c", "h", "x", "e"]
@@ -129,15 +136,28 @@ class BDFTLoop:
         return self.replace(k_psf=self.k_psf / f)
 
     # -- blocks ---------------------------------------------------------------------
-    def blocks(self, *, bdft: bool = True) -> list[ct.InputOutputSystem]:
+    def blocks(self, *, bdft: bool = True, controller: ct.StateSpace | None = None) -> list:
+        """The named blocks of the loop (see the module diagram).
+
+        With a ``controller`` (inputs among ``x, c, y``; outputs among ``f, r_corr``)
+        the cylinder reference becomes ``K_PSF x + r_corr`` and ``f`` drives the
+        human's force port.
+        """
         cal = self.calibration
-        cyl_err = ct.summing_junction(inputs=["r", "-y"], output="err", name="cyl_err")
+        ref_terms = ["r"]
+        if controller is not None:
+            _check_controller(controller, self.human, bdft)
+            if "r_corr" in controller.output_labels:
+                ref_terms.append("r_corr")
+        cyl_err = ct.summing_junction(inputs=[*ref_terms, "-y"], output="err", name="cyl_err")
         blocks = [
             position_scale(self.k_psf),
             cyl_err,
             pi_controller(cal.pi),
             valve_cylinder(self.valve),
         ]
+        if controller is not None:
+            blocks.append(controller)
         if not bdft:
             handle = ct.summing_junction(inputs=["u"], output="x", name="handle")
             return blocks + [handle]
@@ -146,18 +166,68 @@ class BDFTLoop:
         handle = ct.summing_junction(inputs=["u", "h_cmd"], output="x", name="handle")
         return blocks + [structure(self.struct), self.human.system(), scale, handle]
 
-    def system(self, *, bdft: bool = True, outputs: list[str] | None = None) -> ct.StateSpace:
-        """Closed Figure 5 loop, input ``u``; outputs ``y, c, h, x, e`` by default.
+    def system(
+        self,
+        *,
+        bdft: bool = True,
+        controller: ct.StateSpace | None = None,
+        outputs: list[str] | None = None,
+    ) -> ct.StateSpace:
+        """Closed Figure 5 loop with input ``u``; outputs ``y, c, h, x, e`` by default.
 
         With ``bdft=False`` the outer loop is removed (``x = u``) and ``c``, ``h``
-        are not available.
+        are not available. A human variant with a force port gets the extra
+        exogenous input ``f_ext`` (a force on the hand, N) added to the
+        controller's force, so force disturbances can be studied.
         """
-        outs = outputs or (LOOP_OUTPUTS if bdft else ["y", "x", "e"])
+        outs = list(outputs or (LOOP_OUTPUTS if bdft else ["y", "x", "e"]))
         inputs = ["u"]
+        blocks = self.blocks(bdft=bdft, controller=controller)
         if bdft and self.human.has_force_port:
-            # the force port is left open (zero) in the uncompensated loop
-            inputs = ["u", "f"]
-        sys = ct.interconnect(
-            self.blocks(bdft=bdft), inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop"
+            terms = ["f_ext"]
+            if controller is not None and "f" in controller.output_labels:
+                terms.append("f_ctrl")
+                blocks = [_rename_output(b, "f", "f_ctrl") if b is controller else b for b in blocks]
+            blocks.append(ct.summing_junction(inputs=terms, output="f", name="hand_force"))
+            inputs.append("f_ext")
+            if controller is not None and "f" in controller.output_labels and "f" not in outs:
+                outs.append("f")
+        if controller is not None and "r_corr" in controller.output_labels and "r_corr" not in outs:
+            outs.append("r_corr")
+        return ct.interconnect(blocks, inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop")
+
+
+def _rename_output(sys: ct.StateSpace, old: str, new: str) -> ct.StateSpace:
+    labels = [new if lab == old else lab for lab in sys.output_labels]
+    return ct.ss(sys.A, sys.B, sys.C, sys.D, inputs=sys.input_labels, outputs=labels, name=sys.name)
+
+
+#: Signals a controller may measure and drive.
+CONTROLLER_INPUTS = ("x", "c", "y")
+CONTROLLER_OUTPUTS = ("f", "r_corr")
+
+
+def _check_controller(controller, human: HumanModel, bdft: bool) -> None:
+    from .errors import ModelStructureError
+
+    if not isinstance(controller, ct.StateSpace):
+        raise ModelStructureError(f"controller must be a control.StateSpace; got {type(controller).__name__}")
+    if not controller.isctime():
+        raise ModelStructureError(
+            "controller must be continuous-time for the loop (dt=0 or None); "
+            f"got dt={controller.dt}. Validate the continuous design, or use the discrete checks."
         )
-        return sys
+    bad_in = [s for s in controller.input_labels if s not in CONTROLLER_INPUTS]
+    bad_out = [s for s in controller.output_labels if s not in CONTROLLER_OUTPUTS]
+    if bad_in or bad_out:
+        raise ModelStructureError(
+            f"controller inputs must be among {CONTROLLER_INPUTS} and outputs among {CONTROLLER_OUTPUTS}; "
+            f"got inputs {controller.input_labels}, outputs {controller.output_labels}"
+        )
+    if "f" in controller.output_labels and not (bdft and human.has_force_port):
+        raise ModelStructureError(
+            f"controller drives the handle force 'f', but the human variant {human.variant!r} has no force port"
+            + ("" if bdft else " (and the loop is built without BDFT)")
+        )
+    if not bdft and "c" in controller.input_labels:
+        raise ModelStructureError("controller measures 'c', which does not exist in the loop without BDFT")
