@@ -90,11 +90,11 @@ class LoopCalibration:
 #: Values returned by ``robust.calibration.calibrate()`` with its default search grid
 #: (test ``test_calibration_reproduces_defaults`` re-runs the search and compares).
 DEFAULT_CALIBRATION = LoopCalibration(
-    kp=0.3,
-    ki=0.3,
-    loop_scale=1.0e-4,
+    kp=0.35,
+    ki=0.35,
+    loop_scale=3.43e-4,
     handle_sign=-1,
-    source="robust.calibration.calibrate() default search",
+    source="robust.calibration.calibrate(human='literal') default search",
 )
 
 
