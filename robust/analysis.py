@@ -97,7 +97,7 @@ def frequency_response(sys: ct.StateSpace, freqs_hz: np.ndarray, *, inp: str = "
     w = 2.0 * np.pi * np.asarray(freqs_hz, float)
     i = sys.input_labels.index(inp)
     o = sys.output_labels.index(out)
-    resp = sys(1j * w)  # shape (noutputs, ninputs, nfreq)
+    resp = sys(1j * w, squeeze=False)  # shape (noutputs, ninputs, nfreq)
     return np.asarray(resp)[o, i, :]
 
 
