@@ -3,6 +3,18 @@
 Public API, by area. Import from here; module layout may change.
 """
 
+from .analysis import (
+    STABILITY_RTOL,
+    PoleSet,
+    bdft_ratio,
+    closed_loop_poles,
+    critical_k_psf,
+    frequency_response,
+    is_unstable,
+    loop_poles,
+)
+from .calibration import K_PSF_STABLE, CalibrationCandidate, CalibrationResult, calibrate
+from .claims import CLAIM_TEXT, ClaimResult, evaluate_claims, ratio_study
 from .components import (
     K_PSF_NOMINAL,
     PIParams,
@@ -27,5 +39,6 @@ from .errors import (
 from .human import HumanModel, LiteralHuman, LiteralHumanParams, human_variant
 from .loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
 from .realization import MinimalRealization, minimal_realization
+from .simulation import SweptSine, TimeResponse, simulate, simulate_swept_sine
 
 __version__ = "0.1.0"

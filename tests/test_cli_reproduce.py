@@ -1,0 +1,53 @@
+import json
+from pathlib import Path
+
+import pytest
+
+from robust.cli import main
+
+
+
+
+def test_reproduce_json_end_to_end(tmp_path, capsys):
+    out = tmp_path / "reproduce"
+    code = main(["reproduce", "--out", str(out), "--human", "literal", "--json"])
+    assert code == 0
+    obj = json.loads(capsys.readouterr().out)
+    for key in ("C1", "C2", "C3"):
+        assert obj["claims"][key]["holds"] is True, obj["claims"][key]["detail"]
+    assert obj["claims"]["C4"]["holds"] is False
+    assert set(obj["claims"]) == {"C1", "C2", "C3", "C4", "C5"}
+    cal = obj["calibration"]
+    assert cal["search_matches_default"] is True
+    assert {"kp", "ki", "loop_scale", "handle_sign"} <= set(cal)
+    html = (out / "index.html").read_text()
+    # every figure the page references exists and is a PNG
+    import re
+
+    imgs = re.findall(r'src="([^"]+\.png)"', html)
+    assert len(imgs) >= 7
+    for name in imgs:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert json.loads((out / "claims.json").read_text())["claims"]["C1"]["holds"] is True
+    # no temporary folders left beside the report
+    assert [p.name for p in tmp_path.iterdir()] == ["reproduce"]
+
+
+def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch):
+    import robust.plots as plots
+
+    def boom(*a, **k):
+        raise RuntimeError("figure failed")
+
+    monkeypatch.setattr(plots, "ratio_figure", boom)
+    out = tmp_path / "reproduce"
+    with pytest.raises(RuntimeError, match="figure failed"):
+        main(["reproduce", "--out", str(out), "--human", "literal"])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_human_variant_is_rejected(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["reproduce", "--human", "robot"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'robot'" in capsys.readouterr().err

@@ -1,0 +1,111 @@
+import math
+
+import numpy as np
+import pytest
+
+import paper_formulas as pf
+from robust import (
+    LiteralHuman,
+    LiteralHumanParams,
+    ParameterError,
+    PIParams,
+    StructureParams,
+    ValveCylinderParams,
+    pi_controller,
+    position_scale,
+    structure,
+    valve_cylinder,
+)
+
+FREQS_HZ = np.array([0.2, 1.0, 4.7, 6.3, 12.0, 40.0])
+
+
+def response(sys, inp, out, f_hz):
+    s = 2j * np.pi * np.asarray(f_hz)
+    return np.asarray(sys(s, squeeze=False))[sys.output_labels.index(out), sys.input_labels.index(inp)]
+
+
+def test_valve_cylinder_matches_eqn3():
+    sys = valve_cylinder()
+    assert sys.input_labels == ["e"] and sys.output_labels == ["y"] and sys.nstates == 4
+    got = response(sys, "e", "y", FREQS_HZ)
+    np.testing.assert_allclose(got, pf.valve(2j * np.pi * FREQS_HZ), rtol=1e-9)
+
+
+def test_valve_cylinder_custom_parameters():
+    p = ValveCylinderParams(k_vc=20.0, p1=200.0, wn_hz=3.0, zeta=0.3)
+    got = response(valve_cylinder(p), "e", "y", FREQS_HZ)
+    np.testing.assert_allclose(got, pf.valve(2j * np.pi * FREQS_HZ, 20.0, 200.0, 3.0, 0.3), rtol=1e-9)
+
+
+def test_structure_matches_eqn4():
+    sys = structure()
+    assert sys.input_labels == ["y"] and sys.output_labels == ["c"]
+    np.testing.assert_allclose(response(sys, "y", "c", FREQS_HZ), pf.structure(2j * np.pi * FREQS_HZ), rtol=1e-9)
+
+
+def test_structure_peak_near_six_hz():
+    f = np.linspace(3, 10, 2001)
+    mag = np.abs(response(structure(), "y", "c", f))
+    assert 5.5 < f[mag.argmax()] < 7.0
+
+
+def test_literal_human_matches_eqn5():
+    sys = LiteralHuman().system()
+    assert sys.input_labels == ["c"] and sys.output_labels == ["h"]
+    np.testing.assert_allclose(response(sys, "c", "h", FREQS_HZ), pf.human(2j * np.pi * FREQS_HZ), rtol=1e-9)
+
+
+def test_literal_human_hand_computed_value_at_1hz():
+    # |H/C| at 1 Hz by hand: 5*(w^2+50.3^2)/(w^2*(w^2+1.57^2)), w = 2*pi
+    w = 2 * math.pi
+    expected = 5 * (w**2 + 50.3**2) / (w**2 * (w**2 + 1.57**2))
+    got = abs(response(LiteralHuman().system(), "c", "h", [1.0])[0])
+    assert got == pytest.approx(expected, rel=1e-10)
+    assert got == pytest.approx(7.759, rel=1e-3)
+
+
+@pytest.mark.parametrize("kp,ki", [(0.35, 0.35), (0.2, 0.0)], ids=["pi", "p-only"])
+def test_pi_controller(kp, ki):
+    sys = pi_controller(PIParams(kp=kp, ki=ki))
+    assert sys.input_labels == ["err"] and sys.output_labels == ["e"]
+    np.testing.assert_allclose(response(sys, "err", "e", FREQS_HZ), pf.pi(2j * np.pi * FREQS_HZ, kp, ki), rtol=1e-12)
+
+
+def test_position_scale():
+    sys = position_scale(0.1097)
+    assert sys.input_labels == ["x"] and sys.output_labels == ["r"]
+    assert float(sys.D[0, 0]) == 0.1097
+
+
+@pytest.mark.parametrize(
+    "factory,kwargs,match",
+    [
+        (ValveCylinderParams, {"zeta": 1.2}, r"ValveCylinderParams\.zeta .*\(0, 1\).*1\.2"),
+        (ValveCylinderParams, {"k_vc": -36.0}, r"ValveCylinderParams\.k_vc .*-36"),
+        (ValveCylinderParams, {"wn_hz": float("nan")}, r"ValveCylinderParams\.wn_hz .*nan"),
+        (ValveCylinderParams, {"p1": "314"}, r"ValveCylinderParams\.p1 must be a real number"),
+        (StructureParams, {"f1_hz": 0.0}, r"StructureParams\.f1_hz .*0\.0"),
+        (StructureParams, {"zeta2": 0.0}, r"StructureParams\.zeta2"),
+        (StructureParams, {"k_s": float("inf")}, r"StructureParams\.k_s .*inf"),
+        (LiteralHumanParams, {"z1": -50.3}, r"LiteralHumanParams\.z1 .*-50\.3"),
+        (LiteralHumanParams, {"k_h": True}, r"LiteralHumanParams\.k_h must be a real number"),
+        (PIParams, {"kp": 0.0, "ki": 0.1}, r"PIParams\.kp .*0\.0"),
+        (PIParams, {"kp": 0.3, "ki": -0.1}, r"PIParams\.ki .*-0\.1"),
+    ],
+    ids=["zeta>1", "neg-gain", "nan-freq", "string", "zero-freq", "zero-damping", "inf-gain",
+         "neg-zero", "bool", "zero-kp", "neg-ki"],
+)
+def test_bad_parameters_name_the_parameter(factory, kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        factory(**kwargs)
+
+
+def test_parameter_error_is_value_error():
+    with pytest.raises(ValueError):
+        StructureParams(f2_hz=-1.0)
+
+
+def test_position_scale_rejects_nonpositive():
+    with pytest.raises(ParameterError, match=r"k_psf .*-0\.1"):
+        position_scale(-0.1)

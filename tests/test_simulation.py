@@ -1,0 +1,54 @@
+import numpy as np
+import pytest
+import scipy.signal as ss
+
+import paper_formulas as pf
+from robust import DEFAULT_CALIBRATION, K_PSF_STABLE, BDFTLoop, ParameterError, SweptSine, simulate, simulate_swept_sine
+
+CAL = DEFAULT_CALIBRATION
+
+
+def test_unstable_nominal_loop_grows():
+    w, wo = simulate_swept_sine(BDFTLoop(), SweptSine(duration_s=20.0))
+    early = np.abs(w["y"][w.t < 5]).max()
+    late = np.abs(w["y"][w.t > 19]).max()
+    assert late > 100 * early  # exponential growth, not clipped
+    assert np.abs(wo["y"]).max() < 0.2  # without BDFT the cylinder tracks K_PSF*u (amplitude 1)
+
+
+def test_stable_halved_k_psf_stays_bounded():
+    w, wo = simulate_swept_sine(BDFTLoop(k_psf=K_PSF_STABLE))
+    assert np.all(np.isfinite(w["y"]))
+    assert np.abs(w["y"]).max() < 5 * np.abs(wo["y"]).max()
+
+
+def test_simulation_matches_scipy_lsim_of_the_formula():
+    # independent: scipy lsim on the transfer function from the characteristic polynomial
+    t = np.arange(0, 5, 1e-3)
+    u = np.sin(2 * np.pi * 1.3 * t)
+    resp = simulate(BDFTLoop(k_psf=K_PSF_STABLE), t, u)
+    P = np.polynomial.Polynomial
+    wn = 2 * np.pi * 5.0
+    nv = P([36.0 * 314.0 * wn**2])
+    dv = P([0, 314.0, 1]) * P([wn**2, 2 * 0.45 * wn, 1])
+    npi, dpi = P([CAL.ki, CAL.kp]), P([0, 1])
+    w1, w2 = 2 * np.pi * 6.3, 2 * np.pi * 6.5
+    ns = 200.0 * P([w1**2, 2 * 0.126 * w1]) * P([w2**2, 2 * 0.223 * w2])
+    ds = P([w1**2, 2 * 0.126 * w1, 1]) * P([w2**2, 2 * 0.223 * w2, 1])
+    nh, dh = 5.0 * P([50.3, 1]) ** 2, P([1.57, 1]) ** 2
+    k = K_PSF_STABLE
+    num = k * npi * nv * ds * dh
+    den = (dpi * dv + npi * nv) * ds * dh - CAL.handle_sign * CAL.loop_scale * k * npi * nv * ns * nh
+    _, y, _ = ss.lsim((num.coef[::-1], den.coef[::-1]), u, t)
+    np.testing.assert_allclose(resp["y"], y, atol=1e-6 * np.abs(y).max())
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [({"f0_hz": 5.0, "f1_hz": 1.0}, r"f1_hz must exceed"), ({"duration_s": -1.0}, r"SweptSine\.duration_s"),
+     ({"f1_hz": 600.0}, r"Nyquist")],
+    ids=["inverted", "negative-duration", "above-nyquist"],
+)
+def test_bad_sweep(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        SweptSine(**kwargs)
