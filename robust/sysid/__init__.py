@@ -1,0 +1,83 @@
+"""System identification from chirp data: experiments, H1 and coherence, structured fits.
+
+The paper's path from measured chirp responses to component models, for any
+machine or operator:
+
+* experiments (:mod:`.experiment`): chirp protocol and a simulator with known truth;
+* spectra (:mod:`.spectral`): Welch H1 (the paper's Eqn 1), coherence (Eqn 2) and
+  confidence bounds;
+* fits (:mod:`.fit`): the forms of Eqns 3, 4, 5 and rational ``"M/N"`` models;
+* data files (:mod:`.datafile`) and fitted-model files (:mod:`.model_file`);
+* figures (:mod:`.plots`), returned and never saved here.
+"""
+
+from .datafile import ChannelData, load_channels, save_experiment, select_channels
+from .experiment import (
+    ENGINE_TONES_HZ,
+    PAPER_COMPONENTS,
+    ChirpProtocol,
+    Experiment,
+    MeasurementNoise,
+    chirp_excitation,
+    paper_experiment,
+    simulate_experiment,
+    simulate_response,
+)
+from .fit import (
+    FORMS,
+    BandError,
+    FitResult,
+    RationalParams,
+    fit_frequency_response,
+    form_system,
+    levy_sk,
+    parse_form,
+)
+from .identify import Identification, identify_file, identify_records
+from .model_file import ComponentFit, load_component_fit, read_component_fit, save_component_fit
+from .plots import bode_figure, coherence_figure
+from .spectral import (
+    FrequencyResponseEstimate,
+    check_band,
+    default_nperseg,
+    effective_averages,
+    estimate_frequency_response,
+)
+
+__all__ = [
+    "ChirpProtocol",
+    "MeasurementNoise",
+    "Experiment",
+    "chirp_excitation",
+    "simulate_experiment",
+    "simulate_response",
+    "paper_experiment",
+    "PAPER_COMPONENTS",
+    "ENGINE_TONES_HZ",
+    "FrequencyResponseEstimate",
+    "estimate_frequency_response",
+    "effective_averages",
+    "default_nperseg",
+    "check_band",
+    "FORMS",
+    "RationalParams",
+    "BandError",
+    "FitResult",
+    "fit_frequency_response",
+    "levy_sk",
+    "parse_form",
+    "form_system",
+    "ChannelData",
+    "load_channels",
+    "select_channels",
+    "save_experiment",
+    "Identification",
+    "identify_records",
+    "identify_file",
+    "ComponentFit",
+    "save_component_fit",
+    "read_component_fit",
+    "load_component_fit",
+    "bode_figure",
+    "coherence_figure",
+]

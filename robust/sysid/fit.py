@@ -1,0 +1,889 @@
+"""Structured transfer-function fits to a measured frequency response.
+
+Forms (the paper's fixed structures, and general rational models):
+
+* ``"valve"``, Eqn 3: ``K p1 wn^2 / (s (s + p1) (s^2 + 2 zeta wn s + wn^2))``;
+  returns :class:`robust.components.ValveCylinderParams`;
+* ``"structure"``, Eqn 4: ``K s^2 prod_i (2 z_i w_i s + w_i^2) / (s^2 + 2 z_i w_i s + w_i^2)``
+  with the double zero at ``s = 0`` fixed and ``f1 <= f2`` enforced; returns
+  :class:`robust.components.StructureParams`;
+* ``"human"``, Eqn 5: ``K (s + z)^2 / (s^2 (s + p)^2)`` with the double pole at
+  ``s = 0`` fixed; returns :class:`robust.human.LiteralHumanParams`;
+* ``"M/N"`` (e.g. ``"2/4"``): a rational model with numerator order ``M`` and
+  denominator order ``N`` (``M <= N``, monic denominator); returns
+  :class:`RationalParams` and a :class:`control.TransferFunction`.
+
+Each fit runs in two steps:
+
+1. a linear initial estimate: the known factor ``s^k`` is divided out and a
+   rational model of the remaining orders is fitted by Levy's linearised
+   least squares, refined by Sanathanan-Koerner iterations
+
+       E. C. Levy, "Complex-curve fitting", IRE Trans. Automatic Control
+       AC-4(1), 1959, pp. 37-44;
+       C. K. Sanathanan and J. Koerner, "Transfer function synthesis as a ratio
+       of two complex polynomials", IEEE Trans. Automatic Control 8(1), 1963,
+       pp. 56-58;
+
+   then the structured parameters are read from its poles, zeros and gain;
+2. nonlinear least squares (:func:`scipy.optimize.least_squares`, trust-region
+   reflective with bounds) on the complex logarithm of model over measurement,
+   whose real part is the log-magnitude error (nepers) and imaginary part the
+   phase error (rad, wrapped to (-pi, pi]). Gains and frequencies are fitted in
+   logarithms (so they stay positive), damping ratios within [0.005, 0.995].
+
+Residuals are weighted by ``sqrt(gamma^2 / (1 - gamma^2))`` (the inverse of the
+standard deviation of ``log H1`` up to a constant, Bendat & Piersol, Ch. 9), with
+``gamma^2`` capped at 0.999, and by ``sqrt(delta f / f)`` so that each decade
+counts alike on the linear Welch frequency grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Callable
+
+import control as ct
+import numpy as np
+import scipy.optimize
+
+from ..components import StructureParams, ValveCylinderParams
+from ..errors import InfeasibleError, ParameterError, SolverError
+from ..human import LiteralHumanParams
+from .spectral import FrequencyResponseEstimate, check_band
+
+__all__ = [
+    "FORMS",
+    "RationalParams",
+    "BandError",
+    "FitResult",
+    "fit_frequency_response",
+    "levy_sk",
+    "parse_form",
+    "form_system",
+]
+
+TWO_PI = 2.0 * math.pi
+#: The paper's fixed forms, by name.
+FORMS = ("valve", "structure", "human")
+_ZETA_BOUNDS = (0.005, 0.995)
+_COH_CAP = 0.999
+_ORDER_RE = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
+
+
+# --------------------------------------------------------------------------------------
+# Linear estimate: Levy + Sanathanan-Koerner
+# --------------------------------------------------------------------------------------
+def levy_sk(
+    omega: np.ndarray,
+    h: np.ndarray,
+    m: int,
+    n: int,
+    *,
+    weights: np.ndarray | None = None,
+    iterations: int = 20,
+    tol: float = 1e-10,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rational fit ``N(s)/D(s)`` of numerator order ``m``, monic denominator order ``n``.
+
+    Minimises ``sum_i |w_i (N(j w_i) - H_i D(j w_i)) / D_prev(j w_i)|^2`` with
+    ``D_prev = 1`` on the first pass (Levy 1959) and the previous denominator on
+    later passes (Sanathanan & Koerner 1963). The frequency is scaled by the
+    geometric mean of ``omega`` for conditioning.
+
+    Parameters
+    ----------
+    omega : array_like, shape (n_f,)
+        Angular frequencies in rad/s, > 0.
+    h : array_like of complex, shape (n_f,)
+        Frequency response to fit.
+    m, n : int
+        Numerator and denominator orders.
+    weights : array_like, shape (n_f,), optional
+        Non-negative weights ``w_i`` (default 1).
+    iterations : int
+        Maximum number of Sanathanan-Koerner passes after Levy's.
+    tol : float
+        Stop when the relative change of the denominator coefficients is below this.
+
+    Returns
+    -------
+    num, den : numpy.ndarray
+        Polynomial coefficients in ``s`` (rad/s), highest power first; ``den[0] = 1``.
+
+    Raises
+    ------
+    SolverError
+        If the linear problem is rank deficient at every pass.
+    """
+    omega = np.asarray(omega, dtype=float)
+    h = np.asarray(h, dtype=complex)
+    w = np.ones_like(omega) if weights is None else np.asarray(weights, dtype=float)
+    if n + m + 1 > 2 * omega.size:
+        raise InfeasibleError(
+            f"a {m}/{n} rational model has {m + n + 1} coefficients but only {omega.size} frequencies "
+            "(2 real equations each) are available; widen the band or lower the orders"
+        )
+    w0 = float(np.exp(np.mean(np.log(omega))))
+    s = 1j * omega / w0
+    vm = s[:, None] ** np.arange(m + 1)[None, :]  # b_0 .. b_m
+    vn = s[:, None] ** np.arange(n)[None, :]  # a_0 .. a_{n-1}
+    sn = s**n
+    a = np.zeros(n)
+    d_prev = np.ones_like(s)
+    b = np.zeros(m + 1)
+    for _ in range(iterations + 1):
+        scale = w / np.abs(d_prev)
+        # N(s) - H (s^n + sum a_k s^k) = 0  ->  [vm, -H vn] [b; a] = H s^n
+        lhs = np.hstack([vm, -h[:, None] * vn]) * scale[:, None]
+        rhs = h * sn * scale
+        lhs_r = np.vstack([lhs.real, lhs.imag])
+        rhs_r = np.concatenate([rhs.real, rhs.imag])
+        col = np.linalg.norm(lhs_r, axis=0)
+        col[col == 0] = 1.0
+        sol, *_ = np.linalg.lstsq(lhs_r / col, rhs_r, rcond=None)
+        sol = sol / col
+        if not np.all(np.isfinite(sol)):
+            raise SolverError("Levy/Sanathanan-Koerner linear fit returned non-finite coefficients")
+        b_new, a_new = sol[: m + 1], sol[m + 1 :]
+        change = np.linalg.norm(a_new - a) / max(np.linalg.norm(a_new), 1e-300)
+        a, b = a_new, b_new
+        d_prev = sn + vn @ a
+        if change < tol:
+            break
+    # undo the scaling s_scaled = s / w0
+    num = b[::-1] / w0 ** np.arange(m, -1, -1)
+    den_scaled = np.concatenate([[1.0], a[::-1]])
+    den = den_scaled / w0 ** np.arange(n, -1, -1)
+    num = num * w0**n
+    den = den * w0**n
+    return num, den
+
+
+# --------------------------------------------------------------------------------------
+# Forms
+# --------------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class RationalParams:
+    """Coefficients of a general rational fit ``num(s) / den(s)`` (highest power first, rad/s).
+
+    Attributes
+    ----------
+    num, den : tuple of float
+        Numerator (order ``M``) and monic denominator (order ``N``) coefficients.
+    """
+
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+
+    def __post_init__(self):
+        num = tuple(float(x) for x in self.num)
+        den = tuple(float(x) for x in self.den)
+        if not all(math.isfinite(x) for x in num + den):
+            raise ParameterError(f"RationalParams coefficients must be finite; got num={num}, den={den}")
+        if len(num) > len(den):
+            raise ParameterError(f"RationalParams must be proper: {len(num) - 1=} > {len(den) - 1=}")
+        object.__setattr__(self, "num", num)
+        object.__setattr__(self, "den", den)
+
+    def as_dict(self) -> dict[str, float]:
+        out = {f"b{len(self.num) - 1 - i}": v for i, v in enumerate(self.num)}
+        out.update({f"a{len(self.den) - 1 - i}": v for i, v in enumerate(self.den)})
+        return out
+
+    def transfer_function(self) -> ct.TransferFunction:
+        return ct.tf(list(self.num), list(self.den))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Form:
+    """A fixed structure: how to evaluate it and map parameters to/from the fit vector."""
+
+    name: str
+    names: tuple[str, ...]  # natural parameter names, in the params class's order
+    params_class: type
+    s_power: int  # H = s^k R(s)
+    init_orders: tuple[int, int]  # (m, n) of R for the linear estimate
+    response: Callable[[np.ndarray, np.ndarray], np.ndarray]  # (natural vec, s) -> H
+    from_rational: Callable[[np.ndarray, np.ndarray], np.ndarray]  # (num, den) of R -> natural vec
+    to_theta: Callable[[np.ndarray], np.ndarray]
+    from_theta: Callable[[np.ndarray], np.ndarray]
+    theta_bounds: Callable[[float, float], tuple[np.ndarray, np.ndarray]]  # (w_lo, w_hi) rad/s
+
+
+def _pairs_from_roots(roots: np.ndarray) -> list[tuple[float, float]]:
+    """Group roots into (wn, zeta) pairs: complex pairs directly, real roots paired by size."""
+    roots = np.asarray(roots, dtype=complex)
+    pairs: list[tuple[float, float]] = []
+    cplx = sorted([r for r in roots if r.imag > 1e-12 * max(1.0, abs(r))], key=abs)
+    real = sorted([abs(r.real) for r in roots if abs(r.imag) <= 1e-12 * max(1.0, abs(r))])
+    for r in cplx:
+        wn = abs(r)
+        pairs.append((wn, min(max(abs(r.real) / wn, _ZETA_BOUNDS[0]), _ZETA_BOUNDS[1])))
+    for r1, r2 in zip(real[0::2], real[1::2]):
+        wn = math.sqrt(max(r1 * r2, 1e-300))
+        pairs.append((wn, min(max((r1 + r2) / (2.0 * wn), _ZETA_BOUNDS[0]), _ZETA_BOUNDS[1])))
+    return pairs
+
+
+def _valve_response(p, s):
+    k, p1, fn, z = p
+    wn = TWO_PI * fn
+    return k * p1 * wn * wn / (s * (s + p1) * (s * s + 2.0 * z * wn * s + wn * wn))
+
+
+def _valve_from_rational(num, den):
+    roots = np.roots(den)
+    real = [r for r in roots if abs(r.imag) <= 1e-9 * max(1.0, abs(r))]
+    cplx = [r for r in roots if r.imag > 1e-9 * max(1.0, abs(r))]
+    if cplx and real:
+        p1 = abs(real[0].real)
+        wn, z = _pairs_from_roots(np.array([cplx[0], np.conj(cplx[0])]))[0]
+    else:
+        mags = sorted(abs(r.real) for r in roots)
+        p1 = mags[-1]
+        wn, z = _pairs_from_roots(np.array(mags[:2], dtype=complex))[0]
+    k = abs(num[-1] / den[-1]) if den[-1] != 0 else 1.0
+    return np.array([k, p1, wn / TWO_PI, z])
+
+
+def _structure_response(p, s):
+    k, z1, z2, f1, f2 = p
+    out = k * s * s
+    for z, f in ((z1, f1), (z2, f2)):
+        w = TWO_PI * f
+        out = out * (2.0 * z * w * s + w * w) / (s * s + 2.0 * z * w * s + w * w)
+    return out
+
+
+def _structure_from_rational(num, den):
+    pairs = _pairs_from_roots(np.roots(den))
+    if len(pairs) < 2:  # pragma: no cover - four roots always give two pairs
+        pairs = pairs * 2
+    (w1, z1), (w2, z2) = sorted(pairs[:2])
+    k = abs(num[-1] / den[-1]) if den[-1] != 0 else 1.0
+    return np.array([k, z1, z2, w1 / TWO_PI, w2 / TWO_PI])
+
+
+def _human_response(p, s):
+    k, z1, p1 = p
+    return k * (s + z1) ** 2 / (s * s * (s + p1) ** 2)
+
+
+def _human_from_rational(num, den):
+    k = abs(num[0]) if abs(num[0]) > 0 else 1.0
+    z1 = math.sqrt(abs(num[-1] / num[0])) if num[0] != 0 else 1.0
+    p1 = math.sqrt(abs(den[-1]))
+    return np.array([k, z1, p1])
+
+
+def _log_bounds(idx_log_freq, n, w_lo, w_hi, lin=()):
+    lo = np.full(n, -np.inf)
+    hi = np.full(n, np.inf)
+    for i, unit in idx_log_freq:
+        lo[i] = math.log(w_lo / 100.0 / unit)
+        hi[i] = math.log(w_hi * 100.0 / unit)
+    for i, (a, b) in lin:
+        lo[i], hi[i] = a, b
+    return lo, hi
+
+
+_FORMS: dict[str, _Form] = {
+    "valve": _Form(
+        name="valve",
+        names=("k_vc", "p1", "wn_hz", "zeta"),
+        params_class=ValveCylinderParams,
+        s_power=-1,
+        init_orders=(0, 3),
+        response=_valve_response,
+        from_rational=_valve_from_rational,
+        to_theta=lambda p: np.array([math.log(p[0]), math.log(p[1]), math.log(p[2]), p[3]]),
+        from_theta=lambda t: np.array([math.exp(t[0]), math.exp(t[1]), math.exp(t[2]), t[3]]),
+        theta_bounds=lambda a, b: _log_bounds([(1, 1.0), (2, TWO_PI)], 4, a, b, lin=[(3, _ZETA_BOUNDS)]),
+    ),
+    "structure": _Form(
+        name="structure",
+        names=("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz"),
+        params_class=StructureParams,
+        s_power=2,
+        init_orders=(2, 4),
+        response=_structure_response,
+        from_rational=_structure_from_rational,
+        # f2 = f1 * exp(d), d >= 0 keeps the modes ordered (f1 <= f2)
+        to_theta=lambda p: np.array([math.log(p[0]), p[1], p[2], math.log(p[3]), math.log(p[4] / p[3])]),
+        from_theta=lambda t: np.array([math.exp(t[0]), t[1], t[2], math.exp(t[3]), math.exp(t[3] + t[4])]),
+        theta_bounds=lambda a, b: _log_bounds(
+            [(3, TWO_PI)], 5, a, b, lin=[(1, _ZETA_BOUNDS), (2, _ZETA_BOUNDS), (4, (0.0, math.log(100.0)))]
+        ),
+    ),
+    "human": _Form(
+        name="human",
+        names=("k_h", "z1", "p1"),
+        params_class=LiteralHumanParams,
+        s_power=-2,
+        init_orders=(2, 2),
+        response=_human_response,
+        from_rational=_human_from_rational,
+        to_theta=lambda p: np.log(np.asarray(p, dtype=float)),
+        from_theta=lambda t: np.exp(np.asarray(t, dtype=float)),
+        theta_bounds=lambda a, b: _log_bounds([(1, 1.0), (2, 1.0)], 3, a, b),
+    ),
+}
+
+
+def parse_form(form: str) -> str | tuple[int, int]:
+    """Return a fixed form's name, or ``(M, N)`` for a rational form written ``"M/N"``.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown name, a malformed order, or ``M > N`` (improper).
+    """
+    if not isinstance(form, str):
+        raise ParameterError(f"form must be a string; got {type(form).__name__}")
+    if form in _FORMS:
+        return form
+    match = _ORDER_RE.match(form)
+    if not match:
+        raise ParameterError(
+            f"form must be one of {FORMS} or 'M/N' (numerator/denominator orders, e.g. '2/4'); got {form!r}"
+        )
+    m, n = int(match.group(1)), int(match.group(2))
+    if n < 1 or m > n:
+        raise ParameterError(f"rational form 'M/N' needs 1 <= N and M <= N (proper); got M={m}, N={n}")
+    return (m, n)
+
+
+def form_system(form: str, params) -> ct.TransferFunction:
+    """The transfer function (rad/s) of a parameter object in ``form``.
+
+    Parameters
+    ----------
+    form : str
+        ``"valve"``, ``"structure"``, ``"human"`` or ``"M/N"``.
+    params : ValveCylinderParams, StructureParams, LiteralHumanParams or RationalParams
+    """
+    parsed = parse_form(form)
+    if isinstance(parsed, tuple):
+        if not isinstance(params, RationalParams):
+            raise ParameterError(f"form {form!r} needs RationalParams; got {type(params).__name__}")
+        return params.transfer_function()
+    spec = _FORMS[parsed]
+    if not isinstance(params, spec.params_class):
+        raise ParameterError(
+            f"form {form!r} needs {spec.params_class.__name__}; got {type(params).__name__}"
+        )
+    return _tf_of(spec.name, np.array([getattr(params, nm) for nm in spec.names], dtype=float))
+
+
+def _tf_of(name: str, p: np.ndarray) -> ct.TransferFunction:
+    if name == "valve":
+        k, p1, fn, z = p
+        wn = TWO_PI * fn
+        return ct.tf([k * p1 * wn * wn], np.polymul([1.0, p1, 0.0], [1.0, 2.0 * z * wn, wn * wn]))
+    if name == "structure":
+        k, z1, z2, f1, f2 = p
+        num = np.array([k, 0.0, 0.0])
+        den = np.array([1.0])
+        for z, f in ((z1, f1), (z2, f2)):
+            w = TWO_PI * f
+            num = np.polymul(num, [2.0 * z * w, w * w])
+            den = np.polymul(den, [1.0, 2.0 * z * w, w * w])
+        return ct.tf(num, den)
+    k, z1, p1 = p
+    return ct.tf([k, 2.0 * k * z1, k * z1 * z1], [1.0, 2.0 * p1, p1 * p1, 0.0, 0.0])
+
+
+# --------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class BandError:
+    """Fit error over one sub-band.
+
+    Attributes
+    ----------
+    band_hz : (float, float)
+        Sub-band edges in Hz.
+    n_points : int
+        Frequencies used.
+    rms_db, rms_deg : float
+        Unweighted RMS magnitude error (dB) and phase error (degrees), model vs measured.
+    mean_coherence : float
+        Mean magnitude-squared coherence over the sub-band.
+    """
+
+    band_hz: tuple[float, float]
+    n_points: int
+    rms_db: float
+    rms_deg: float
+    mean_coherence: float
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    """A fitted model and how well it fits.
+
+    Attributes
+    ----------
+    form : str
+        ``"valve"``, ``"structure"``, ``"human"`` or ``"M/N"``.
+    params : ValveCylinderParams, StructureParams, LiteralHumanParams or RationalParams
+        The fitted parameters, as the plant's own parameter objects.
+    system : control.TransferFunction
+        The fitted model (rad/s).
+    band_hz : (float, float)
+        Fit band in Hz.
+    fit_error_db, fit_error_deg : float
+        Weighted RMS magnitude (dB) and phase (degrees) errors over the band,
+        with the fit's own weights (normalised to sum 1).
+    band_errors : tuple of BandError
+        Unweighted errors per sub-band.
+    std_errors : dict
+        Linearised standard errors of the parameters (same units), from the
+        Jacobian at the solution and the residual variance; indicative only.
+    correlation : numpy.ndarray, shape (n_params, n_params)
+        Linearised correlation matrix of the parameters.
+    initial : dict
+        Parameters of the linear (Levy/Sanathanan-Koerner) estimate.
+    notes : tuple of str
+        Identifiability and quality remarks (parameters at bounds, strong
+        correlations, poorly determined parameters, unstable poles).
+    n_points : int
+        Frequencies used in the fit.
+    cost : float
+        Final least-squares cost ``0.5 * sum r^2``.
+    """
+
+    form: str
+    params: object
+    system: ct.TransferFunction
+    band_hz: tuple[float, float]
+    fit_error_db: float
+    fit_error_deg: float
+    band_errors: tuple[BandError, ...]
+    std_errors: dict
+    correlation: np.ndarray
+    initial: dict
+    notes: tuple[str, ...]
+    n_points: int
+    cost: float
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(self.params_dict())
+
+    def params_dict(self) -> dict[str, float]:
+        """Parameter name -> value."""
+        if isinstance(self.params, RationalParams):
+            return self.params.as_dict()
+        return {k: float(v) for k, v in dataclasses.asdict(self.params).items()}
+
+    def frequency_response(self, f_hz) -> np.ndarray:
+        """Model response at frequencies ``f_hz`` (Hz), complex, shape like ``f_hz``."""
+        f = np.asarray(f_hz, dtype=float)
+        return np.asarray(self.system(1j * TWO_PI * f), dtype=complex).reshape(f.shape)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "form": self.form,
+            "params_class": type(self.params).__name__,
+            "params": self.params_dict(),
+            "std_errors": dict(self.std_errors),
+            "initial": dict(self.initial),
+            "fit_error_db": self.fit_error_db,
+            "fit_error_deg": self.fit_error_deg,
+            "band": list(self.band_hz),
+            "band_errors": [dataclasses.asdict(b) for b in self.band_errors],
+            "n_points": self.n_points,
+            "notes": list(self.notes),
+        }
+
+
+# --------------------------------------------------------------------------------------
+# The fit
+# --------------------------------------------------------------------------------------
+def _weights(f: np.ndarray, coh: np.ndarray, weighting: str, log_spacing: bool) -> np.ndarray:
+    if weighting == "coherence":
+        g2 = np.clip(coh, 0.0, _COH_CAP)
+        w = np.sqrt(g2 / (1.0 - g2))
+    elif weighting == "none":
+        w = np.ones_like(f)
+    else:
+        raise ParameterError(f"weighting must be 'coherence' or 'none'; got {weighting!r}")
+    if log_spacing:
+        df = np.gradient(f) if f.size > 1 else np.ones_like(f)
+        w = w * np.sqrt(np.abs(df) / f)
+    return w
+
+
+def _log_ratio(model: np.ndarray, meas: np.ndarray) -> np.ndarray:
+    return np.log(model / meas)
+
+
+def _band_errors(f, model, meas, coh, lo, hi, n_sub) -> tuple[BandError, ...]:
+    edges = np.geomspace(lo, hi, n_sub + 1)
+    lr = _log_ratio(model, meas)
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = (f >= a) & (f <= b)
+        if not np.any(m):
+            continue
+        db = 20.0 / math.log(10.0) * lr.real[m]
+        deg = np.degrees(lr.imag[m])
+        out.append(
+            BandError(
+                band_hz=(float(a), float(b)),
+                n_points=int(np.count_nonzero(m)),
+                rms_db=float(np.sqrt(np.mean(db**2))),
+                rms_deg=float(np.sqrt(np.mean(deg**2))),
+                mean_coherence=float(np.mean(coh[m])),
+            )
+        )
+    return tuple(out)
+
+
+def _usable(estimate, band_hz, min_coherence):
+    mask = estimate.band_mask(band_hz)
+    mask &= np.isfinite(estimate.h1) & (np.abs(estimate.h1) > 0)
+    mask &= estimate.coherence >= min_coherence
+    return mask
+
+
+def fit_frequency_response(
+    estimate: FrequencyResponseEstimate,
+    form: str,
+    band_hz: tuple[float, float],
+    *,
+    weighting: str = "coherence",
+    log_spacing: bool = True,
+    min_coherence: float = 0.0,
+    n_subbands: int = 3,
+    initial=None,
+    starts: int = 4,
+) -> FitResult:
+    """Fit ``form`` to an H1 estimate over ``band_hz``.
+
+    Parameters
+    ----------
+    estimate : FrequencyResponseEstimate
+        Measured H1 and coherence (see :func:`estimate_frequency_response`).
+    form : str
+        ``"valve"`` (Eqn 3), ``"structure"`` (Eqn 4), ``"human"`` (Eqn 5), or
+        ``"M/N"`` for a rational model of numerator order ``M`` and denominator
+        order ``N``.
+    band_hz : (float, float)
+        Fit band ``(lo, hi)`` in Hz; must lie inside the data.
+    weighting : str
+        ``"coherence"`` (default; see the module notes) or ``"none"``.
+    log_spacing : bool
+        Weight each frequency by ``sqrt(delta f / f)`` so decades count alike (default True).
+    min_coherence : float
+        Drop frequencies whose coherence is below this, in [0, 1).
+    n_subbands : int
+        Number of log-equal sub-bands in the error report.
+    initial : parameter object, optional
+        Start the nonlinear refinement here instead of the linear estimate
+        (fixed forms only; the linear estimate is still run and reported).
+    starts : int
+        Number of starting points for the nonlinear refinement (the linear
+        estimate and perturbations of its frequencies), best kept.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    DataError
+        If the band lies outside the data or holds too few frequencies.
+    InfeasibleError
+        If fewer usable (coherent) frequencies remain than the fit needs.
+    SolverError
+        If the nonlinear least squares fails or returns non-finite parameters.
+    ParameterError
+        For a bad form, weighting or threshold.
+    """
+    parsed = parse_form(form)
+    lo, hi = check_band(band_hz)
+    if not (isinstance(min_coherence, (int, float)) and 0.0 <= min_coherence < 1.0):
+        raise ParameterError(f"min_coherence must be in [0, 1); got {min_coherence!r}")
+    mask = _usable(estimate, (lo, hi), min_coherence)
+    f = estimate.f_hz[mask]
+    hm = estimate.h1[mask]
+    coh = estimate.coherence[mask]
+    w = _weights(f, coh, weighting, log_spacing)
+    n_par = (parsed[0] + parsed[1] + 1) if isinstance(parsed, tuple) else len(_FORMS[parsed].names)
+    if f.size < max(n_par, 3) or np.count_nonzero(w > 0) < n_par:
+        raise InfeasibleError(
+            f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz (coherence >= {min_coherence:g}); "
+            f"the {form!r} form has {n_par} parameters. Widen the band or lower min_coherence"
+        )
+    omega = TWO_PI * f
+    s = 1j * omega
+    if isinstance(parsed, tuple):
+        return _fit_rational(form, parsed, f, s, hm, coh, w, lo, hi, n_subbands)
+    return _fit_fixed(_FORMS[parsed], f, s, hm, coh, w, lo, hi, n_subbands, initial, starts)
+
+
+def _residual_fn(spec: _Form, s, hm, w):
+    def fun(theta):
+        model = spec.response(spec.from_theta(theta), s)
+        lr = _log_ratio(model, hm)
+        return np.concatenate([w * lr.real, w * lr.imag])
+
+    return fun
+
+
+def _starts(spec: _Form, p0: np.ndarray, n: int) -> list[np.ndarray]:
+    out = [p0]
+    if spec.name == "structure":
+        f1, f2 = p0[3], p0[4]
+        fc = math.sqrt(f1 * f2)
+        for ratio in (1.02, 1.15, 1.4):
+            out.append(np.array([p0[0], p0[1], p0[2], fc / math.sqrt(ratio), fc * math.sqrt(ratio)]))
+    else:
+        for factor in (0.7, 1.4, 2.0):
+            q = p0.copy()
+            for i, name in enumerate(spec.names):
+                if name.endswith("_hz") or name in ("p1", "z1"):
+                    q[i] = q[i] * factor
+            out.append(q)
+    return out[: max(1, n)]
+
+
+def _clip_theta(theta, lo, hi):
+    span = np.where(np.isfinite(hi - lo), (hi - lo) * 1e-6, 0.0)
+    return np.clip(theta, lo + span, hi - span)
+
+
+def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitResult:
+    m, n = spec.init_orders
+    target = hm / s**spec.s_power
+    try:
+        num, den = levy_sk(2 * np.pi * f, target, m, n, weights=w / np.abs(target))
+        p_lin = spec.from_rational(num, den)
+        if not np.all(np.isfinite(p_lin)) or np.any(p_lin[[i for i, nm in enumerate(spec.names)
+                                                            if not nm.startswith("zeta")]] <= 0):
+            raise SolverError("linear estimate gave non-physical parameters")
+    except (SolverError, np.linalg.LinAlgError):
+        p_lin = _generic_start(spec, f, hm)
+    p_lin = _physical(spec, p_lin)
+    if spec.name == "structure" and p_lin[3] > p_lin[4]:
+        p_lin = p_lin[[0, 2, 1, 4, 3]]
+    p0 = p_lin
+    if initial is not None:
+        if not isinstance(initial, spec.params_class):
+            raise ParameterError(
+                f"initial must be a {spec.params_class.__name__} for form {spec.name!r}; got {type(initial).__name__}"
+            )
+        p0 = np.array([getattr(initial, nm) for nm in spec.names], dtype=float)
+    omega_lo, omega_hi = TWO_PI * lo, TWO_PI * hi
+    tlo, thi = spec.theta_bounds(omega_lo, omega_hi)
+    fun = _residual_fn(spec, s, hm, w)
+    best = None
+    for q in _starts(spec, p0, starts):
+        theta0 = _clip_theta(spec.to_theta(_physical(spec, q)), tlo, thi)
+        try:
+            res = scipy.optimize.least_squares(fun, theta0, bounds=(tlo, thi), method="trf", x_scale="jac",
+                                               max_nfev=2000)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            raise SolverError(f"nonlinear least squares failed for form {spec.name!r}: {exc}") from None
+        if not np.all(np.isfinite(res.x)) or not math.isfinite(res.cost):
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        raise SolverError(f"nonlinear least squares for form {spec.name!r} did not return a usable solution")
+    p = spec.from_theta(best.x)
+    try:
+        params = spec.params_class(**dict(zip(spec.names, (float(v) for v in p))))
+    except ParameterError as exc:
+        raise SolverError(f"fitted {spec.name!r} parameters are not physical: {exc}") from None
+    model = spec.response(p, s)
+    cov_nat = _covariance(spec, best, p)
+    notes = _notes(spec, best, tlo, thi, p, cov_nat, lo, hi)
+    if best.status == 0:
+        notes += ("nonlinear least squares stopped at its evaluation limit before converging",)
+    return _result(spec.name, params, _tf_of(spec.name, p), f, model, hm, coh, w, lo, hi, n_sub,
+                   spec.names, p, cov_nat, dict(zip(spec.names, map(float, p_lin))), notes, best.cost)
+
+
+def _physical(spec, p):
+    p = np.array(p, dtype=float)
+    for i, nm in enumerate(spec.names):
+        if nm.startswith("zeta"):
+            p[i] = min(max(p[i], _ZETA_BOUNDS[0]), _ZETA_BOUNDS[1])
+        else:
+            p[i] = abs(p[i]) if p[i] != 0 else 1.0
+    return p
+
+
+def _generic_start(spec, f, hm) -> np.ndarray:
+    """A start when the linear estimate fails: frequencies at the band's geometric centre."""
+    fc = float(np.exp(np.mean(np.log(f))))
+    guess = {"k_vc": 1.0, "p1": TWO_PI * fc * 4, "wn_hz": fc, "zeta": 0.3, "k_s": 1.0, "zeta1": 0.2,
+             "zeta2": 0.2, "f1_hz": fc, "f2_hz": fc * 1.1, "k_h": 1.0, "z1": TWO_PI * fc * 2}
+    if spec.name == "human":
+        guess["p1"] = TWO_PI * fc / 4
+    p = np.array([guess[nm] for nm in spec.names])
+    # match the median gain
+    ratio = np.median(np.abs(hm) / np.abs(spec.response(p, 1j * TWO_PI * f)))
+    p[0] *= ratio
+    return p
+
+
+def _jacobian_natural(spec, theta) -> np.ndarray:
+    """d natural / d theta, by central differences (the maps are smooth and cheap)."""
+    n = theta.size
+    jac = np.empty((n, n))
+    for j in range(n):
+        h = 1e-6 * max(1.0, abs(theta[j]))
+        tp, tm = theta.copy(), theta.copy()
+        tp[j] += h
+        tm[j] -= h
+        jac[:, j] = (spec.from_theta(tp) - spec.from_theta(tm)) / (2 * h)
+    return jac
+
+
+def _covariance(spec, res, p):
+    m = res.fun.size
+    n = res.x.size
+    dof = max(m - n, 1)
+    s2 = 2.0 * res.cost / dof
+    jtj = res.jac.T @ res.jac
+    cov_t = s2 * np.linalg.pinv(jtj)
+    t = _jacobian_natural(spec, res.x)
+    return t @ cov_t @ t.T
+
+
+def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
+    notes = []
+    names = list(spec.names)
+    if spec.name == "structure":
+        names_t = ["ln k_s", "zeta1", "zeta2", "ln f1_hz", "ln(f2_hz/f1_hz)"]
+    else:
+        names_t = names
+    span = thi - tlo
+    for i, x in enumerate(res.x):
+        for edge, label in ((tlo[i], "lower"), (thi[i], "upper")):
+            if math.isfinite(edge) and abs(x - edge) <= 1e-6 * max(1.0, abs(span[i]) if math.isfinite(span[i]) else 1.0):
+                notes.append(f"{names_t[i]} is at its {label} bound {edge:g}: not identified by these data")
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    for i, nm in enumerate(names):
+        if p[i] != 0 and sd[i] / abs(p[i]) > 0.25:
+            notes.append(f"{nm} is poorly determined: linearised relative standard error {sd[i] / abs(p[i]):.0%}")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.95:
+                notes.append(f"{names[i]} and {names[j]} are strongly correlated (r = {corr[i, j]:+.3f})")
+    if spec.name == "structure":
+        z1, z2, f1, f2 = p[1], p[2], p[3], p[4]
+        sep = (f2 - f1) / f1
+        half_bw = max(z1, z2)
+        if sep < 2.0 * half_bw:
+            notes.append(
+                f"the two modes are {sep:.1%} apart, less than their half-power bandwidth (about "
+                f"{2 * half_bw:.0%}): they overlap in the response, and only the fixed form separates "
+                "them; f1/f2 and zeta1/zeta2 trade off against each other (see correlation and "
+                "std_errors) and become unidentifiable as coherence falls"
+            )
+    for nm, val in zip(names, p):
+        if nm.endswith("_hz") and not (lo <= val <= hi):
+            notes.append(f"{nm} = {val:.4g} Hz lies outside the fit band [{lo:g}, {hi:g}] Hz: extrapolated")
+        if nm in ("p1", "z1") and not (lo <= val / TWO_PI <= hi):
+            notes.append(
+                f"{nm} = {val:.4g} rad/s ({val / TWO_PI:.3g} Hz) lies outside the fit band "
+                f"[{lo:g}, {hi:g}] Hz: extrapolated"
+            )
+    return tuple(notes)
+
+
+def _result(form, params, system, f, model, hm, coh, w, lo, hi, n_sub, names, p, cov, initial, notes, cost):
+    lr = _log_ratio(model, hm)
+    wn = w**2 / np.sum(w**2)
+    err_db = float(np.sqrt(np.sum(wn * (20.0 / math.log(10.0) * lr.real) ** 2)))
+    err_deg = float(np.sqrt(np.sum(wn * np.degrees(lr.imag) ** 2)))
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    corr.setflags(write=False)
+    return FitResult(
+        form=form,
+        params=params,
+        system=system,
+        band_hz=(float(lo), float(hi)),
+        fit_error_db=err_db,
+        fit_error_deg=err_deg,
+        band_errors=_band_errors(f, model, hm, coh, lo, hi, n_sub),
+        std_errors={nm: float(v) for nm, v in zip(names, sd)},
+        correlation=corr,
+        initial=initial,
+        notes=notes,
+        n_points=int(f.size),
+        cost=float(cost),
+    )
+
+
+def _fit_rational(form, orders, f, s, hm, coh, w, lo, hi, n_sub) -> FitResult:
+    m, n = orders
+    omega = TWO_PI * f
+    num0, den0 = levy_sk(omega, hm, m, n, weights=w / np.abs(hm))
+    w0 = float(np.exp(np.mean(np.log(omega))))
+    # refine in the scaled variable s/w0: coefficients of comparable size
+    sc = s / w0
+    bn = num0[::-1] * w0 ** np.arange(m + 1) / w0**n
+    an = den0[::-1] * w0 ** np.arange(n + 1) / w0**n  # an[n] == 1
+
+    def unpack(x):
+        return x[: m + 1], np.concatenate([x[m + 1 :], [1.0]])
+
+    def fun(x):
+        b, a = unpack(x)
+        model = np.polyval(b[::-1], sc) / np.polyval(a[::-1], sc)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lr = np.log(model / hm)
+        lr = np.where(np.isfinite(lr), lr, 1e3)
+        return np.concatenate([w * lr.real, w * lr.imag])
+
+    x0 = np.concatenate([bn, an[:n]])
+    try:
+        res = scipy.optimize.least_squares(fun, x0, method="trf", x_scale="jac", max_nfev=4000)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise SolverError(f"nonlinear least squares failed for rational form {form!r}: {exc}") from None
+    if not np.all(np.isfinite(res.x)):
+        raise SolverError(f"nonlinear least squares for rational form {form!r} returned non-finite coefficients")
+    b, a = unpack(res.x)
+    num = b[::-1] / w0 ** np.arange(m, -1, -1) * w0**n
+    den = a[::-1] / w0 ** np.arange(n, -1, -1) * w0**n
+    params = RationalParams(num=tuple(num), den=tuple(den))
+    system = params.transfer_function()
+    model = np.polyval(num, s) / np.polyval(den, s)
+    notes = []
+    poles = np.roots(den)
+    if np.any(poles.real > 0):
+        notes.append(f"fitted model has {int(np.sum(poles.real > 0))} pole(s) in the right half-plane")
+    names = list(params.as_dict())
+    # covariance in scaled coefficients -> natural coefficients (diagonal scaling)
+    dof = max(res.fun.size - res.x.size, 1)
+    cov_x = 2.0 * res.cost / dof * np.linalg.pinv(res.jac.T @ res.jac)
+    scale = np.concatenate([w0**n / w0 ** np.arange(m + 1), w0**n / w0 ** np.arange(n)])
+    cov_nat_x = cov_x * np.outer(scale, scale)
+    # order as in as_dict: b_M..b_0, a_N..a_0 (a_N fixed at 1: zero variance)
+    idx_b = list(range(m, -1, -1))
+    cov = np.zeros((len(names), len(names)))
+    order = idx_b + [None] + list(range(m + n, m, -1))
+    for i, oi in enumerate(order):
+        for j, oj in enumerate(order):
+            if oi is not None and oj is not None:
+                cov[i, j] = cov_nat_x[oi, oj]
+    initial = RationalParams(num=tuple(num0), den=tuple(den0)).as_dict()
+    p_nat = np.array(list(params.as_dict().values()))
+    return _result(form, params, system, f, model, hm, coh, w, lo, hi, n_sub, names, p_nat, cov, initial,
+                   tuple(notes), res.cost)
+
