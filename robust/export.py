@@ -1,0 +1,216 @@
+"""Controller artifacts for real-time targets: JSON and MATLAB ``.mat``, written atomically.
+
+An artifact holds the continuous controller, its discrete 1 kHz equivalent
+(Tustin, prewarped at the structure mode), signal names and units, the design's
+weights and solver information, the family seed its validation used, and the
+software versions. :func:`load_artifact` validates a file before anything uses it:
+structure, shapes, finiteness, sample time, and that the discrete matrices are
+the Tustin transform of the continuous ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import math
+import platform
+from pathlib import Path
+
+import control as ct
+import numpy as np
+
+from ._jsonutil import atomic_write, atomic_write_json, to_jsonable
+from .errors import ArtifactError, ModelStructureError
+
+__all__ = ["ControllerArtifact", "discretize", "write_artifact", "load_artifact", "FORMAT_VERSION", "SIGNAL_UNITS"]
+
+FORMAT_VERSION = 1
+
+#: Units of the signals a controller can measure or drive (paper's units where it gives none).
+SIGNAL_UNITS = {
+    "x": "handle position, handle units (the paper's u/x units)",
+    "c": "cab acceleration, the paper's Eqn 4 output units",
+    "y": "cylinder position, the paper's Eqn 3 output units",
+    "f": "N (force of the handle on the hand)",
+    "r_corr": "cylinder reference correction, the paper's Eqn 3 output units",
+}
+
+
+def discretize(K: ct.StateSpace, dt: float, *, prewarp_hz: float | None = None) -> ct.StateSpace:
+    """Tustin (bilinear) discretisation, prewarped at ``prewarp_hz`` if given."""
+    if not K.isctime():
+        raise ModelStructureError(f"discretize needs a continuous-time controller; got dt={K.dt}")
+    kw = {}
+    if prewarp_hz is not None:
+        kw["prewarp_frequency"] = 2 * math.pi * prewarp_hz
+    Kd = ct.sample_system(K, dt, method="bilinear", **kw)
+    return ct.ss(Kd.A, Kd.B, Kd.C, Kd.D, dt, inputs=K.input_labels, outputs=K.output_labels, name=f"{K.name}_d")
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerArtifact:
+    """A controller ready for export, and everything needed to trust it."""
+
+    name: str
+    continuous: ct.StateSpace
+    discrete: ct.StateSpace
+    prewarp_hz: float | None
+    weights: dict = dataclasses.field(default_factory=dict)
+    solver: dict = dataclasses.field(default_factory=dict)
+    family: dict = dataclasses.field(default_factory=dict)
+    validation: dict = dataclasses.field(default_factory=dict)
+    extra: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def inputs(self) -> list[str]:
+        return list(self.continuous.input_labels)
+
+    @property
+    def outputs(self) -> list[str]:
+        return list(self.continuous.output_labels)
+
+    def to_dict(self) -> dict:
+        def mats(s):
+            return {"A": s.A, "B": s.B, "C": s.C, "D": s.D}
+
+        return to_jsonable(
+            {
+                "kind": "bdft-controller",
+                "format_version": FORMAT_VERSION,
+                "name": self.name,
+                "inputs": self.inputs,
+                "outputs": self.outputs,
+                "units": {s: SIGNAL_UNITS.get(s, "") for s in self.inputs + self.outputs},
+                "continuous": mats(self.continuous),
+                "discrete": {**mats(self.discrete), "dt": self.discrete.dt, "method": "tustin", "prewarp_hz": self.prewarp_hz},
+                "order": self.continuous.nstates,
+                "weights": self.weights,
+                "solver": self.solver,
+                "family": self.family,
+                "validation": self.validation,
+                "extra": self.extra,
+                "versions": _versions(),
+                "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            }
+        )
+
+
+def _versions() -> dict:
+    import cvxpy
+    import scipy
+
+    from . import __version__
+
+    return {"bdft-workbench": __version__, "python": platform.python_version(), "control": ct.__version__,
+            "numpy": np.__version__, "scipy": scipy.__version__, "cvxpy": cvxpy.__version__}
+
+
+def write_artifact(art: ControllerArtifact, path: str | Path, *, mat: bool = True) -> dict[str, Path]:
+    """Write ``path`` (JSON) and, with ``mat=True``, the ``.mat`` beside it; both atomically.
+
+    The ``.mat`` holds ``Ac, Bc, Cc, Dc`` (continuous), ``Ad, Bd, Cd, Dd, Ts``
+    (discrete), ``inputs``, ``outputs`` (cell arrays of names) and ``meta_json``.
+    """
+    import scipy.io
+
+    path = Path(path)
+    d = art.to_dict()
+    out = {"json": atomic_write_json(path, d)}
+    if mat:
+        matpath = path.with_suffix(".mat")
+        c, k = art.continuous, art.discrete
+        payload = {
+            "Ac": c.A, "Bc": c.B, "Cc": c.C, "Dc": c.D,
+            "Ad": k.A, "Bd": k.B, "Cd": k.C, "Dd": k.D, "Ts": float(k.dt),
+            "inputs": np.array(art.inputs, dtype=object), "outputs": np.array(art.outputs, dtype=object),
+            "meta_json": json.dumps({key: d[key] for key in ("name", "weights", "solver", "family", "versions", "created_utc")}),
+        }
+
+        def _w(tmp: str) -> None:
+            with open(tmp, "wb") as fh:
+                scipy.io.savemat(fh, payload)
+
+        out["mat"] = atomic_write(matpath, _w)
+    return out
+
+
+def _matrix(d: dict, key: str, where: str) -> np.ndarray:
+    if key not in d:
+        raise ArtifactError(f"{where}: missing matrix {key!r}")
+    try:
+        m = np.array(d[key], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ArtifactError(f"{where}.{key}: not a numeric matrix ({exc})") from None
+    if m.size == 0:
+        m = m.reshape((0, 0)) if m.ndim < 2 else m
+    if m.ndim != 2:
+        raise ArtifactError(f"{where}.{key}: expected a 2-D matrix; got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ArtifactError(f"{where}.{key}: contains NaN or inf")
+    return m
+
+
+def _ss(d: dict, where: str, inputs, outputs, dt=0):
+    A, B, C, D = (_matrix(d, k, where) for k in "ABCD")
+    n = A.shape[0]
+    m, p = len(inputs), len(outputs)
+    B = B.reshape(n, m) if B.size == n * m else B
+    C = C.reshape(p, n) if C.size == n * p else C
+    expected = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m)}
+    for key, mat in zip("ABCD", (A, B, C, D)):
+        if mat.shape != expected[key]:
+            raise ArtifactError(f"{where}.{key}: expected shape {expected[key]} for {n} states, {m} inputs, {p} outputs; got {mat.shape}")
+    return ct.ss(A, B, C, D, dt, inputs=list(inputs), outputs=list(outputs))
+
+
+def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact:
+    """Load and validate a controller artifact written by :func:`write_artifact`.
+
+    Raises
+    ------
+    ArtifactError
+        On a missing or unreadable file, a wrong kind or version, malformed or
+        non-finite matrices, inconsistent shapes, a non-positive sample time, or
+        discrete matrices that are not the Tustin transform of the continuous ones.
+    """
+    from .loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+
+    path = Path(path)
+    try:
+        d = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ArtifactError(f"controller artifact {path} does not exist") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ArtifactError(f"controller artifact {path} is not valid JSON: {exc}") from None
+    if not isinstance(d, dict) or d.get("kind") != "bdft-controller":
+        raise ArtifactError(f"{path}: 'kind' must be 'bdft-controller'; got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}")
+    if d.get("format_version") != FORMAT_VERSION:
+        raise ArtifactError(f"{path}: format_version must be {FORMAT_VERSION}; got {d.get('format_version')!r}")
+    ins, outs = d.get("inputs"), d.get("outputs")
+    if not (isinstance(ins, list) and isinstance(outs, list) and ins and outs):
+        raise ArtifactError(f"{path}: 'inputs' and 'outputs' must be non-empty lists of signal names")
+    bad = [s for s in ins if s not in CONTROLLER_INPUTS] + [s for s in outs if s not in CONTROLLER_OUTPUTS]
+    if bad:
+        raise ArtifactError(f"{path}: unknown signal name(s) {bad}; inputs must be among {CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}")
+    for sec in ("continuous", "discrete"):
+        if not isinstance(d.get(sec), dict):
+            raise ArtifactError(f"{path}: missing section {sec!r}")
+    cont = _ss(d["continuous"], f"{path.name}:continuous", ins, outs)
+    dt = d["discrete"].get("dt")
+    if not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
+        raise ArtifactError(f"{path}: discrete.dt must be a positive sample time in s; got {dt!r}")
+    disc = _ss(d["discrete"], f"{path.name}:discrete", ins, outs, dt=float(dt))
+    prewarp = d["discrete"].get("prewarp_hz")
+    again = discretize(cont, float(dt), prewarp_hz=prewarp)
+    w = 2 * np.pi * np.array([0.5, 2.0, 6.0, 20.0])
+    z = np.exp(1j * w * dt)
+    g1 = np.asarray(disc(z, squeeze=False))
+    g2 = np.asarray(again(z, squeeze=False))
+    if not np.allclose(g1, g2, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(g2).max())):
+        raise ArtifactError(f"{path}: the discrete controller is not the Tustin transform (dt={dt}, prewarp={prewarp} Hz) of the continuous one")
+    return ControllerArtifact(
+        name=str(d.get("name", path.stem)), continuous=cont, discrete=disc, prewarp_hz=prewarp,
+        weights=d.get("weights", {}), solver=d.get("solver", {}), family=d.get("family", {}),
+        validation=d.get("validation", {}), extra=d.get("extra", {}),
+    )
