@@ -108,6 +108,14 @@ def _meta_number(meta, key, cast, source):
         raise DataError(f"{source}: comment field {key}={meta[key]!r} is not a valid {cast.__name__}") from None
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _load_csv(path: Path) -> ChannelData:
     text = path.read_text(encoding="utf-8", errors="replace")
     lines = text.splitlines()
@@ -121,11 +129,8 @@ def _load_csv(path: Path) -> ChannelData:
     header = [h.strip() for h in lines[i].split(",")]
     if any(not h for h in header) or len(set(header)) != len(header):
         raise DataError(f"{path.name}: header must name every column once; got {header}")
-    try:
-        float(header[0])
+    if _is_number(header[0]):
         raise DataError(f"{path.name}: first row {header} looks numeric; the first row must name the channels")
-    except ValueError:
-        pass
     body = "\n".join(lines[i + 1 :])
     if not body.strip():
         raise DataError(f"{path.name}: header found but no data rows")
@@ -265,7 +270,11 @@ def select_channels(
                 f"{output_name!r}; the channels must be sampled together at one rate"
             )
         if data.time is not None:
-            _check_time(data.time[k], fs, k, a.size)
+            if len(data.time) not in (1, len(u)):
+                raise DataError(
+                    f"the time variable holds {len(data.time)} record(s); expected 1 (shared) or {len(u)}"
+                )
+            _check_time(data.time[k] if len(data.time) > 1 else data.time[0], fs, k, a.size)
         if min_duration_s is not None and a.size / fs < min_duration_s:
             raise DataError(
                 f"record {k} of {input_name!r}/{output_name!r} lasts {a.size / fs:g} s "

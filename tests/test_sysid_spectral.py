@@ -1,0 +1,190 @@
+"""H1, coherence and confidence bounds against the theory they come from (Bendat & Piersol, Ch. 9)."""
+
+import control as ct
+import numpy as np
+import pytest
+import scipy.signal as sps
+
+from robust import DataError, ParameterError, structure
+from robust.sysid import (
+    ChirpProtocol,
+    effective_averages,
+    estimate_frequency_response,
+    simulate_experiment,
+    simulate_response,
+)
+
+FS = 1000.0
+
+
+def _first_order(f_c=5.0):
+    return ct.ss(ct.tf([1.0], [1.0 / (2 * np.pi * f_c), 1.0]), inputs="u", outputs="y", name="lp")
+
+
+def _foh_response(system, f_hz, fs=FS):
+    """Exact frequency response of the first-order-hold discretisation the simulator uses."""
+    sysd = ct.sample_system(ct.ss(system), 1.0 / fs, method="foh")
+    return np.asarray(sysd(np.exp(2j * np.pi * f_hz / fs))).ravel()
+
+
+def test_h1_equals_true_response_on_noise_free_chirps():
+    # Records start at rest and end rung down (3 s tail >> 1/(zeta w) = 0.2 s), so each
+    # whole record's DFT obeys Y = G U exactly: H1 must equal G on the DFT grid.
+    proto = ChirpProtocol(n_records=3, duration=12.0, f0_hz=0.5, f1_hz=40.0, tail_s=3.0)
+    exp = simulate_experiment(structure(), proto)
+    est = estimate_frequency_response(exp.u, exp.y, exp.fs)
+    assert est.window == "boxcar" and est.nperseg == proto.n_samples
+    band = est.band_mask((1.0, 30.0))
+    g_d = _foh_response(exp.system, est.f_hz[band])
+    np.testing.assert_allclose(est.h1[band], g_d, rtol=1e-6)
+    # and the continuous Eqn 4 within the hold's (pi f / fs)^2 / 3 < 0.3 % at 30 Hz
+    g_c = np.asarray(exp.system(2j * np.pi * est.f_hz[band])).ravel()
+    np.testing.assert_allclose(est.h1[band], g_c, rtol=3e-3)
+    np.testing.assert_allclose(est.coherence[band], 1.0, atol=1e-9)
+
+
+def test_welch_leakage_on_noise_free_random_data_shrinks_with_segment_length():
+    # Segments cut from a random record carry the response to input before the segment:
+    # the H1 error is leakage, and it shrinks as segments grow relative to the 32 ms time constant.
+    rng = np.random.default_rng(5)
+    proto = ChirpProtocol(n_records=4, duration=32.0)
+    u = rng.standard_normal((proto.n_records, proto.n_samples))
+    exp = simulate_experiment(_first_order(), proto, excitation=u)
+    errors = []
+    for nperseg in (500, 2000, 8000):
+        est = estimate_frequency_response(exp.u, exp.y, FS, nperseg=nperseg)
+        assert est.window == "hann"
+        band = est.band_mask((2.0, 50.0))
+        g = _foh_response(exp.system, est.f_hz[band])
+        errors.append(float(np.median(np.abs(est.h1[band] / g - 1))))
+        assert est.coherence[band].min() > 0.95
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 5e-3
+
+
+def test_coherence_falls_with_noise_as_theory_says():
+    # White input (variance 1) and white output noise (variance s^2), both one-sided PSD 2 var / fs:
+    # gamma^2 = |G|^2 / (|G|^2 + s^2); E[estimate] ~ gamma^2 + (1 - gamma^2)^2 / n_d (bias).
+    # An 8 ms time constant in 2 s segments keeps leakage far below the random error.
+    rng = np.random.default_rng(17)
+    proto = ChirpProtocol(n_records=8, duration=16.384)
+    u = rng.standard_normal((proto.n_records, proto.n_samples))
+    lp = _first_order(20.0)
+    means = []
+    for s in (0.3, 1.0, 3.0):
+        exp = simulate_experiment(lp, proto, excitation=u, output_noise=s, seed=int(1000 * s))
+        est = estimate_frequency_response(exp.u, exp.y, FS, nperseg=2048, window="hann")
+        band = est.band_mask((1.0, 100.0))
+        g2 = np.abs(_foh_response(lp, est.f_hz[band])) ** 2
+        theory = g2 / (g2 + s * s)
+        nd = est.n_effective
+        expected = theory + (1 - theory) ** 2 / nd
+        # random error of one bin: sqrt(2) (1 - g^2) |g| / sqrt(n_d) (absolute, from the normalised error)
+        sd = np.sqrt(2.0) * (1 - theory) * np.sqrt(theory) / np.sqrt(nd)
+        z = (est.coherence[band] - expected) / sd
+        # neighbouring Hann bins are correlated, so the mean's spread is wider than 1/sqrt(n)
+        assert abs(np.mean(z)) < 0.3, f"{s=}: mean z {np.mean(z):.3f}"
+        assert 0.6 < np.std(z) < 1.4, f"{s=}: std z {np.std(z):.3f}"
+        means.append(float(np.mean(est.coherence[band])))
+    assert means[0] > means[1] > means[2]
+
+
+def test_confidence_disc_covers_truth_at_its_level():
+    rng = np.random.default_rng(23)
+    proto = ChirpProtocol(n_records=6, duration=16.384)
+    u = rng.standard_normal((proto.n_records, proto.n_samples))
+    lp = _first_order(5.0)
+    exp = simulate_experiment(lp, proto, excitation=u, output_noise=0.5, seed=3)
+    est = estimate_frequency_response(exp.u, exp.y, FS, nperseg=1024)
+    band = est.band_mask((1.0, 60.0))
+    g = _foh_response(lp, est.f_hz[band])
+    inside = np.abs(est.h1[band] - g) <= est.error_radius(0.95)[band]
+    assert 0.92 <= inside.mean() <= 0.985, inside.mean()
+    mlo, mhi = est.magnitude_bounds(0.95)
+    assert np.all(mlo <= np.abs(est.h1)) and np.all(np.abs(est.h1) <= mhi)
+
+
+@pytest.mark.parametrize(
+    "window, overlap, k, expected",
+    [
+        ("boxcar", 0, 10, 10.0),
+        ("hann", 0, 10, 10.0),
+        # Hann at 50 % overlap: rho_1 = 1/6 (Harris 1978, Table 1: 16.7 %), rho_2 = 0
+        ("hann", 512, 1000, 1000 / (1 + 2 * (1 - 1 / 1000) * (1 / 6) ** 2)),
+    ],
+    ids=["boxcar-no-overlap", "hann-no-overlap", "hann-50pct"],
+)
+def test_effective_averages(window, overlap, k, expected):
+    w = sps.get_window(window, 1024)
+    assert effective_averages(w, 1024, overlap, k) == pytest.approx(expected, rel=2e-3)
+
+
+def test_simulate_response_matches_python_control():
+    proto = ChirpProtocol(n_records=1, duration=3.0)
+    u = proto.excitation()
+    ref = ct.forced_response(structure(), T=proto.time(), U=u).outputs
+    np.testing.assert_allclose(simulate_response(structure(), u, FS), ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+
+
+# --- bad data ---------------------------------------------------------------------------------
+def _records(n=2, m=4000):
+    rng = np.random.default_rng(0)
+    return rng.standard_normal((n, m)), rng.standard_normal((n, m))
+
+
+def test_nan_is_rejected():
+    u, y = _records()
+    y[1, 17] = np.nan
+    with pytest.raises(DataError, match=r"output record 1 contains 1 non-finite"):
+        estimate_frequency_response(u, y, FS)
+
+
+def test_mismatched_lengths_are_rejected():
+    u, y = _records()
+    with pytest.raises(DataError, match=r"record 0: input has 4000 samples but output has 3999"):
+        estimate_frequency_response(list(u), [y[0, :-1], y[1]], FS)
+
+
+def test_too_short_records_are_rejected():
+    u, y = _records(m=100)
+    with pytest.raises(DataError, match=r"records too short: the shortest has 100 samples"):
+        estimate_frequency_response(u, y, FS, nperseg=256)
+
+
+def test_one_average_is_rejected():
+    u, y = _records(n=1)
+    with pytest.raises(DataError, match=r"need at least 2 averages"):
+        estimate_frequency_response(u, y, FS, nperseg=4000)
+
+
+@pytest.mark.parametrize(
+    "band, match",
+    [
+        ((10.0, 600.0), r"beyond the Nyquist frequency fs/2 = 500 Hz"),
+        ((0.1, 20.0), r"below the frequency resolution fs/nperseg = 0\.25 Hz"),
+        ((20.0, 10.0), r"lo < hi"),
+        ((100.0, 100.3), r"holds 2 frequencies"),
+    ],
+    ids=["above-nyquist", "below-resolution", "inverted", "too-narrow"],
+)
+def test_band_outside_data(band, match):
+    u, y = _records()
+    est = estimate_frequency_response(u, y, FS)
+    with pytest.raises(DataError, match=match):
+        est.band_mask(band)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"detrend": "quadratic"}, r"detrend must be one of"),
+        ({"nperseg": 4}, r"nperseg must be an integer >= 8"),
+        ({"nperseg": 256, "noverlap": 256}, r"noverlap=256"),
+        ({"window": "nonsense"}, r"window 'nonsense' is not a scipy.signal window"),
+    ],
+    ids=["detrend", "nperseg", "noverlap", "window"],
+)
+def test_bad_options(kw, match):
+    u, y = _records()
+    with pytest.raises(ParameterError, match=match):
+        estimate_frequency_response(u, y, FS, **kw)
