@@ -1,0 +1,83 @@
+"""Physical human model: structure, force port, fit to Eqn 5 and its stored result."""
+
+import dataclasses
+
+import control as ct
+import numpy as np
+import pytest
+
+from robust.errors import ParameterError
+from robust.human import HumanModel, human_variant
+from uncertainty._human_fit_data import FIT_RESULT
+from uncertainty.fit_human import FIT_BAND_HZ, chain_response, eqn5_response, fit_chain, fit_frequencies
+from uncertainty.human import PhysicalHuman, PhysicalHumanParams, fit_summary, segment_masses
+
+
+def test_variant_is_a_human_model_with_force_port():
+    h = human_variant("physical")
+    assert isinstance(h, PhysicalHuman)
+    assert isinstance(h, HumanModel)
+    assert h.has_force_port and h.variant == "physical"
+    sys = h.system()
+    assert sys.input_labels == ["c", "f"] and sys.output_labels == ["h"]
+    assert np.all(np.real(ct.poles(sys)) < 0)
+
+
+def test_response_matches_independent_chain_solution():
+    p = PhysicalHumanParams()
+    f = np.geomspace(0.1, 30, 50)
+    sys = PhysicalHuman(p).system()
+    resp = sys(2j * np.pi * f)  # (1, 2, F)
+    ref = p.h_gain * p.c_unit * chain_response(f, [p.m_trunk, p.m_arm], [p.k_trunk, p.k_arm], [p.c_trunk, p.c_arm])
+    np.testing.assert_allclose(resp[0, 0], ref, rtol=1e-10)
+
+
+def test_low_frequency_motion_is_bounded_and_force_port_is_the_static_compliance():
+    p = PhysicalHumanParams()
+    dc = PhysicalHuman(p).system().dcgain()
+    m_tot = p.m_trunk + p.m_arm
+    # seat acceleration: the chain sags by the inertial load on each spring
+    np.testing.assert_allclose(dc[0, 0], -p.h_gain * p.c_unit * (m_tot / p.k_trunk + p.m_arm / p.k_arm), rtol=1e-10)
+    # handle force: the two springs in series
+    np.testing.assert_allclose(dc[0, 1], p.h_gain * (1 / p.k_trunk + 1 / p.k_arm), rtol=1e-10)
+
+
+def test_fit_summary_error_is_the_models_error_against_eqn5():
+    s = fit_summary()
+    f = fit_frequencies()
+    model = PhysicalHuman().system()(2j * np.pi * f)[0, 0]
+    err_db = 20 * np.log10(np.abs(eqn5_response(f) / model))
+    assert s["fit error, magnitude [dB]"]["max"] == pytest.approx(np.max(np.abs(err_db)), rel=1e-9)
+    assert s["fit error, magnitude [dB]"]["rms"] == pytest.approx(np.sqrt(np.mean(err_db**2)), rel=1e-9)
+    assert s["fit band [Hz]"] == f"{FIT_BAND_HZ[0]:g}-{FIT_BAND_HZ[1]:g}"
+    assert s["unit-conversion gain h_gain [paper h units per m, for c in m/s^2]"] == PhysicalHumanParams().h_gain
+
+
+def test_masses_follow_anthropometry():
+    seg = segment_masses(75.0)
+    p = PhysicalHumanParams()
+    assert p.m_trunk == pytest.approx(seg["trunk"]) and p.m_arm == pytest.approx(seg["arm"])
+    h = PhysicalHuman.for_body_mass(100.0)
+    assert h.params.m_arm == pytest.approx(0.05 * 100.0)
+
+
+@pytest.mark.parametrize(
+    "field, value, match",
+    [("k_trunk", -1.0, "PhysicalHumanParams.k_trunk"), ("c_arm", float("nan"), "PhysicalHumanParams.c_arm"),
+     ("m_arm", 0.0, "PhysicalHumanParams.m_arm"), ("h_gain", 0.0, "h_gain must be nonzero")],
+    ids=["negative-stiffness", "nan-damping", "zero-mass", "zero-gain"],
+)
+def test_invalid_parameters_raise(field, value, match):
+    with pytest.raises(ParameterError, match=match):
+        dataclasses.replace(PhysicalHumanParams(), **{field: value})
+
+
+@pytest.mark.slow
+def test_fit_reproduces_stored_result():
+    stored = FIT_RESULT["two_dof"]
+    fresh = fit_chain(stored["masses"])
+    for key in ("stiffnesses", "dampings"):
+        np.testing.assert_allclose(fresh[key], stored[key], rtol=1e-4, err_msg=key)
+    assert fresh["gain"] == pytest.approx(stored["gain"], rel=1e-4)
+    assert fresh["err_db_max"] == pytest.approx(stored["err_db_max"], rel=1e-4)
+    assert fresh["at_bounds"] == []
