@@ -63,6 +63,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--weighting", default="coherence", choices=("coherence", "none"))
     p.add_argument("--min-coherence", type=float, default=0.0, metavar="G2",
                    help="ignore frequencies with coherence below this (default 0)")
+    p.add_argument("--significance", type=float, default=0.05, metavar="ALPHA",
+                   help="drop frequencies whose coherence is not significantly above zero at this "
+                        "family-wise level over the band (default 0.05; 1 keeps all)")
     p.add_argument("--confidence", type=float, default=0.95, help="level of the plotted bounds (default 0.95)")
     p.set_defaults(func=run)
     return p
@@ -83,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(
             f"--save-model needs a fixed form (valve, structure or human); got the rational form {args.form!r}"
         )
+    if not 0.0 < args.significance:
+        raise ParameterError(f"--significance must be in (0, 1], 1 keeping every frequency; got {args.significance!r}")
     if not 0.0 < args.confidence < 1.0:
         raise ParameterError(f"--confidence must be in (0, 1); got {args.confidence!r}")
     band = (float(args.band[0]), float(args.band[1]))
@@ -90,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         args.data, args.input, args.output, args.fs, args.form, band,
         nperseg=args.nperseg, window=args.window, detrend=args.detrend,
         weighting=args.weighting, min_coherence=args.min_coherence,
+        significance=None if args.significance >= 1.0 else args.significance,
     )
     est, fit = result.estimate, result.fit
     stem = f"{_slug(Path(args.data).stem)}_{_slug(args.form.replace('/', '-'))}"

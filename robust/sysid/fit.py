@@ -32,10 +32,13 @@ Each fit runs in two steps:
    phase error (rad, wrapped to (-pi, pi]). Gains and frequencies are fitted in
    logarithms (so they stay positive), damping ratios within [0.005, 0.995].
 
-Residuals are weighted by ``sqrt(gamma^2 / (1 - gamma^2))`` (the inverse of the
-standard deviation of ``log H1`` up to a constant, Bendat & Piersol, Ch. 9), with
-``gamma^2`` capped at 0.999, and by ``sqrt(delta f / f)`` so that each decade
-counts alike on the linear Welch frequency grid.
+Frequencies whose coherence is not significantly above zero (5 % family-wise over
+the band, Bonferroni, from the null distribution ``P(gamma_hat^2 > x) = (1 - x)^(n_d - 1)``)
+are dropped: there H1 is noise and its log-magnitude is biased upward. The rest are weighted by
+``sqrt(gamma^2 / (1 - gamma^2))`` (the inverse of the standard deviation of
+``log H1`` up to a constant, Bendat & Piersol, Ch. 9), with ``gamma^2`` the
+estimate corrected for its ``1/n_d`` bias and capped at 0.999, and by
+``sqrt(delta f / f)`` so that each decade counts alike on the linear Welch grid.
 """
 
 from __future__ import annotations
@@ -63,6 +66,7 @@ __all__ = [
     "levy_sk",
     "parse_form",
     "form_system",
+    "coherence_threshold",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -506,9 +510,25 @@ class FitResult:
 # --------------------------------------------------------------------------------------
 # The fit
 # --------------------------------------------------------------------------------------
-def _weights(f: np.ndarray, coh: np.ndarray, weighting: str, log_spacing: bool) -> np.ndarray:
+def coherence_threshold(n_effective: float, significance: float) -> float:
+    """Coherence an estimate from ``n_effective`` averages exceeds with probability ``significance`` when
+    the true coherence is zero: ``1 - significance^(1 / (n_d - 1))``.
+
+    Under zero true coherence ``P(gamma_hat^2 > x) = (1 - x)^(n_d - 1)`` (Bendat & Piersol, Ch. 9).
+    """
+    nd = max(float(n_effective), 1.0 + 1e-9)
+    return 1.0 - significance ** (1.0 / (nd - 1.0))
+
+
+def _debiased_coherence(coh: np.ndarray, n_effective: float) -> np.ndarray:
+    """``(n_d gamma_hat^2 - 1) / (n_d - 1)``, clipped to [0, 1]: removes the ``1/n_d`` floor of the estimate."""
+    nd = max(float(n_effective), 1.0 + 1e-9)
+    return np.clip((nd * coh - 1.0) / (nd - 1.0), 0.0, 1.0)
+
+
+def _weights(f: np.ndarray, coh: np.ndarray, n_effective: float, weighting: str, log_spacing: bool) -> np.ndarray:
     if weighting == "coherence":
-        g2 = np.clip(coh, 0.0, _COH_CAP)
+        g2 = np.clip(_debiased_coherence(coh, n_effective), 0.0, _COH_CAP)
         w = np.sqrt(g2 / (1.0 - g2))
     elif weighting == "none":
         w = np.ones_like(f)
@@ -546,11 +566,17 @@ def _band_errors(f, model, meas, coh, lo, hi, n_sub) -> tuple[BandError, ...]:
     return tuple(out)
 
 
-def _usable(estimate, band_hz, min_coherence):
+def _usable(estimate, band_hz, min_coherence, significance):
     mask = estimate.band_mask(band_hz)
     mask &= np.isfinite(estimate.h1) & (np.abs(estimate.h1) > 0)
-    mask &= estimate.coherence >= min_coherence
-    return mask
+    threshold = min_coherence
+    if significance is not None:
+        # family-wise over the band (Bonferroni): with no true coherence anywhere in the band,
+        # no frequency passes with probability 1 - significance
+        per_bin = significance / max(int(np.count_nonzero(mask)), 1)
+        threshold = max(threshold, coherence_threshold(estimate.n_effective, per_bin))
+    mask &= estimate.coherence >= threshold
+    return mask, threshold
 
 
 def fit_frequency_response(
@@ -561,9 +587,10 @@ def fit_frequency_response(
     weighting: str = "coherence",
     log_spacing: bool = True,
     min_coherence: float = 0.0,
+    significance: float | None = 0.05,
     n_subbands: int = 3,
     initial=None,
-    starts: int = 4,
+    starts: int = 8,
 ) -> FitResult:
     """Fit ``form`` to an H1 estimate over ``band_hz``.
 
@@ -583,6 +610,13 @@ def fit_frequency_response(
         Weight each frequency by ``sqrt(delta f / f)`` so decades count alike (default True).
     min_coherence : float
         Drop frequencies whose coherence is below this, in [0, 1).
+    significance : float or None
+        Also drop frequencies whose coherence is not significantly above zero, at
+        this family-wise level over the band's ``n`` frequencies (per-frequency level
+        ``significance / n``, Bonferroni; default 0.05; see :func:`coherence_threshold`).
+        At such frequencies H1 is noise and its log-magnitude is biased upward, and
+        among hundreds of noise-only frequencies a per-frequency 5 % test would let
+        dozens through. ``None`` keeps them all.
     n_subbands : int
         Number of log-equal sub-bands in the error report.
     initial : parameter object, optional
@@ -611,16 +645,18 @@ def fit_frequency_response(
     lo, hi = check_band(band_hz)
     if not (isinstance(min_coherence, (int, float)) and 0.0 <= min_coherence < 1.0):
         raise ParameterError(f"min_coherence must be in [0, 1); got {min_coherence!r}")
-    mask = _usable(estimate, (lo, hi), min_coherence)
+    if significance is not None and not (isinstance(significance, (int, float)) and 0.0 < significance < 1.0):
+        raise ParameterError(f"significance must be in (0, 1) or None; got {significance!r}")
+    mask, threshold = _usable(estimate, (lo, hi), min_coherence, significance)
     f = estimate.f_hz[mask]
     hm = estimate.h1[mask]
     coh = estimate.coherence[mask]
-    w = _weights(f, coh, weighting, log_spacing)
+    w = _weights(f, coh, estimate.n_effective, weighting, log_spacing)
     n_par = (parsed[0] + parsed[1] + 1) if isinstance(parsed, tuple) else len(_FORMS[parsed].names)
     if f.size < max(n_par, 3) or np.count_nonzero(w > 0) < n_par:
         raise InfeasibleError(
-            f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz (coherence >= {min_coherence:g}); "
-            f"the {form!r} form has {n_par} parameters. Widen the band or lower min_coherence"
+            f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz (coherence >= {threshold:.3g}); "
+            f"the {form!r} form has {n_par} parameters. Widen the band, add records or lower min_coherence"
         )
     omega = TWO_PI * f
     s = 1j * omega
@@ -639,14 +675,24 @@ def _residual_fn(spec: _Form, s, hm, w):
 
 
 def _starts(spec: _Form, p0: np.ndarray, n: int) -> list[np.ndarray]:
+    """The linear estimate first, then perturbations of its frequencies.
+
+    For the structure the ordering ``f1 <= f2`` makes the assignment of the two
+    damping ratios to the lower and upper mode part of the answer, and the
+    merged-mode point ``f1 = f2`` is a stationary point of the separation; so the
+    starts spread the modes apart and try both damping assignments.
+    """
     out = [p0]
     if spec.name == "structure":
-        f1, f2 = p0[3], p0[4]
+        k, z1, z2, f1, f2 = p0
         fc = math.sqrt(f1 * f2)
-        for ratio in (1.02, 1.15, 1.4):
-            out.append(np.array([p0[0], p0[1], p0[2], fc / math.sqrt(ratio), fc * math.sqrt(ratio)]))
+        for ratio in (1.05, 1.2, 1.5, 1.02):
+            r = math.sqrt(ratio)
+            out.append(np.array([k, z2, z1, fc / r, fc * r]))
+            out.append(np.array([k, z1, z2, fc / r, fc * r]))
+        out.insert(1, np.array([k, z2, z1, f1, f2]))
     else:
-        for factor in (0.7, 1.4, 2.0):
+        for factor in (0.7, 1.4, 2.0, 0.5):
             q = p0.copy()
             for i, name in enumerate(spec.names):
                 if name.endswith("_hz") or name in ("p1", "z1"):

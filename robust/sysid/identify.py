@@ -80,6 +80,7 @@ def identify_records(
     detrend: str = "constant",
     weighting: str = "coherence",
     min_coherence: float = 0.0,
+    significance: float | None = 0.05,
     input_name: str = "u",
     output_name: str = "y",
     seed: int | None = None,
@@ -99,7 +100,9 @@ def identify_records(
     """
     check_band(band_hz)
     est = estimate_frequency_response(u, y, fs, nperseg=nperseg, window=window, detrend=detrend)
-    fit = fit_frequency_response(est, form, band_hz, weighting=weighting, min_coherence=min_coherence)
+    fit = fit_frequency_response(
+        est, form, band_hz, weighting=weighting, min_coherence=min_coherence, significance=significance
+    )
     return Identification(est, fit, input_name, output_name, float(fs), seed, source)
 
 
