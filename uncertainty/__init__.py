@@ -2,12 +2,29 @@
 
 Public API (import from here; module layout may change):
 
+* uncertain parameters: :class:`UncertainParameter`, :data:`DISTRIBUTIONS`;
 * physical human: :class:`PhysicalHuman`, :class:`PhysicalHumanParams`,
-  :func:`physical_human_matrices`, :func:`fit_summary`, :func:`segment_masses`.
+  :func:`physical_human_matrices`, :func:`fit_summary`, :func:`segment_masses`;
+* families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`;
+* sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`;
+* batched validation: :func:`validate_family`, :class:`ValidationResult`,
+  :func:`closed_loop_matrices`, :func:`batched_poles`, :data:`BDFT_BAND_HZ`.
 """
 
 from .anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
+from .batched import (
+    BDFT_BAND_HZ,
+    DEFAULT_CHUNK,
+    STABILITY_THRESHOLD,
+    ValidationResult,
+    batched_poles,
+    closed_loop_matrices,
+    validate_family,
+)
+from .family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
 from .human import PhysicalHuman, PhysicalHumanParams, fit_summary, physical_human_matrices
+from .parameters import DISTRIBUTIONS, UncertainParameter
+from .sampling import METHODS, SampleSet, sample
 
 __all__ = [
     "NOMINAL_BODY_MASS",
@@ -17,4 +34,20 @@ __all__ = [
     "PhysicalHumanParams",
     "physical_human_matrices",
     "fit_summary",
+    "DISTRIBUTIONS",
+    "UncertainParameter",
+    "HUMAN_VARIANTS",
+    "MODEL_PARAMETERS",
+    "Family",
+    "default_family",
+    "METHODS",
+    "SampleSet",
+    "sample",
+    "BDFT_BAND_HZ",
+    "DEFAULT_CHUNK",
+    "STABILITY_THRESHOLD",
+    "ValidationResult",
+    "batched_poles",
+    "closed_loop_matrices",
+    "validate_family",
 ]

@@ -1,0 +1,437 @@
+"""Closed-loop poles of every member of a family, assembled in batches.
+
+Each block of the Figure 5 loop is realised as arrays ``A, B, C, D`` with a
+leading member axis (a fixed block has axis length 1 and broadcasts), the block
+outputs are wired to the block inputs by one constant matrix ``M`` built from the
+signal names, and the loop is closed for all members at once::
+
+    x' = A x + B u,   y = C x + D u,   u = M y
+    =>  A_cl = A + B M (I - D M)^{-1} C          (one batched solve per chunk)
+
+No python-control object is built per member. The eigenvalues of the stack are
+taken with :func:`numpy.linalg.eigvals`, chunk by chunk, so memory stays bounded.
+
+Realisations (fixed, as functions of the parameters):
+
+* PI: one integrator state, ``e = kp err + ki xi``;
+* valve/cylinder (Eqn 3): the python-control realisation of the nominal block
+  (it does not vary within a family);
+* structure (Eqn 4): ``C/Y = K_s s^2 T1(s) T2(s)`` with
+  ``Ti = (2 zi wi s + wi^2)/(s^2 + 2 zi wi s + wi^2)``. The strictly proper
+  ``v = K_s T1 T2 y`` (the cab displacement, ``c = s^2 v``) is realised as two
+  controllable-canonical sections in cascade; because ``T1 T2`` has relative
+  degree 2, ``c = C_v A^2 x + C_v A B y`` is a static output of the same 4 states;
+* literal human (Eqn 5): the double pole at ``s = 0`` of Eqn 5 cancels the
+  structure's double zero at ``s = 0`` exactly, so the literal human is driven by
+  ``v`` through ``K_H (s + z1)^2 / (s + p1)^2`` (2 states). This is the minimal
+  loop: python-control's series connection keeps the two cancelled modes at
+  ``s = 0`` (uncontrollable and unobservable), which
+  :func:`robust.realization.minimal_realization` removes; the batched poles equal
+  the poles of that minimal realisation;
+* physical human: :func:`uncertainty.human.physical_human_matrices`;
+* controller: the given continuous state-space compensator, inputs among
+  ``x, c, y`` and outputs among ``f, r_corr`` (the convention of
+  :mod:`robust.loop`).
+
+Static relations (intended motion ``u = 0`` and external hand force ``f_ext = 0``,
+which do not affect poles): ``x = sigma kappa h``, ``err = K_PSF x + r_corr - y``,
+``f = f_controller``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import control as ct
+import numpy as np
+
+from robust.components import valve_cylinder
+from robust.errors import ModelStructureError, ParameterError
+from robust.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+
+from .family import Family
+from .human import physical_human_matrices
+from .sampling import SampleSet
+
+__all__ = [
+    "BDFT_BAND_HZ",
+    "STABILITY_THRESHOLD",
+    "DEFAULT_CHUNK",
+    "Block",
+    "loop_blocks",
+    "closed_loop_matrices",
+    "batched_poles",
+    "ValidationResult",
+    "validate_family",
+]
+
+#: Band (Hz) of the poles whose damping ratio is reported: the structure's modes from
+#: a machine on its tyres (about 2.5 Hz) up to twice the stilts frequencies (6.3-6.5 Hz).
+BDFT_BAND_HZ = (2.0, 12.0)
+#: A member is stable when every closed-loop pole has real part below this (1/s).
+STABILITY_THRESHOLD = -1e-9
+#: Members per chunk: about 70 MB of closed-loop matrices for a 13-state loop.
+DEFAULT_CHUNK = 50_000
+
+
+@dataclasses.dataclass(frozen=True)
+class Block:
+    """One block of the loop for a batch of members.
+
+    ``A, B, C, D`` have shapes (N or 1, n, m_in...) as usual with a leading member
+    axis; ``inputs`` and ``outputs`` name the signals.
+    """
+
+    name: str
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+    @property
+    def nstates(self) -> int:
+        return self.A.shape[-1]
+
+
+def _const(name, A, B, C, D, inputs, outputs) -> Block:
+    return Block(name, *(np.asarray(x, float)[None] for x in (A, B, C, D)), tuple(inputs), tuple(outputs))
+
+
+def _section(z, w):
+    """Controllable canonical ``(2 z w s + w^2) / (s^2 + 2 z w s + w^2)`` for arrays of (z, w)."""
+    n = z.shape[0]
+    A = np.zeros((n, 2, 2))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 0] = -w * w
+    A[:, 1, 1] = -2.0 * z * w
+    B = np.zeros((n, 2, 1))
+    B[:, 1, 0] = 1.0
+    C = np.stack([w * w, 2.0 * z * w], axis=-1)[:, None, :]
+    return A, B, C
+
+
+def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
+    """Structure (Eqn 4) for arrays of parameters: input ``y``, outputs ``v`` (= c/s^2) and ``c``."""
+    w1, w2 = 2 * math.pi * np.asarray(f1_hz, float), 2 * math.pi * np.asarray(f2_hz, float)
+    A1, B1, C1 = _section(np.asarray(zeta1, float), w1)
+    A2, B2, C2 = _section(np.asarray(zeta2, float), w2)
+    n = A1.shape[0]
+    A = np.zeros((n, 4, 4))
+    A[:, :2, :2] = A1
+    A[:, 2:, 2:] = A2
+    A[:, 2:, :2] = B2 @ C1
+    B = np.zeros((n, 4, 1))
+    B[:, :2] = B1
+    Cv = np.zeros((n, 1, 4))
+    Cv[:, :, 2:] = np.asarray(k_s, float)[:, None, None] * C2
+    CA = Cv @ A
+    C = np.concatenate([Cv, CA @ A], axis=1)
+    D = np.concatenate([np.zeros((n, 1, 1)), CA @ B], axis=1)
+    return Block("structure", A, B, C, D, ("y",), ("v", "c"))
+
+
+def literal_human_cancelled(k_h, z1, p1) -> Block:
+    """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v`` (cab displacement), output ``h``."""
+    k_h, z1, p1 = (np.asarray(x, float) for x in (k_h, z1, p1))
+    n = k_h.shape[0]
+    A = np.zeros((n, 2, 2))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 0] = -p1 * p1
+    A[:, 1, 1] = -2.0 * p1
+    B = np.zeros((n, 2, 1))
+    B[:, 1, 0] = 1.0
+    C = (k_h[:, None] * np.stack([z1 * z1 - p1 * p1, 2.0 * (z1 - p1)], axis=-1))[:, None, :]
+    D = k_h[:, None, None]
+    return Block("human", A, B, C, D, ("v",), ("h",))
+
+
+def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
+    if not isinstance(controller, ct.StateSpace):
+        raise ModelStructureError(f"controller must be a control.StateSpace; got {type(controller).__name__}")
+    if not controller.isctime():
+        raise ModelStructureError(f"controller must be continuous-time; got dt={controller.dt}")
+    ins, outs = list(controller.input_labels), list(controller.output_labels)
+    bad_in = [s for s in ins if s not in CONTROLLER_INPUTS]
+    bad_out = [s for s in outs if s not in CONTROLLER_OUTPUTS]
+    if bad_in or bad_out or len(set(ins)) != len(ins) or len(set(outs)) != len(outs):
+        raise ModelStructureError(
+            f"controller inputs must be distinct names among {CONTROLLER_INPUTS} and outputs among "
+            f"{CONTROLLER_OUTPUTS}; got inputs {ins}, outputs {outs}"
+        )
+    if "f" in outs and not has_force_port:
+        raise ModelStructureError("controller drives the handle force 'f', but the literal human has no force port; "
+                                  "use the physical human")
+    mats = [np.asarray(x, float) for x in (controller.A, controller.B, controller.C, controller.D)]
+    for label, x in zip("ABCD", mats):
+        if not np.all(np.isfinite(x)):
+            raise ModelStructureError(f"controller.{label} contains non-finite entries")
+    renamed = ["f_ctrl" if s == "f" else s for s in outs]
+    return _const("controller", *mats, ins, renamed)
+
+
+def loop_blocks(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> list[Block]:
+    """The dynamic blocks of the loop for members ``values`` (shape (N, d))."""
+    p = family.model_arrays(values)
+    cal = family.calibration
+    blocks = []
+    if cal.ki > 0.0:
+        blocks.append(_const("pi", [[0.0]], [[1.0]], [[cal.ki]], [[cal.kp]], ["err"], ["e"]))
+    else:
+        blocks.append(_const("pi", np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[cal.kp]], ["err"], ["e"]))
+    v = valve_cylinder(family.valve)
+    blocks.append(_const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"]))
+    blocks.append(structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz"))))
+    if family.human == "literal":
+        blocks.append(literal_human_cancelled(p["human.k_h"], p["human.z1"], p["human.p1"]))
+    else:
+        names = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
+        A, B, C, D = physical_human_matrices(*(p[f"human.{f}"] for f in names))
+        blocks.append(Block("human", A, B, C, D, ("c", "f"), ("h",)))
+    if controller is not None:
+        blocks.append(_controller_block(controller, family.human == "physical"))
+    return blocks
+
+
+def _interconnection(family: Family, blocks: list[Block]) -> np.ndarray:
+    """Constant ``M`` with ``u = M y`` (block inputs from block outputs), by signal name."""
+    outs = [s for b in blocks for s in b.outputs]
+    ins = [s for b in blocks for s in b.inputs]
+    col = {s: j for j, s in enumerate(outs)}
+    cal = family.calibration
+    gain = cal.handle_sign * cal.loop_scale
+    # each block input as {block output: coefficient}
+    x = {"h": gain}
+    rules = {
+        "err": {"h": family.k_psf * gain, "r_corr": 1.0, "y": -1.0},
+        "e": {"e": 1.0},
+        "y": {"y": 1.0},
+        "v": {"v": 1.0},
+        "c": {"c": 1.0},
+        "f": {"f_ctrl": 1.0},
+        "x": x,
+    }
+    M = np.zeros((len(ins), len(outs)))
+    for i, s in enumerate(ins):
+        for src, coef in rules[s].items():
+            if src in col:  # r_corr and f_ctrl exist only with a controller that drives them
+                M[i, col[src]] += coef
+    return M
+
+
+def closed_loop_matrices(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> np.ndarray:
+    """Closed-loop state matrices of members ``values``.
+
+    Parameters
+    ----------
+    family : Family
+    values : ndarray, shape (N, d)
+        Uncertain-parameter values (columns in ``family.names`` order).
+    controller : control.StateSpace, optional
+        Compensator at the handle-force and measurement signals.
+
+    Returns
+    -------
+    ndarray, shape (N, n, n)
+        ``n`` = 13 (+ controller states) for the physical human, 11 (+ controller
+        states) for the literal human (minimal loop, see the module docstring).
+
+    Raises
+    ------
+    ModelStructureError
+        If the algebraic loop ``I - D M`` is singular for a member (ill-posed loop).
+    """
+    values = np.asarray(values, float)
+    N = values.shape[0]
+    blocks = loop_blocks(family, values, controller=controller)
+    M = _interconnection(family, blocks)
+    ns = [b.nstates for b in blocks]
+    ni = [len(b.inputs) for b in blocks]
+    no = [len(b.outputs) for b in blocks]
+    n, m, p = sum(ns), sum(ni), sum(no)
+    A = np.zeros((N, n, n))
+    B = np.zeros((N, n, m))
+    C = np.zeros((N, p, n))
+    D = np.zeros((N, p, m))
+    xs = us = ys = 0
+    for b, k, i, o in zip(blocks, ns, ni, no):
+        A[:, xs:xs + k, xs:xs + k] = b.A
+        B[:, xs:xs + k, us:us + i] = b.B
+        C[:, ys:ys + o, xs:xs + k] = b.C
+        D[:, ys:ys + o, us:us + i] = b.D
+        xs, us, ys = xs + k, us + i, ys + o
+    DM = D @ M
+    lhs = np.eye(p)[None] - DM
+    try:
+        Z = np.linalg.solve(lhs, C)
+    except np.linalg.LinAlgError:
+        raise ModelStructureError("the loop is ill-posed (I - D M singular) for at least one member; "
+                                  "check the controller's feedthrough D") from None
+    return A + (B @ M) @ Z
+
+
+def batched_poles(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> np.ndarray:
+    """Closed-loop poles of members ``values``, shape (N, n), complex (rad/s)."""
+    return np.linalg.eigvals(closed_loop_matrices(family, values, controller=controller))
+
+
+@dataclasses.dataclass(frozen=True)
+class ValidationResult:
+    """Family-wide closed-loop pole metrics.
+
+    Attributes
+    ----------
+    samples : int
+        Number of members validated.
+    seed : int
+        Seed of the sample set.
+    method : str
+        Sampling method.
+    human : str
+        Human variant.
+    k_psf : float
+        Position scale factor.
+    fraction_stable : float
+        Fraction of members whose poles all have real part below ``stability_threshold``.
+    n_unstable : int
+        Number of unstable members.
+    max_real_pole : float
+        Largest real part of any closed-loop pole of any member, 1/s.
+    min_damping : float
+        Smallest damping ratio ``-Re(p)/|p|`` of the poles with ``|Im(p)|/(2 pi)``
+        in ``band_hz`` (``inf`` if no member has a pole in the band).
+    worst : dict
+        Parameters (name -> value) of the member with the largest real part.
+    worst_index : int
+        Row of that member in the sample set.
+    stability_threshold : float
+        Threshold on the real part used for ``fraction_stable``, 1/s.
+    band_hz : (float, float)
+        The BDFT band of ``min_damping``, Hz.
+    nstates : int
+        Closed-loop order.
+    controller_states : int
+        Order of the controller (0 without one).
+    max_real : ndarray, shape (N,)
+        Per-member largest real part (read-only).
+    member_min_damping : ndarray, shape (N,)
+        Per-member smallest damping ratio in the band (``inf`` if none; read-only).
+    """
+
+    samples: int
+    seed: int
+    method: str
+    human: str
+    k_psf: float
+    fraction_stable: float
+    n_unstable: int
+    max_real_pole: float
+    min_damping: float
+    worst: dict
+    worst_index: int
+    stability_threshold: float
+    band_hz: tuple[float, float]
+    nstates: int
+    controller_states: int
+    max_real: np.ndarray = dataclasses.field(repr=False)
+    member_min_damping: np.ndarray = dataclasses.field(repr=False)
+
+    def to_json(self) -> dict:
+        """The JSON object of ``bdft validate --json`` (per-member arrays left out)."""
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+             if f.name not in ("max_real", "member_min_damping")}
+        d["band_hz"] = list(self.band_hz)
+        return d
+
+
+def _member_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]:
+    max_real = poles.real.max(axis=1)
+    f = np.abs(poles.imag) / (2 * math.pi)
+    in_band = (f >= band_hz[0]) & (f <= band_hz[1])
+    mag = np.abs(poles)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        zeta = np.where(in_band & (mag > 0), -poles.real / np.where(mag > 0, mag, 1.0), np.inf)
+    return max_real, zeta.min(axis=1)
+
+
+def validate_family(
+    family: Family,
+    samples: SampleSet,
+    *,
+    controller: ct.StateSpace | None = None,
+    chunk: int = DEFAULT_CHUNK,
+    band_hz: tuple[float, float] = BDFT_BAND_HZ,
+    stability_threshold: float = STABILITY_THRESHOLD,
+    progress: Callable[[int], None] | None = None,
+) -> ValidationResult:
+    """Closed-loop poles of every member of ``samples``, and the family metrics.
+
+    Parameters
+    ----------
+    family : Family
+    samples : SampleSet
+        Members; its names must equal ``family.names``.
+    controller : control.StateSpace, optional
+        Compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
+    chunk : int
+        Members per batch (bounds memory: about ``chunk * n^2 * 40`` bytes).
+    band_hz : (float, float)
+        Frequency band of the poles whose damping is reported, Hz.
+    stability_threshold : float
+        A member is stable when all its poles have real part below this, 1/s.
+    progress : callable, optional
+        Called with the number of members finished after each chunk.
+
+    Returns
+    -------
+    ValidationResult
+    """
+    if tuple(samples.names) != family.names:
+        raise ParameterError(f"validate_family: sample names {list(samples.names)} do not match the family's "
+                             f"{list(family.names)}")
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise ParameterError(f"validate_family: chunk must be a positive integer; got {chunk!r}")
+    lo, hi = (float(b) for b in band_hz)
+    if not (0.0 <= lo < hi):
+        raise ParameterError(f"validate_family: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
+    N = len(samples)
+    max_real = np.empty(N)
+    min_damp = np.empty(N)
+    nstates = 0
+    for start in range(0, N, chunk):
+        stop = min(N, start + chunk)
+        Acl = closed_loop_matrices(family, samples.slice(start, stop), controller=controller)
+        nstates = Acl.shape[-1]
+        poles = np.linalg.eigvals(Acl)
+        del Acl
+        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, (lo, hi))
+        if progress is not None:
+            progress(stop - start)
+    if not np.all(np.isfinite(max_real)):
+        raise ModelStructureError("non-finite closed-loop poles for some members; check parameter ranges")
+    stable = max_real < stability_threshold
+    worst = int(np.argmax(max_real))
+    for arr in (max_real, min_damp):
+        arr.setflags(write=False)
+    return ValidationResult(
+        samples=N,
+        seed=samples.seed,
+        method=samples.method,
+        human=family.human,
+        k_psf=family.k_psf,
+        fraction_stable=float(np.mean(stable)),
+        n_unstable=int(N - np.count_nonzero(stable)),
+        max_real_pole=float(max_real[worst]),
+        min_damping=float(np.min(min_damp)),
+        worst=samples.row(worst),
+        worst_index=worst,
+        stability_threshold=float(stability_threshold),
+        band_hz=(lo, hi),
+        nstates=int(nstates),
+        controller_states=0 if controller is None else int(controller.nstates),
+        max_real=max_real,
+        member_min_damping=min_damp,
+    )
