@@ -1,0 +1,210 @@
+"""Reading the files that feed a family validation: controllers and component fits.
+
+Two formats are read here:
+
+* a controller, :func:`load_controller`: either a bare continuous state-space
+  JSON object ``{"A": .., "B": .., "C": .., "D": .., "inputs": [..], "outputs": [..]}``
+  or a controller artifact (``"kind": "bdft-controller"``) written by
+  :mod:`robust.export`, of which the continuous controller is used;
+* a component fit, :func:`load_component_fit` (``"kind": "bdft-component-fit"``,
+  written by the system-identification tools)::
+
+      {"kind": "bdft-component-fit", "form": "structure",
+       "params_class": "StructureParams", "params": {"k_s": 199.9, ...}, ...}
+
+  whose parameters replace that component's nominal values in a family
+  (:func:`family_nominals`).
+
+Malformed files raise :class:`robust.errors.ArtifactError` naming the file and
+the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import control as ct
+import numpy as np
+
+from robust.components import StructureParams, ValveCylinderParams
+from robust.errors import ArtifactError, BDFTError
+from robust.human import LiteralHumanParams
+
+__all__ = ["load_controller", "ComponentFit", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
+
+COMPONENT_FIT_KIND = "bdft-component-fit"
+_FORMS = {
+    "valve": ValveCylinderParams,
+    "structure": StructureParams,
+    "human": LiteralHumanParams,
+}
+
+
+def _read_json(path, what: str) -> dict:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ArtifactError(f"{what} {str(p)!r} cannot be read: {exc.strerror or exc}") from None
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ArtifactError(f"{what} {str(p)!r} is not valid JSON: {exc}") from None
+    if not isinstance(obj, dict):
+        raise ArtifactError(f"{what} {str(p)!r} must hold a JSON object; got {type(obj).__name__}")
+    return obj
+
+
+def _matrix(obj: dict, key: str, where: str, shape: tuple[int | None, int | None]) -> np.ndarray:
+    if key not in obj:
+        raise ArtifactError(f"{where}: missing matrix {key!r}")
+    raw = obj[key]
+    try:
+        m = np.array(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise ArtifactError(f"{where}: {key} must be a numeric matrix (list of rows); got {raw!r:.80}") from None
+    if m.size == 0:
+        m = m.reshape(tuple(0 if s is None else s for s in shape))
+    if m.ndim != 2:
+        raise ArtifactError(f"{where}: {key} must be 2-D (a list of rows); got shape {m.shape}")
+    for axis, want in enumerate(shape):
+        if want is not None and m.shape[axis] != want:
+            raise ArtifactError(f"{where}: {key} must have shape {tuple('n' if s is None else s for s in shape)} "
+                                f"consistent with the other matrices and signals; got {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ArtifactError(f"{where}: {key} contains NaN or infinite entries")
+    return m
+
+
+def _labels(obj: dict, key: str, where: str) -> list[str]:
+    v = obj.get(key)
+    if not isinstance(v, list) or not v or not all(isinstance(s, str) for s in v):
+        raise ArtifactError(f"{where}: {key!r} must be a non-empty list of signal names; got {v!r}")
+    return v
+
+
+def load_controller(path) -> ct.StateSpace:
+    """Read a continuous state-space controller for :func:`uncertainty.validate_family`.
+
+    Parameters
+    ----------
+    path : str or Path
+        JSON file: a bare state-space object or a ``bdft-controller`` artifact
+        (see the module docstring).
+
+    Returns
+    -------
+    control.StateSpace
+        Continuous-time, with named inputs (among ``x, c, y``) and outputs (among
+        ``f, r_corr``); the loop checks the names when it is connected.
+
+    Raises
+    ------
+    ArtifactError
+        If the file is unreadable, not JSON, or its matrices are missing,
+        non-numeric, non-finite or of inconsistent shapes.
+    """
+    where = f"controller file {str(path)!r}"
+    obj = _read_json(path, "controller file")
+    if obj.get("kind") == "bdft-controller":
+        from robust.export import load_artifact
+
+        try:
+            return load_artifact(path).continuous
+        except BDFTError as exc:
+            raise ArtifactError(f"{where}: {exc}") from None
+    if "kind" in obj:
+        raise ArtifactError(f"{where}: unknown kind {obj['kind']!r}; expected 'bdft-controller' or a bare "
+                            "state-space object with A, B, C, D, inputs, outputs")
+    if obj.get("dt") not in (None, 0, 0.0):
+        raise ArtifactError(f"{where}: the controller must be continuous-time (dt 0 or absent); got dt={obj['dt']!r}")
+    inputs, outputs = _labels(obj, "inputs", where), _labels(obj, "outputs", where)
+    A = _matrix(obj, "A", where, (None, None))
+    n = A.shape[0]
+    if A.shape != (n, n):
+        raise ArtifactError(f"{where}: A must be square; got shape {A.shape}")
+    B = _matrix(obj, "B", where, (n, len(inputs)))
+    C = _matrix(obj, "C", where, (len(outputs), n))
+    D = _matrix(obj, "D", where, (len(outputs), len(inputs)))
+    return ct.ss(A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller")))
+
+
+@dataclasses.dataclass(frozen=True)
+class ComponentFit:
+    """A component-fit file's ``form`` and parameters (other keys kept in ``extra``)."""
+
+    path: str
+    form: str
+    params: object
+    extra: dict
+
+
+def load_component_fit(path) -> ComponentFit:
+    """Parse a ``bdft-component-fit`` file.
+
+    Raises
+    ------
+    ArtifactError
+        Wrong ``kind``, unknown ``form``, ``params_class`` not matching the form,
+        missing or unexpected parameter names, or values the parameter class rejects.
+    """
+    where = f"component-fit file {str(path)!r}"
+    obj = _read_json(path, "component-fit file")
+    if obj.get("kind") != COMPONENT_FIT_KIND:
+        raise ArtifactError(f"{where}: kind must be {COMPONENT_FIT_KIND!r}; got {obj.get('kind')!r}")
+    form = obj.get("form")
+    if form not in _FORMS:
+        raise ArtifactError(f"{where}: form must be one of {sorted(_FORMS)}; got {form!r}")
+    cls = _FORMS[form]
+    if obj.get("params_class") != cls.__name__:
+        raise ArtifactError(f"{where}: form {form!r} needs params_class {cls.__name__!r}; "
+                            f"got {obj.get('params_class')!r}")
+    params = obj.get("params")
+    if not isinstance(params, dict):
+        raise ArtifactError(f"{where}: 'params' must be an object of parameter values; got {params!r}")
+    names = {f.name for f in dataclasses.fields(cls)}
+    missing, unexpected = names - set(params), set(params) - names
+    if missing or unexpected:
+        raise ArtifactError(f"{where}: {cls.__name__} needs parameters {sorted(names)}; "
+                            f"missing {sorted(missing)}, unexpected {sorted(unexpected)}")
+    try:
+        value = cls(**params)
+    except ValueError as exc:
+        raise ArtifactError(f"{where}: parameters are not valid: {exc}") from None
+    extra = {k: v for k, v in obj.items() if k not in ("kind", "form", "params_class", "params")}
+    return ComponentFit(path=str(path), form=form, params=value, extra=extra)
+
+
+def family_nominals(fits: Sequence[ComponentFit], *, human: str) -> dict:
+    """Keyword arguments of :func:`uncertainty.default_family` from component fits.
+
+    Parameters
+    ----------
+    fits : sequence of ComponentFit
+        At most one per form.
+    human : {"physical", "literal"}
+        The family's human variant. A ``human`` fit is of the paper's Eqn 5
+        (:class:`~robust.human.LiteralHumanParams`) and so applies to the literal
+        variant only.
+
+    Returns
+    -------
+    dict
+        ``valve=...``, ``struct=...``, ``literal=...`` as given by the fits.
+    """
+    out = {}
+    keys = {"valve": "valve", "structure": "struct", "human": "literal"}
+    for fit in fits:
+        key = keys[fit.form]
+        if key in out:
+            raise ArtifactError(f"two component fits of form {fit.form!r} given (second: {fit.path!r}); give one")
+        if fit.form == "human" and human != "literal":
+            raise ArtifactError(
+                f"component-fit file {fit.path!r} is a fit of the paper's Eqn 5 (LiteralHumanParams), which "
+                f"replaces the literal human; the family uses the {human!r} human. Use --human literal."
+            )
+        out[key] = fit.params
+    return out
