@@ -6,7 +6,8 @@ machine or operator:
 * experiments (:mod:`.experiment`): chirp protocol and a simulator with known truth;
 * spectra (:mod:`.spectral`): Welch H1 (the paper's Eqn 1), coherence (Eqn 2) and
   confidence bounds;
-* fits (:mod:`.fit`): the forms of Eqns 3, 4, 5 and rational ``"M/N"`` models;
+* fits (:mod:`.fit`): the forms (:mod:`.forms`) of Eqns 3, 4, 5 and rational
+  ``"M/N"`` models, started by Levy / Sanathanan-Koerner (:mod:`.linear`);
 * data files (:mod:`.datafile`) and fitted-model files (:mod:`.model_file`);
 * figures (:mod:`.plots`), returned and never saved here.
 """
