@@ -99,7 +99,24 @@ def test_noisy_experiment_needs_a_seed():
         simulate_experiment(structure(), ChirpProtocol(n_records=1, duration=1.0), output_noise=1.0)
 
 
-def test_mimo_system_is_rejected():
-    sys = ct.ss(np.eye(2) * -1.0, np.eye(2), np.eye(2), np.zeros((2, 2)))
-    with pytest.raises(ModelStructureError, match=r"must be SISO"):
+def test_mimo_system_needs_a_named_path():
+    sys = ct.ss(np.eye(2) * -1.0, np.eye(2), np.eye(2), np.zeros((2, 2)), inputs=["a", "b"], outputs=["p", "q"])
+    with pytest.raises(ModelStructureError, match=r"must be SISO .* Name the path with input=/output="):
         simulate_experiment(sys, ChirpProtocol(n_records=1, duration=1.0))
+    with pytest.raises(ModelStructureError, match=r"path 'a' -> 'z' not found .* outputs \['p', 'q'\]"):
+        simulate_experiment(sys, ChirpProtocol(n_records=1, duration=1.0), input="a", output="z")
+
+
+def test_path_of_the_closed_loop_is_identified_as_its_transfer_function():
+    # any model of the workbench: the BDFT loop (stabilised by a doubled workspace), u -> y
+    from robust import BDFTLoop
+    from robust.sysid import select_path
+
+    loop = BDFTLoop().with_workspace_factor(2.0).system()
+    proto = ChirpProtocol(n_records=3, duration=20.0, f0_hz=0.2, f1_hz=30.0, tail_s=8.0)
+    exp = simulate_experiment(loop, proto, input="u", output="y")
+    assert (exp.input_name, exp.output_name) == ("u", "y")
+    est = estimate_frequency_response(exp.u, exp.y, exp.fs)
+    band = est.band_mask((0.5, 10.0))
+    g = np.asarray(select_path(loop, "u", "y")(2j * np.pi * est.f_hz[band])).ravel()
+    np.testing.assert_allclose(est.h1[band], g, rtol=3e-3)

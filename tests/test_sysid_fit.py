@@ -54,7 +54,7 @@ TOLERANCES = {
 }
 
 
-def _exactestimate_frequency_response(system, f_hz, fs=1000.0) -> FrequencyResponseEstimate:
+def _exact_estimate(system, f_hz, fs=1000.0) -> FrequencyResponseEstimate:
     """An 'estimate' holding the exact response and unit coherence (tests the fit alone)."""
     n = f_hz.size
     h = np.ones(n, dtype=complex)  # the DC bin is never fitted (a free integrator has no DC value)
@@ -69,7 +69,7 @@ def _exactestimate_frequency_response(system, f_hz, fs=1000.0) -> FrequencyRespo
 @pytest.mark.parametrize("form", list(TRUTH), ids=list(TRUTH))
 def test_fixed_form_recovered_exactly_from_exact_response(form):
     f = np.arange(0, 50.0001, 0.05)
-    est = _exactestimate_frequency_response(SYSTEMS[form](TRUTH[form]), f)
+    est = _exact_estimate(SYSTEMS[form](TRUTH[form]), f)
     fit = fit_frequency_response(est, form, BANDS[form])
     assert isinstance(fit.params, type(TRUTH[form]))
     for name, true in dataclasses.asdict(TRUTH[form]).items():
@@ -112,7 +112,7 @@ def test_structure_modes_are_ordered_and_their_coupling_reported():
     # start the refinement with the modes swapped: the fit must still return f1 <= f2
     f = np.arange(0, 30.0001, 0.05)
     truth = StructureParams(f1_hz=6.3, f2_hz=6.5)
-    est = _exactestimate_frequency_response(structure(truth), f)
+    est = _exact_estimate(structure(truth), f)
     swapped = StructureParams(k_s=150.0, zeta1=0.2, zeta2=0.1, f1_hz=7.0, f2_hz=5.5)
     fit = fit_frequency_response(est, "structure", (2.0, 15.0), initial=swapped)
     assert fit.params.f1_hz <= fit.params.f2_hz
@@ -133,7 +133,7 @@ def test_levy_sk_recovers_exact_rational_model():
 def test_rational_form_returns_coefficients_and_system():
     g = ct.tf([2.0, 50.0], [1.0, 6.0, 400.0])
     f = np.arange(0, 40.0001, 0.05)
-    est = _exactestimate_frequency_response(g, f)
+    est = _exact_estimate(g, f)
     fit = fit_frequency_response(est, "1/2", (0.5, 30.0))
     assert isinstance(fit.params, RationalParams)
     np.testing.assert_allclose(fit.params.num, [2.0, 50.0], rtol=1e-6)
@@ -168,7 +168,7 @@ def test_bad_forms(form, match):
 
 def test_too_few_coherent_points_is_infeasible():
     f = np.arange(0, 30.0001, 0.05)
-    est = _exactestimate_frequency_response(structure(), f)
+    est = _exact_estimate(structure(), f)
     est = dataclasses.replace(est, coherence=np.where((f > 6.0) & (f < 6.1), 0.9, 0.1))
     with pytest.raises(InfeasibleError, match=r"only 1 usable frequencies .* has 5 parameters"):
         fit_frequency_response(est, "structure", (2.0, 15.0), min_coherence=0.5)
@@ -176,7 +176,7 @@ def test_too_few_coherent_points_is_infeasible():
 
 def test_initial_of_wrong_class_is_rejected():
     f = np.arange(0, 30.0001, 0.05)
-    est = _exactestimate_frequency_response(structure(), f)
+    est = _exact_estimate(structure(), f)
     with pytest.raises(ParameterError, match=r"initial must be a StructureParams"):
         fit_frequency_response(est, "structure", (2.0, 15.0), initial=ValveCylinderParams())
 
@@ -200,3 +200,13 @@ def test_noise_only_data_have_no_usable_frequencies():
     est = estimate_frequency_response(rng.standard_normal((8, 4096)), rng.standard_normal((8, 4096)), 1000.0)
     with pytest.raises(InfeasibleError, match=r"only \d usable frequencies in band \[1, 100\] Hz"):
         fit_frequency_response(est, "valve", (1.0, 100.0))
+
+
+def test_single_mode_structure_is_reported_as_merged_modes():
+    # one mode written twice: the data cannot separate f1 from f2, and the fit must say so
+    f = np.arange(0, 30.0001, 0.05)
+    truth = StructureParams(k_s=200.0, zeta1=0.15, zeta2=0.15, f1_hz=6.4, f2_hz=6.4)
+    fit = fit_frequency_response(_exact_estimate(structure(truth), f), "structure", (2.0, 15.0))
+    assert fit.params.f1_hz <= fit.params.f2_hz
+    assert fit.fit_error_db < 0.01
+    assert any("modes merged" in n for n in fit.notes), fit.notes

@@ -21,6 +21,7 @@ from .experiment import (
     MeasurementNoise,
     chirp_excitation,
     paper_experiment,
+    select_path,
     simulate_experiment,
     simulate_response,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "chirp_excitation",
     "simulate_experiment",
     "simulate_response",
+    "select_path",
     "paper_experiment",
     "PAPER_COMPONENTS",
     "ENGINE_TONES_HZ",

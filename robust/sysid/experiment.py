@@ -37,6 +37,7 @@ __all__ = [
     "chirp_excitation",
     "simulate_experiment",
     "simulate_response",
+    "select_path",
     "paper_experiment",
     "PAPER_COMPONENTS",
     "ENGINE_TONES_HZ",
@@ -272,11 +273,35 @@ def _siso_labels(system) -> tuple[str, str]:
     if system.ninputs != 1 or system.noutputs != 1:
         raise ModelStructureError(
             f"system must be SISO for a single-channel experiment; got {system.ninputs} input(s), "
-            f"{system.noutputs} output(s). Select one path first, e.g. sys[out_index, in_index]."
+            f"{system.noutputs} output(s). Name the path with input=/output= (signal names)."
         )
     if not system.isctime():
         raise ModelStructureError(f"system must be continuous-time; got dt={system.dt}")
     return system.input_labels[0], system.output_labels[0]
+
+
+def select_path(system, input: str | None = None, output: str | None = None):
+    """The SISO path ``input -> output`` of a named-signal system (the system itself if already SISO).
+
+    Raises
+    ------
+    ModelStructureError
+        If a name is not among the system's signals, or a MIMO system is given
+        without naming the path.
+    """
+    if not isinstance(system, ct.LTI):
+        raise ModelStructureError(f"system must be a python-control LTI system; got {type(system).__name__}")
+    if input is None and output is None:
+        return system
+    ins, outs = list(system.input_labels), list(system.output_labels)
+    i = ins.index(input) if input is not None and input in ins else (0 if input is None and len(ins) == 1 else None)
+    o = outs.index(output) if output is not None and output in outs else (0 if output is None and len(outs) == 1 else None)
+    if i is None or o is None:
+        raise ModelStructureError(
+            f"path {input!r} -> {output!r} not found in system {system.name!r}: inputs {ins}, outputs {outs}"
+        )
+    sub = ct.ss(system)[o, i]
+    return ct.ss(sub.A, sub.B, sub.C, sub.D, inputs=ins[i], outputs=outs[o], name=f"{system.name}:{ins[i]}->{outs[o]}")
 
 
 def simulate_response(system, u: np.ndarray, fs: float) -> np.ndarray:
@@ -350,6 +375,8 @@ def simulate_experiment(
     rng: np.random.Generator | None = None,
     excitation: np.ndarray | None = None,
     upstream=None,
+    input: str | None = None,
+    output: str | None = None,
 ) -> Experiment:
     """Run the chirp protocol on ``system`` and return noisy measured records.
 
@@ -361,7 +388,8 @@ def simulate_experiment(
     Parameters
     ----------
     system : control.LTI
-        Continuous-time SISO system, e.g. ``robust.structure()``.
+        Continuous-time system, e.g. ``robust.structure()``, or a named-signal
+        MIMO system (the closed loop, a two-input human) with ``input``/``output``.
     protocol : ChirpProtocol, optional
         Record count, length, sampling rate and sweep; default the paper's.
     input_noise, output_noise : MeasurementNoise or float
@@ -381,12 +409,16 @@ def simulate_experiment(
         ``upstream``'s output; the output is simulated through a minimal
         realisation of the series connection, so exact pole/zero cancellations
         (Eqn 4's double zero at 0 against Eqn 5's double pole at 0) do not drift.
+    input, output : str, optional
+        Signal names selecting one path of a MIMO ``system`` (e.g. ``"u"``, ``"c"``
+        of :meth:`robust.loop.BDFTLoop.system`).
 
     Returns
     -------
     Experiment
     """
     protocol = protocol or ChirpProtocol()
+    system = select_path(system, input, output)
     in_name, out_name = _siso_labels(system)
     if seed is not None and rng is not None:
         raise ParameterError("give either seed or rng, not both")
