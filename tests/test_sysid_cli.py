@@ -111,3 +111,15 @@ def test_identify_failure_writes_nothing(tmp_path, capsys, case, match):
     assert "bdft identify: error:" in err
     assert re.search(match, err), err
     assert _listing(tmp_path) == before
+
+
+def test_measured_csv_to_model_that_validate_accepts(tmp_path, capsys):
+    # a CSV of 'measured' chirps (here simulated, with its seed in the file) -> identify -> validate
+    data = _data(tmp_path, "structure", seed=77)
+    model = tmp_path / "structure_model.json"
+    assert _identify(data, "structure", tmp_path / "out", "--save-model", str(model)) == 0
+    capsys.readouterr()
+    assert main(["validate", "--samples", "8", "--plant-file", str(model), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["plant_files"] == [str(model)]
+    assert report["nominals"]["struct"] == pytest.approx(json.loads(model.read_text())["params"])
