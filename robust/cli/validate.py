@@ -42,7 +42,7 @@ def add_family_arguments(p, *, samples: int) -> None:
     p.add_argument("--plant-file", action="append", default=[], metavar="FILE",
                    help="component fit (kind 'bdft-component-fit') whose parameters replace that component's "
                         "nominal values; may be repeated, one per component")
-    p.add_argument("--chunk", type=_positive_int, default=None, help="members per batch (default: 50000)")
+    p.add_argument("--chunk", type=_positive_int, default=None, help="members per batch (default: 20000)")
 
 
 def register(sub) -> None:
