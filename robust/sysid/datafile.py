@@ -68,11 +68,21 @@ class ChannelData:
 
     @property
     def names(self) -> list[str]:
+        """Channel names, in file order."""
         return list(self.channels)
 
 
 def load_channels(path: str | os.PathLike) -> ChannelData:
     """Read a CSV (``.csv``, ``.txt``) or MATLAB (``.mat``) file of named channels.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file; the layouts are described in the module notes.
+
+    Returns
+    -------
+    ChannelData
 
     Raises
     ------
@@ -309,6 +319,20 @@ def save_experiment(experiment, path: str | os.PathLike, *, source: str = "") ->
 
     The seed and sampling rate are written too (a CSV comment line, or ``.mat``
     variables), so the file can be traced to the noise that made it.
+
+    Parameters
+    ----------
+    experiment : Experiment
+        Records to write (input and output channels by their names).
+    path : str or path-like
+        Target file, ``.csv`` or ``.mat``.
+    source : str
+        Free-text provenance for the CSV comment line.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
     """
     path = Path(path)
     suffix = path.suffix.lower()

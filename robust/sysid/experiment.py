@@ -201,6 +201,7 @@ class MeasurementNoise:
 
     @property
     def is_zero(self) -> bool:
+        """Whether this noise adds nothing."""
         return self.std == 0.0 and (self.tone_amplitude == 0.0 or not self.tone_hz)
 
     def sample(self, shape: tuple[int, int], fs: float, rng: np.random.Generator) -> np.ndarray:
@@ -250,10 +251,12 @@ class Experiment:
 
     @property
     def n_records(self) -> int:
+        """Number of records."""
         return int(self.u.shape[0])
 
     @property
     def n_samples(self) -> int:
+        """Samples per record."""
         return int(self.u.shape[1])
 
     def channels(self) -> dict[str, np.ndarray]:

@@ -130,6 +130,9 @@ class FitResult:
         Frequencies used in the fit.
     cost : float
         Final least-squares cost ``0.5 * sum r^2``.
+    coherence_threshold : float
+        Frequencies with coherence below this were left out (``min_coherence``
+        or the significance threshold, whichever is higher).
     """
 
     form: str
@@ -145,9 +148,11 @@ class FitResult:
     notes: tuple[str, ...]
     n_points: int
     cost: float
+    coherence_threshold: float = 0.0
 
     @property
     def param_names(self) -> tuple[str, ...]:
+        """Parameter names, in the parameter object's order."""
         return tuple(self.params_dict())
 
     def params_dict(self) -> dict[str, float]:
@@ -174,6 +179,7 @@ class FitResult:
             "band": list(self.band_hz),
             "band_errors": [dataclasses.asdict(b) for b in self.band_errors],
             "n_points": self.n_points,
+            "coherence_threshold": self.coherence_threshold,
             "notes": list(self.notes),
         }
 
@@ -332,8 +338,10 @@ def fit_frequency_response(
     omega = TWO_PI * f
     s = 1j * omega
     if isinstance(parsed, tuple):
-        return _fit_rational(form, parsed, f, s, hm, coh, w, lo, hi, n_subbands)
-    return _fit_fixed(FORM_SPECS[parsed], f, s, hm, coh, w, lo, hi, n_subbands, initial, starts)
+        result = _fit_rational(form, parsed, f, s, hm, coh, w, lo, hi, n_subbands)
+    else:
+        result = _fit_fixed(FORM_SPECS[parsed], f, s, hm, coh, w, lo, hi, n_subbands, initial, starts)
+    return dataclasses.replace(result, coherence_threshold=float(threshold))
 
 
 def _residual_fn(spec: _Form, s, hm, w):

@@ -55,11 +55,13 @@ class RationalParams:
         object.__setattr__(self, "den", den)
 
     def as_dict(self) -> dict[str, float]:
+        """Coefficients by name: ``b<k>`` multiplies ``s^k`` in the numerator, ``a<k>`` in the denominator."""
         out = {f"b{len(self.num) - 1 - i}": v for i, v in enumerate(self.num)}
         out.update({f"a{len(self.den) - 1 - i}": v for i, v in enumerate(self.den)})
         return out
 
     def transfer_function(self) -> ct.TransferFunction:
+        """The model as a :class:`control.TransferFunction` (rad/s)."""
         return ct.tf(list(self.num), list(self.den))
 
 

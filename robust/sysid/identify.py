@@ -88,8 +88,30 @@ def identify_records(
 ) -> Identification:
     """Estimate H1 and coherence from records and fit ``form`` over ``band_hz``.
 
-    Parameters are those of :func:`~robust.sysid.spectral.estimate_frequency_response`
-    and :func:`~robust.sysid.fit.fit_frequency_response`.
+    Parameters
+    ----------
+    u, y : array_like
+        Input and output records (see :func:`~robust.sysid.spectral.estimate_frequency_response`).
+    fs : float
+        Sampling rate in Hz.
+    form : str
+        ``"valve"``, ``"structure"``, ``"human"`` or ``"M/N"``.
+    band_hz : (float, float)
+        Fit band in Hz.
+    nperseg, window, detrend :
+        Spectral options of :func:`~robust.sysid.spectral.estimate_frequency_response`.
+    weighting, min_coherence, significance :
+        Fit options of :func:`~robust.sysid.fit.fit_frequency_response`.
+    input_name, output_name : str
+        Channel names, kept in the result.
+    seed : int or None
+        Seed of simulated data, kept in the result.
+    source : str
+        Data file, kept in the result.
+
+    Returns
+    -------
+    Identification
 
     Raises
     ------
@@ -119,6 +141,25 @@ def identify_file(
 
     Records shorter than :data:`MIN_PERIODS` periods of the band's lower edge are
     rejected with :class:`~robust.errors.DataError`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        CSV or ``.mat`` file (see :mod:`robust.sysid.datafile`).
+    input_name, output_name : str
+        Channel names.
+    fs : float
+        Sampling rate in Hz (checked against the file's time column and stated rate).
+    form : str
+        Model form.
+    band_hz : (float, float)
+        Fit band in Hz.
+    **options
+        Passed to :func:`identify_records`.
+
+    Returns
+    -------
+    Identification
     """
     lo, _ = check_band(band_hz)
     data = load_channels(path)

@@ -82,6 +82,23 @@ def save_component_fit(
 ) -> Path:
     """Write a fixed-form :class:`~robust.sysid.fit.FitResult` as a component-fit file, atomically.
 
+    Parameters
+    ----------
+    path : str or path-like
+        Target ``.json`` file.
+    fit : FitResult
+        A ``"valve"``, ``"structure"`` or ``"human"`` fit.
+    fs : float
+        Sampling rate of the data, Hz.
+    seed : int or None
+        Seed of simulated data (``None`` for measured data).
+    source : str
+        The data file.
+
+    Returns
+    -------
+    pathlib.Path
+
     Raises
     ------
     ParameterError
@@ -117,6 +134,15 @@ def _number(obj: dict, key: str, path: str) -> float:
 
 def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     """Read and validate a component-fit file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A file written by :func:`save_component_fit` (or by hand in that layout).
+
+    Returns
+    -------
+    ComponentFit
 
     Raises
     ------
@@ -194,6 +220,11 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
 
 def load_component_fit(path: str | os.PathLike):
     """Load a component-fit file and return its parameter object.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A component-fit file (see the module notes).
 
     Returns
     -------

@@ -132,7 +132,21 @@ def coherence_figure(
     f_range_hz: tuple[float, float] | None = None,
     title: str = "",
 ) -> Figure:
-    """Magnitude-squared coherence against frequency (Hz, log), with the fit band shaded."""
+    """Magnitude-squared coherence against frequency (Hz, log), with the fit band shaded.
+
+    Parameters
+    ----------
+    estimate : FrequencyResponseEstimate
+    band_hz : (float, float), optional
+        Fit band, shaded.
+    f_range_hz : (float, float), optional
+        Frequency axis limits in Hz.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     m = _plot_mask(estimate, f_range_hz)
     f = estimate.f_hz[m]
     fig = Figure(figsize=(7.5, 3.0), layout="constrained")

@@ -192,7 +192,20 @@ _UNIT_OPEN = Spec(low=0.0, high=1.0, low_open=True, high_open=True)
 
 
 def check_band(band_hz) -> tuple[float, float]:
-    """Return ``(lo, hi)`` in Hz as floats, checking ``0 < lo < hi``."""
+    """Return ``(lo, hi)`` in Hz as floats, checking ``0 < lo < hi``.
+
+    Parameters
+    ----------
+    band_hz : (float, float)
+        Band edges in Hz.
+
+    Raises
+    ------
+    ParameterError
+        A non-finite or non-positive edge.
+    DataError
+        Not a pair, or ``lo >= hi``.
+    """
     try:
         lo, hi = band_hz
     except (TypeError, ValueError):
@@ -211,6 +224,20 @@ def effective_averages(window: np.ndarray, nperseg: int, noverlap: int, n_segmen
     ``rho_j = sum_n w[n] w[n + j*hop] / sum_n w[n]^2`` (P. D. Welch, "The use of the
     fast Fourier transform for the estimation of power spectra", IEEE Trans.
     Audio Electroacoustics 15(2), 1967, pp. 70-73).
+
+    Parameters
+    ----------
+    window : array_like, shape (nperseg,)
+        Window samples.
+    nperseg, noverlap : int
+        Segment length and overlap in samples.
+    n_segments : int
+        Number of segments ``K`` in one record.
+
+    Returns
+    -------
+    float
+        Effective number of independent averages, ``<= K``.
     """
     k = int(n_segments)
     if k <= 1:
@@ -235,6 +262,11 @@ def default_nperseg(record_lengths: Sequence[int]) -> int:
     of the sweep and the response's ring-in and ring-out leak into the estimate.
     Averaging is then over records (the paper's 20-50). With a single record, a
     quarter of it (at least 256 samples) so that Welch still averages 7 segments.
+
+    Parameters
+    ----------
+    record_lengths : sequence of int
+        Samples in each record.
     """
     lengths = [int(n) for n in record_lengths]
     shortest = min(lengths)
