@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     f_range = (max(est.f_hz[1], band[0] / 10.0), min(est.fs / 2.0, band[1] * 5.0))
     bode = bode_figure(est, fit, band_hz=band, f_range_hz=f_range, confidence=args.confidence,
                        title=f"{Path(args.data).name}: {label}, {args.form} fit")
-    coh = coherence_figure(est, band_hz=band, f_range_hz=f_range,
+    coh = coherence_figure(est, band_hz=band, f_range_hz=f_range, threshold=fit.coherence_threshold,
                            title=f"{Path(args.data).name}: coherence {label} ({est.n_records} records)")
     table_text = _table_csv(result, args.confidence)
     summary = result.to_dict()

@@ -131,6 +131,7 @@ def coherence_figure(
     band_hz: tuple[float, float] | None = None,
     f_range_hz: tuple[float, float] | None = None,
     title: str = "",
+    threshold: float | None = None,
 ) -> Figure:
     """Magnitude-squared coherence against frequency (Hz, log), with the fit band shaded.
 
@@ -142,6 +143,8 @@ def coherence_figure(
     f_range_hz : (float, float), optional
         Frequency axis limits in Hz.
     title : str
+    threshold : float, optional
+        Coherence below which the fit left frequencies out, drawn dashed.
 
     Returns
     -------
@@ -154,6 +157,9 @@ def coherence_figure(
     ax.semilogx(f, estimate.coherence[m], ".", ms=2.5, color="C0")
     if band_hz is not None:
         ax.axvspan(*band_hz, color="C2", alpha=0.07, lw=0, label="fit band")
+    if threshold is not None:
+        ax.axhline(threshold, color="C3", ls="--", lw=1.0, label=f"fit threshold {threshold:.2f}")
+    if band_hz is not None or threshold is not None:
         ax.legend(loc="lower left", fontsize=8)
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("frequency (Hz)")
