@@ -6,6 +6,7 @@ Public API, by area. Import from here; module layout may change.
 from .analysis import (
     STABILITY_RTOL,
     PoleSet,
+    bdft_loop_gain,
     bdft_ratio,
     closed_loop_poles,
     critical_k_psf,

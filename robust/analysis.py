@@ -25,6 +25,7 @@ __all__ = [
     "bdft_ratio",
     "frequency_response",
     "critical_k_psf",
+    "bdft_loop_gain",
 ]
 
 #: A pole counts as unstable when ``Re(p) > STABILITY_RTOL * max(1, |p|)``.
@@ -135,3 +136,24 @@ def critical_k_psf(loop: BDFTLoop, *, k_min: float = 1e-4, k_max: float = 10.0, 
             return float(np.sqrt(lo * hi))
         prev = k
     return float("inf")
+
+
+def bdft_loop_gain(loop: BDFTLoop, freqs_hz: np.ndarray) -> dict[str, np.ndarray]:
+    """Frequency response of the BDFT loop broken at the handle, and of its factors.
+
+    Returns complex arrays ``loop`` (``sigma*kappa*K_PSF * H * S * T``), ``human``
+    (``H = h/c``), ``structure`` (``S = c/y``) and ``cylinder_loop`` (``T = y/r``, the
+    closed cylinder loop). Where ``|loop|`` is largest is where the feedthrough
+    matters most.
+    """
+    from .components import pi_controller, structure, valve_cylinder
+
+    cal = loop.calibration
+    inner = ct.feedback(pi_controller(cal.pi) * valve_cylinder(loop.valve), 1)
+    inner = ct.ss(inner.A, inner.B, inner.C, inner.D, inputs="r", outputs="y")
+    s = 2j * np.pi * np.asarray(freqs_hz, float)
+    H = frequency_response(loop.human.system(), freqs_hz, inp="c", out="h")
+    S = np.asarray(structure(loop.struct)(s, squeeze=False))[0, 0]
+    T = np.asarray(inner(s, squeeze=False))[0, 0]
+    L = cal.handle_sign * cal.loop_scale * loop.k_psf * H * S * T
+    return {"loop": L, "human": H, "structure": S, "cylinder_loop": T}

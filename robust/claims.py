@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from .analysis import bdft_ratio, critical_k_psf, loop_poles
+from .analysis import bdft_loop_gain, bdft_ratio, critical_k_psf, loop_poles
 from .calibration import K_PSF_STABLE
 from .components import K_PSF_NOMINAL
 from .loop import BDFTLoop
@@ -135,6 +135,9 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         low_ok = [study[f]["low_band_dev_db"] <= C4_LOW_TOL_DB for f in stable_facs]
         worst_low = max(study[f]["low_band_dev_db"] for f in stable_facs)
         ok = all(in_band) and all(low_ok)
+        # diagnosis: where is the loop gain of the BDFT path largest? (at the workspace-doubled K_PSF)
+        diag_f = np.array([0.5, 1.0, 2.0, np.sqrt(loop.struct.f1_hz * loop.struct.f2_hz)])
+        lg = np.abs(bdft_loop_gain(loop.replace(k_psf=K_PSF_STABLE), diag_f)["loop"])
         why = []
         if not all(in_band):
             bad = [f"x{f}: {study[f]['peak_freq_hz']:.2f} Hz" for f, b in zip(stable_facs, in_band) if not b]
@@ -149,8 +152,11 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
                 f"{study[stable_facs[0]]['peak_freq_hz']:.2f} Hz (x{stable_facs[0]}) and deviates at most "
                 f"{worst_low:.2f} dB below {C4_LOW_BAND_HZ:g} Hz"
             )
-            + ("" if ok else "; fails: " + "; ".join(why)),
+            + ("" if ok else "; fails: " + "; ".join(why))
+            + f"; BDFT loop gain at K_PSF={K_PSF_STABLE}: {lg[1]:.3g} at 1 Hz vs {lg[3]:.3g} at the "
+            f"structure mode ({diag_f[3]:.2f} Hz)",
             dict(
+                loop_gain_at_hz={float(f): float(g) for f, g in zip(diag_f, lg)},
                 peak_freq_hz={f: study[f]["peak_freq_hz"] for f in stable_facs},
                 low_band_dev_db={f: study[f]["low_band_dev_db"] for f in stable_facs},
                 peak_band_hz=list(C4_PEAK_BAND_HZ),

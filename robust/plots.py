@@ -8,7 +8,7 @@ matplotlib.use("Agg", force=False)
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["bode_figure", "pole_map_figure", "time_response_figure", "ratio_figure"]
+__all__ = ["bode_figure", "pole_map_figure", "time_response_figure", "ratio_figure", "loop_gain_figure"]
 
 
 def bode_figure(curves: list[tuple[str, object]], freqs_hz: np.ndarray, *, title: str, inp: str, out: str, phase: bool = True, ylabel: str = "magnitude [dB]"):
@@ -90,6 +90,23 @@ def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
     ax.set_ylabel("|Y with / Y without BDFT| [dB]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
+    ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def loop_gain_figure(freqs_hz: np.ndarray, curves: list[tuple[str, np.ndarray]], *, title: str, mark_hz=()):
+    """Magnitude of the BDFT loop gain (broken at the handle) for several models."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    for label, L in curves:
+        ax.loglog(freqs_hz, np.abs(L), label=label)
+    for f in mark_hz:
+        ax.axvline(f, color="0.5", ls="--", lw=0.8)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("|BDFT loop gain|")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
     ax.set_title(title)
     fig.tight_layout()
     return fig

@@ -88,3 +88,14 @@ def test_bdft_ratio_matches_formula():
         s, K_PSF_STABLE, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign, bdft=False
     )
     np.testing.assert_allclose(bdft_ratio(loop, f), want, rtol=1e-7)
+
+
+def test_bdft_loop_gain_matches_formula():
+    from robust import bdft_loop_gain
+
+    f = np.array([0.5, 1.0, 6.4])
+    s = 2j * np.pi * f
+    L = pf.pi(s, CAL.kp, CAL.ki) * pf.valve(s)
+    want = CAL.handle_sign * CAL.loop_scale * 0.055 * pf.human(s) * pf.structure(s) * L / (1 + L)
+    got = bdft_loop_gain(BDFTLoop(k_psf=0.055), f)["loop"]
+    np.testing.assert_allclose(got, want, rtol=1e-8)

@@ -219,6 +219,19 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
     page.figure(plots.bode_figure(uniq, f, title="Human H/C", inp="c", out="h", phase=True),
                 "bode_human", "Human, seat acceleration c to hand motion h relative to the seat, for each variant.")
 
+    # where the feedthrough acts ------------------------------------------------------------
+    from ..analysis import bdft_loop_gain
+
+    page.h2("Where the feedthrough acts: BDFT loop gain")
+    fl = np.geomspace(0.1, 20, 500)
+    curves = [(v.label, bdft_loop_gain(v.loop.replace(k_psf=K_PSF_STABLE), fl)["loop"]) for v in res.variants]
+    page.figure(
+        plots.loop_gain_figure(fl, curves, title=f"|sigma kappa K_PSF H S T| at K_PSF={K_PSF_STABLE}", mark_hz=(1.0, 6.4)),
+        "loop_gain",
+        "Magnitude of the BDFT loop broken at the handle (human x structure x closed cylinder loop x scale). "
+        "Claim C4 needs it to peak near the 6.3-6.5 Hz structure modes; dashed lines at 1 Hz and 6.4 Hz.",
+    )
+
     # per variant ---------------------------------------------------------------------------
     for i, v in enumerate(res.variants):
         tag = f"v{i}"
