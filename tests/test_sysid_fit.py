@@ -210,3 +210,13 @@ def test_single_mode_structure_is_reported_as_merged_modes():
     assert fit.params.f1_hz <= fit.params.f2_hz
     assert fit.fit_error_db < 0.01
     assert any("modes merged" in n for n in fit.notes), fit.notes
+
+
+@pytest.mark.parametrize("form", list(TRUTH), ids=list(TRUTH))
+def test_inverted_sensor_is_reported(form):
+    # a backwards-mounted sensor: the physical form (positive gain) cannot fit a sign flip and says so
+    f = np.arange(0, 50.0001, 0.05)
+    est = _exact_estimate(SYSTEMS[form](TRUTH[form]), f)
+    est = dataclasses.replace(est, h1=-est.h1)
+    fit = fit_frequency_response(est, form, BANDS[form])
+    assert any("data look inverted" in n for n in fit.notes), fit.notes

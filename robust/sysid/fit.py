@@ -388,8 +388,10 @@ def _clip_theta(theta, lo, hi):
 def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitResult:
     m, n = spec.init_orders
     target = hm / s**spec.s_power
+    inverted = False
     try:
         num, den = levy_sk(2 * np.pi * f, target, m, n, weights=w / np.abs(target))
+        inverted = _linear_gain_sign(spec, num, den) < 0
         p_lin = spec.from_rational(num, den)
         if not np.all(np.isfinite(p_lin)) or np.any(p_lin[[i for i, nm in enumerate(spec.names)
                                                             if not nm.startswith("zeta")]] <= 0):
@@ -433,8 +435,29 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
     notes = _notes(spec, best, tlo, thi, p, cov_nat, lo, hi)
     if best.status == 0:
         notes += ("nonlinear least squares stopped at its evaluation limit before converging",)
+    offset = _mean_phase_offset_deg(model, hm, w)
+    if inverted or abs(offset) > 90.0:
+        why = ("the linear estimate's gain is negative" if inverted
+               else f"the measured phase sits {offset:+.0f} deg from the fitted form's on average")
+        notes += (
+            f"{why}: the data look inverted (check the sign of a sensor or channel; the form's gain is "
+            "positive) or the form does not match them",
+        )
     return _result(spec.name, params, _tf_of(spec.name, p), f, model, hm, coh, w, lo, hi, n_sub,
                    spec.names, p, cov_nat, dict(zip(spec.names, map(float, p_lin))), notes, best.cost)
+
+
+def _linear_gain_sign(spec, num, den) -> float:
+    """Sign of the form's gain in the linear estimate (``R(0)``, or ``R``'s leading coefficient for the human)."""
+    if spec.name == "human":
+        return float(np.sign(num[0]))
+    return float(np.sign(num[-1] * den[-1]))
+
+
+def _mean_phase_offset_deg(model, meas, w) -> float:
+    """Weighted circular mean of the phase of measured over model, degrees."""
+    z = np.sum(w**2 * np.exp(1j * np.angle(meas / model)))
+    return float(np.degrees(np.angle(z)))
 
 
 def _physical(spec, p):
