@@ -4,9 +4,13 @@ import inspect
 
 import pytest
 
-import robust.sysid as sysid
+from robust import sysid
 
-PUBLIC = [n for n in sysid.__all__ if inspect.isfunction(getattr(sysid, n)) or inspect.isclass(getattr(sysid, n))]
+PUBLIC = [
+    n
+    for n in sysid.__all__
+    if inspect.isfunction(getattr(sysid, n)) or inspect.isclass(getattr(sysid, n))
+]
 
 
 @pytest.mark.parametrize("name", PUBLIC, ids=PUBLIC)

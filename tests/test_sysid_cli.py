@@ -11,7 +11,11 @@ from robust import BDFTLoop, LiteralHuman, LiteralHumanParams, StructureParams, 
 from robust.cli import main
 from robust.sysid import ChirpProtocol, load_component_fit, paper_experiment, save_experiment
 
-TRUTH = {"valve": ValveCylinderParams(), "structure": StructureParams(), "human": LiteralHumanParams()}
+TRUTH = {
+    "valve": ValveCylinderParams(),
+    "structure": StructureParams(),
+    "human": LiteralHumanParams(),
+}
 CHANNELS = {"valve": ("e", "y"), "structure": ("y", "c"), "human": ("c", "h")}
 BANDS = {"valve": ("0.5", "20"), "structure": ("2", "15"), "human": ("0.15", "20")}
 # the stated tolerances of tests/test_sysid_fit.py (same protocol and noise)
@@ -23,16 +27,33 @@ TOLERANCES = {
 
 
 def _data(tmp_path, form, suffix=".csv", seed=31):
-    exp = paper_experiment(form, ChirpProtocol(n_records=6), noise=0.02, engine_tone=0.02, seed=seed)
+    exp = paper_experiment(
+        form, ChirpProtocol(n_records=6), noise=0.02, engine_tone=0.02, seed=seed
+    )
     return save_experiment(exp, tmp_path / f"chirp_{form}{suffix}")
 
 
 def _identify(path, form, out, *extra, fit_form=None):
     ch_in, ch_out = CHANNELS[form]
-    return main([
-        "identify", str(path), "--input", ch_in, "--output", ch_out, "--fs", "1000",
-        "--form", fit_form or form, "--band", *BANDS[form], "--out", str(out), *extra,
-    ])
+    return main(
+        [
+            "identify",
+            str(path),
+            "--input",
+            ch_in,
+            "--output",
+            ch_out,
+            "--fs",
+            "1000",
+            "--form",
+            fit_form or form,
+            "--band",
+            *BANDS[form],
+            "--out",
+            str(out),
+            *extra,
+        ]
+    )
 
 
 @pytest.mark.parametrize("form", list(TRUTH), ids=list(TRUTH))
@@ -91,7 +112,9 @@ def _listing(path):
     ids=["nan", "band-above-nyquist", "rational-save-model", "unknown-channel"],
 )
 def test_identify_failure_writes_nothing(tmp_path, capsys, case, match):
-    exp = paper_experiment("structure", ChirpProtocol(n_records=3, duration=8.0, f0_hz=0.5), noise=0.02, seed=5)
+    exp = paper_experiment(
+        "structure", ChirpProtocol(n_records=3, duration=8.0, f0_hz=0.5), noise=0.02, seed=5
+    )
     data = save_experiment(exp, tmp_path / "d.csv")
     if case == "nan":
         lines = data.read_text().splitlines()
@@ -102,9 +125,25 @@ def test_identify_failure_writes_nothing(tmp_path, capsys, case, match):
         data.write_text("\n".join(lines) + "\n")
     out = tmp_path / "out"
     model = tmp_path / "model.json"
-    args = ["identify", str(data), "--input", "acc" if case == "channel" else "y", "--output", "c", "--fs", "1000",
-            "--form", "2/4" if case == "rational-save" else "structure",
-            "--band", "2", "700" if case == "nyquist" else "15", "--out", str(out), "--save-model", str(model)]
+    args = [
+        "identify",
+        str(data),
+        "--input",
+        "acc" if case == "channel" else "y",
+        "--output",
+        "c",
+        "--fs",
+        "1000",
+        "--form",
+        "2/4" if case == "rational-save" else "structure",
+        "--band",
+        "2",
+        "700" if case == "nyquist" else "15",
+        "--out",
+        str(out),
+        "--save-model",
+        str(model),
+    ]
     before = _listing(tmp_path)
     assert main(args) == 2
     err = capsys.readouterr().err

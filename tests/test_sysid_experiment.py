@@ -31,7 +31,9 @@ def test_chirp_sweeps_its_band_and_starts_at_zero():
     f = np.fft.rfftfreq(x.size, 1e-3)
     inside = (f >= 0.25) & (f <= 40.0)  # a sweep cut off at full amplitude splatters a little
     assert spec[inside].sum() / spec.sum() > 0.99
-    assert spec[(f >= 0.5) & (f <= 2.0)].sum() > 0.1 * spec.sum()  # log sweep: same energy per decade
+    assert (
+        spec[(f >= 0.5) & (f <= 2.0)].sum() > 0.1 * spec.sum()
+    )  # log sweep: same energy per decade
 
 
 def test_tail_is_silent():
@@ -52,7 +54,9 @@ def test_same_seed_same_data_and_seed_is_recorded():
 
 def test_noise_level_is_what_was_asked():
     p = ChirpProtocol(n_records=4, duration=10.0)
-    e = simulate_experiment(structure(), p, output_noise=MeasurementNoise(std=3.0), input_noise=0.5, seed=1)
+    e = simulate_experiment(
+        structure(), p, output_noise=MeasurementNoise(std=3.0), input_noise=0.5, seed=1
+    )
     assert np.std(e.y - e.y_clean) == pytest.approx(3.0, rel=0.01)
     assert np.std(e.u - e.u_clean) == pytest.approx(0.5, rel=0.01)
 
@@ -66,10 +70,15 @@ def test_engine_tones_appear_at_their_frequencies():
         assert est.g_uu[k] > 100 * np.median(est.g_uu[(est.f_hz > 20) & (est.f_hz < 200)])
 
 
-@pytest.mark.parametrize("form, names", [("valve", ("e", "y")), ("structure", ("y", "c")), ("human", ("c", "h"))],
-                         ids=["valve", "structure", "human"])
+@pytest.mark.parametrize(
+    "form, names",
+    [("valve", ("e", "y")), ("structure", ("y", "c")), ("human", ("c", "h"))],
+    ids=["valve", "structure", "human"],
+)
 def test_paper_experiment_channels_and_truth(form, names):
-    e = paper_experiment(form, ChirpProtocol(n_records=2, duration=4.0, f0_hz=0.5), noise=0.01, seed=0)
+    e = paper_experiment(
+        form, ChirpProtocol(n_records=2, duration=4.0, f0_hz=0.5), noise=0.01, seed=0
+    )
     assert (e.input_name, e.output_name) == names
     assert e.seed == 0 and e.u.shape == (2, 4000)
     # the chain (loop -> structure -> human) cancels Eqn 4's s^2 against Eqn 5's 1/s^2: no drift
@@ -100,10 +109,21 @@ def test_noisy_experiment_needs_a_seed():
 
 
 def test_mimo_system_needs_a_named_path():
-    sys = ct.ss(np.eye(2) * -1.0, np.eye(2), np.eye(2), np.zeros((2, 2)), inputs=["a", "b"], outputs=["p", "q"])
-    with pytest.raises(ModelStructureError, match=r"must be SISO .* Name the path with input=/output="):
+    sys = ct.ss(
+        np.eye(2) * -1.0,
+        np.eye(2),
+        np.eye(2),
+        np.zeros((2, 2)),
+        inputs=["a", "b"],
+        outputs=["p", "q"],
+    )
+    with pytest.raises(
+        ModelStructureError, match=r"must be SISO .* Name the path with input=/output="
+    ):
         simulate_experiment(sys, ChirpProtocol(n_records=1, duration=1.0))
-    with pytest.raises(ModelStructureError, match=r"path 'a' -> 'z' not found .* outputs \['p', 'q'\]"):
+    with pytest.raises(
+        ModelStructureError, match=r"path 'a' -> 'z' not found .* outputs \['p', 'q'\]"
+    ):
         simulate_experiment(sys, ChirpProtocol(n_records=1, duration=1.0), input="a", output="z")
 
 

@@ -23,7 +23,9 @@ FS = 1000.0
 
 @pytest.fixture(scope="module")
 def experiment():
-    return paper_experiment("structure", ChirpProtocol(n_records=3, duration=8.0, f0_hz=0.5), noise=0.02, seed=99)
+    return paper_experiment(
+        "structure", ChirpProtocol(n_records=3, duration=8.0, f0_hz=0.5), noise=0.02, seed=99
+    )
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".mat"], ids=["csv", "mat"])
@@ -56,7 +58,9 @@ def test_nan_names_channel_record_and_sample(tmp_path):
     rows = _rows(records=2)
     rows[50 + 7][3] = "nan"
     data = load_channels(_write_csv(tmp_path / "d.csv", ["record", "t", "e", "y"], rows))
-    with pytest.raises(DataError, match=r"channel 'y' record 1 has 1 NaN/inf value\(s\), first at sample 7"):
+    with pytest.raises(
+        DataError, match=r"channel 'y' record 1 has 1 NaN/inf value\(s\), first at sample 7"
+    ):
         select_channels(data, "e", "y", FS)
 
 
@@ -65,7 +69,9 @@ def test_non_uniform_sampling(tmp_path):
     for r in rows[30:]:
         r[1] += 0.0005
     data = load_channels(_write_csv(tmp_path / "d.csv", ["record", "t", "e", "y"], rows))
-    with pytest.raises(DataError, match=r"non-uniform sampling in record 0: .* between samples 29 and 30"):
+    with pytest.raises(
+        DataError, match=r"non-uniform sampling in record 0: .* between samples 29 and 30"
+    ):
         select_channels(data, "e", "y", FS)
 
 
@@ -78,7 +84,9 @@ def test_non_uniform_sampling(tmp_path):
     ids=["stated-rate", "time-column"],
 )
 def test_mismatched_sampling_rate(tmp_path, comment, dt, match):
-    data = load_channels(_write_csv(tmp_path / "d.csv", ["record", "t", "e", "y"], _rows(dt=dt), comment))
+    data = load_channels(
+        _write_csv(tmp_path / "d.csv", ["record", "t", "e", "y"], _rows(dt=dt), comment)
+    )
     with pytest.raises(DataError, match=match):
         select_channels(data, "e", "y", FS)
 
@@ -89,7 +97,9 @@ def test_mismatched_channel_lengths_in_mat(tmp_path):
     path = tmp_path / "d.mat"
     scipy.io.savemat(path, {"e": np.zeros(100), "y": np.zeros(99), "fs": 1000.0})
     data = load_channels(path)
-    with pytest.raises(DataError, match=r"mismatched sampling: record 0 has 100 samples of 'e' but 99 of 'y'"):
+    with pytest.raises(
+        DataError, match=r"mismatched sampling: record 0 has 100 samples of 'e' but 99 of 'y'"
+    ):
         select_channels(data, "e", "y", FS)
 
 
@@ -124,7 +134,9 @@ def test_malformed_csv(tmp_path, content, match):
 
 def test_unknown_channel_lists_available(tmp_path, experiment):
     data = load_channels(save_experiment(experiment, tmp_path / "d.csv"))
-    with pytest.raises(DataError, match=r"channel 'acc' not found in d.csv; available: \['y', 'c'\]"):
+    with pytest.raises(
+        DataError, match=r"channel 'acc' not found in d.csv; available: \['y', 'c'\]"
+    ):
         select_channels(data, "acc", "c", FS)
 
 
@@ -171,16 +183,32 @@ def _edit(obj, path, **changes):
     "changes, match",
     [
         ({"kind": "controller"}, r"field 'kind' must be 'bdft-component-fit'; got 'controller'"),
-        ({"form": "valve"}, r"form 'valve' needs params_class 'ValveCylinderParams'; got 'StructureParams'"),
+        (
+            {"form": "valve"},
+            r"form 'valve' needs params_class 'ValveCylinderParams'; got 'StructureParams'",
+        ),
         ({"form": "cab"}, r"field 'form' must be one of"),
-        ({"params.zeta1": -0.1}, r"not physical: StructureParams.zeta1 must be a finite value in \(0, 1\)"),
+        (
+            {"params.zeta1": -0.1},
+            r"not physical: StructureParams.zeta1 must be a finite value in \(0, 1\)",
+        ),
         ({"params.k_s": "big"}, r"field 'k_s' must be a finite number; got 'big'"),
         ({"params.extra": 1.0}, r"missing \[\], unexpected \['extra'\]"),
         ({"band": [15.0, 2.0]}, r"field 'band' must be \[lo, hi\]"),
         ({"fs": -1.0}, r"field 'fs' must be positive"),
         ({"seed": 1.5}, r"field 'seed' must be an integer or null"),
     ],
-    ids=["kind", "class-mismatch", "form", "unphysical", "non-numeric", "unexpected-param", "band", "fs", "seed"],
+    ids=[
+        "kind",
+        "class-mismatch",
+        "form",
+        "unphysical",
+        "non-numeric",
+        "unexpected-param",
+        "band",
+        "fs",
+        "seed",
+    ],
 )
 def test_component_fit_validation(tmp_path, structure_fit, changes, match):
     good = save_component_fit(tmp_path / "m.json", structure_fit, fs=FS, seed=None, source="d.csv")
@@ -203,6 +231,8 @@ def test_rational_fit_cannot_be_saved_as_component(tmp_path, experiment):
 
     est = estimate_frequency_response(experiment.u, experiment.y, experiment.fs)
     fit = fit_frequency_response(est, "4/4", (2.0, 15.0))
-    with pytest.raises(ParameterError, match=r"only the forms .* can be saved as component models; got '4/4'"):
+    with pytest.raises(
+        ParameterError, match=r"only the forms .* can be saved as component models; got '4/4'"
+    ):
         save_component_fit(tmp_path / "m.json", fit, fs=FS, seed=None, source="d.csv")
     assert not (tmp_path / "m.json").exists()

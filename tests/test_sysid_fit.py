@@ -20,8 +20,8 @@ from robust.sysid import (
     ChirpProtocol,
     FrequencyResponseEstimate,
     RationalParams,
-    estimate_frequency_response,
     coherence_threshold,
+    estimate_frequency_response,
     fit_frequency_response,
     form_system,
     levy_sk,
@@ -60,9 +60,20 @@ def _exact_estimate(system, f_hz, fs=1000.0) -> FrequencyResponseEstimate:
     h = np.ones(n, dtype=complex)  # the DC bin is never fitted (a free integrator has no DC value)
     h[1:] = np.asarray(system(2j * np.pi * f_hz[1:])).ravel()
     return FrequencyResponseEstimate(
-        f_hz=f_hz, h1=h, coherence=np.ones(n), g_uu=np.ones(n), g_yy=np.abs(h) ** 2, g_uy=h, fs=fs,
-        nperseg=int(round(fs / (f_hz[1] - f_hz[0]))), noverlap=0, window="boxcar", detrend="none",
-        n_segments=10, n_effective=10.0, n_records=10,
+        f_hz=f_hz,
+        h1=h,
+        coherence=np.ones(n),
+        g_uu=np.ones(n),
+        g_yy=np.abs(h) ** 2,
+        g_uy=h,
+        fs=fs,
+        nperseg=round(fs / (f_hz[1] - f_hz[0])),
+        noverlap=0,
+        window="boxcar",
+        detrend="none",
+        n_segments=10,
+        n_effective=10.0,
+        n_records=10,
     )
 
 
@@ -92,7 +103,7 @@ def test_fixed_form_recovered_from_noisy_chirp_experiment(form):
             # acceleration is weak (errors in variables), a bias std_errors does not include.
             assert abs(got[name] - true) <= 5.0 * fit.std_errors[name], name
     assert fit.fit_error_db < 1.0
-    assert [b.band_hz[0] for b in fit.band_errors][0] == pytest.approx(BANDS[form][0])
+    assert fit.band_errors[0].band_hz[0] == pytest.approx(BANDS[form][0])
 
 
 @pytest.mark.slow
@@ -100,12 +111,15 @@ def test_paper_protocol_dimensions_recover_every_component():
     # the paper's protocol: 20 records of 25 s at 1 kHz
     proto = ChirpProtocol()
     assert (proto.n_records, proto.duration, proto.fs) == (20, 25.0, 1000.0)
-    for form in TRUTH:
+    for form, truth in TRUTH.items():
         exp = paper_experiment(form, proto, noise=0.02, engine_tone=0.02, seed=7)
         est = estimate_frequency_response(exp.u, exp.y, exp.fs)
         fit = fit_frequency_response(est, form, BANDS[form])
-        for name, true in dataclasses.asdict(TRUTH[form]).items():
-            assert getattr(fit.params, name) == pytest.approx(true, rel=TOLERANCES[form][name]), (form, name)
+        for name, true in dataclasses.asdict(truth).items():
+            assert getattr(fit.params, name) == pytest.approx(true, rel=TOLERANCES[form][name]), (
+                form,
+                name,
+            )
 
 
 def test_structure_modes_are_ordered_and_their_coupling_reported():
@@ -197,7 +211,9 @@ def test_coherence_threshold_has_its_false_alarm_rate():
 
 def test_noise_only_data_have_no_usable_frequencies():
     rng = np.random.default_rng(9)
-    est = estimate_frequency_response(rng.standard_normal((8, 4096)), rng.standard_normal((8, 4096)), 1000.0)
+    est = estimate_frequency_response(
+        rng.standard_normal((8, 4096)), rng.standard_normal((8, 4096)), 1000.0
+    )
     with pytest.raises(InfeasibleError, match=r"only \d usable frequencies in band \[1, 100\] Hz"):
         fit_frequency_response(est, "valve", (1.0, 100.0))
 

@@ -123,7 +123,9 @@ def test_simulate_response_matches_python_control():
     proto = ChirpProtocol(n_records=1, duration=3.0)
     u = proto.excitation()
     ref = ct.forced_response(structure(), T=proto.time(), U=u).outputs
-    np.testing.assert_allclose(simulate_response(structure(), u, FS), ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+    np.testing.assert_allclose(
+        simulate_response(structure(), u, FS), ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max()
+    )
 
 
 # --- bad data ---------------------------------------------------------------------------------

@@ -49,24 +49,55 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--output", required=True, metavar="CH", help="output channel name")
     p.add_argument("--fs", required=True, type=float, metavar="HZ", help="sampling rate in Hz")
     p.add_argument("--form", required=True, metavar="FORM", help="valve | structure | human | M/N")
-    p.add_argument("--band", required=True, type=float, nargs=2, metavar=("LO", "HI"), help="fit band in Hz")
+    p.add_argument(
+        "--band", required=True, type=float, nargs=2, metavar=("LO", "HI"), help="fit band in Hz"
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
-                   help=f"folder for plots and tables (default {DEFAULT_OUT})")
-    p.add_argument("--save-model", type=Path, default=None, metavar="FILE.json",
-                   help="also write the fitted component model (fixed forms only)")
-    p.add_argument("--nperseg", type=int, default=None,
-                   help="Welch segment length in samples (default: one segment per record)")
-    p.add_argument("--window", default=None,
-                   help="scipy.signal window (default: boxcar for whole records, else hann)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=DEFAULT_OUT,
+        metavar="DIR",
+        help=f"folder for plots and tables (default {DEFAULT_OUT})",
+    )
+    p.add_argument(
+        "--save-model",
+        type=Path,
+        default=None,
+        metavar="FILE.json",
+        help="also write the fitted component model (fixed forms only)",
+    )
+    p.add_argument(
+        "--nperseg",
+        type=int,
+        default=None,
+        help="Welch segment length in samples (default: one segment per record)",
+    )
+    p.add_argument(
+        "--window",
+        default=None,
+        help="scipy.signal window (default: boxcar for whole records, else hann)",
+    )
     p.add_argument("--detrend", default="constant", choices=("none", "constant", "linear"))
     p.add_argument("--weighting", default="coherence", choices=("coherence", "none"))
-    p.add_argument("--min-coherence", type=float, default=0.0, metavar="G2",
-                   help="ignore frequencies with coherence below this (default 0)")
-    p.add_argument("--significance", type=float, default=0.05, metavar="ALPHA",
-                   help="drop frequencies whose coherence is not significantly above zero at this "
-                        "family-wise level over the band (default 0.05; 1 keeps all)")
-    p.add_argument("--confidence", type=float, default=0.95, help="level of the plotted bounds (default 0.95)")
+    p.add_argument(
+        "--min-coherence",
+        type=float,
+        default=0.0,
+        metavar="G2",
+        help="ignore frequencies with coherence below this (default 0)",
+    )
+    p.add_argument(
+        "--significance",
+        type=float,
+        default=0.05,
+        metavar="ALPHA",
+        help="drop frequencies whose coherence is not significantly above zero at this "
+        "family-wise level over the band (default 0.05; 1 keeps all)",
+    )
+    p.add_argument(
+        "--confidence", type=float, default=0.95, help="level of the plotted bounds (default 0.95)"
+    )
     p.set_defaults(func=run)
     return p
 
@@ -87,24 +118,45 @@ def run(args: argparse.Namespace) -> int:
             f"--save-model needs a fixed form (valve, structure or human); got the rational form {args.form!r}"
         )
     if not 0.0 < args.significance:
-        raise ParameterError(f"--significance must be in (0, 1], 1 keeping every frequency; got {args.significance!r}")
+        raise ParameterError(
+            f"--significance must be in (0, 1], 1 keeping every frequency; got {args.significance!r}"
+        )
     if not 0.0 < args.confidence < 1.0:
         raise ParameterError(f"--confidence must be in (0, 1); got {args.confidence!r}")
     band = (float(args.band[0]), float(args.band[1]))
     result = identify_file(
-        args.data, args.input, args.output, args.fs, args.form, band,
-        nperseg=args.nperseg, window=args.window, detrend=args.detrend,
-        weighting=args.weighting, min_coherence=args.min_coherence,
+        args.data,
+        args.input,
+        args.output,
+        args.fs,
+        args.form,
+        band,
+        nperseg=args.nperseg,
+        window=args.window,
+        detrend=args.detrend,
+        weighting=args.weighting,
+        min_coherence=args.min_coherence,
         significance=None if args.significance >= 1.0 else args.significance,
     )
     est, fit = result.estimate, result.fit
     stem = f"{_slug(Path(args.data).stem)}_{_slug(args.form.replace('/', '-'))}"
     label = f"{args.input} -> {args.output}"
     f_range = (max(est.f_hz[1], band[0] / 10.0), min(est.fs / 2.0, band[1] * 5.0))
-    bode = bode_figure(est, fit, band_hz=band, f_range_hz=f_range, confidence=args.confidence,
-                       title=f"{Path(args.data).name}: {label}, {args.form} fit")
-    coh = coherence_figure(est, band_hz=band, f_range_hz=f_range, threshold=fit.coherence_threshold,
-                           title=f"{Path(args.data).name}: coherence {label} ({est.n_records} records)")
+    bode = bode_figure(
+        est,
+        fit,
+        band_hz=band,
+        f_range_hz=f_range,
+        confidence=args.confidence,
+        title=f"{Path(args.data).name}: {label}, {args.form} fit",
+    )
+    coh = coherence_figure(
+        est,
+        band_hz=band,
+        f_range_hz=f_range,
+        threshold=fit.coherence_threshold,
+        title=f"{Path(args.data).name}: coherence {label} ({est.n_records} records)",
+    )
     table_text = _table_csv(result, args.confidence)
     summary = result.to_dict()
     out = Path(args.out)
@@ -123,7 +175,9 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_text(paths["h1_csv"], table_text)
     atomic_write_json(paths["fit_json"], summary)
     if args.save_model is not None:
-        save_component_fit(args.save_model, fit, fs=result.fs, seed=result.seed, source=str(args.data))
+        save_component_fit(
+            args.save_model, fit, fs=result.fs, seed=result.seed, source=str(args.data)
+        )
     if args.json:
         from . import print_json
 
@@ -156,18 +210,24 @@ def _table_csv(result, confidence: float) -> str:
 def _print_text(summary: dict) -> None:
     w = sys.stdout.write
     lo, hi = summary["band"]
-    w(f"form {summary['form']} ({summary['params_class']}), band {lo:g}-{hi:g} Hz, "
-      f"{summary['n_points']} frequencies, {summary['spectral']['n_records']} records\n")
+    w(
+        f"form {summary['form']} ({summary['params_class']}), band {lo:g}-{hi:g} Hz, "
+        f"{summary['n_points']} frequencies, {summary['spectral']['n_records']} records\n"
+    )
     for name, val in summary["params"].items():
         sd = summary["std_errors"].get(name)
         w(f"  {name:>8s} = {val:.6g}" + (f"  (+- {sd:.2g})" if sd is not None else "") + "\n")
-    w(f"fit error: {summary['fit_error_db']:.3f} dB, {summary['fit_error_deg']:.2f} deg (weighted RMS)\n")
+    w(
+        f"fit error: {summary['fit_error_db']:.3f} dB, {summary['fit_error_deg']:.2f} deg (weighted RMS)\n"
+    )
     for b in summary["band_errors"]:
         a, c = b["band_hz"]
-        w(f"  {a:8.3g}-{c:<8.3g} Hz: {b['rms_db']:.3f} dB, {b['rms_deg']:.2f} deg, "
-          f"mean coherence {b['mean_coherence']:.3f}\n")
+        w(
+            f"  {a:8.3g}-{c:<8.3g} Hz: {b['rms_db']:.3f} dB, {b['rms_deg']:.2f} deg, "
+            f"mean coherence {b['mean_coherence']:.3f}\n"
+        )
     for note in summary["notes"]:
         w(f"note: {note}\n")
     w(f"seed: {summary['seed']}\n")
-    for k, v in summary["outputs"].items():
+    for v in summary["outputs"].values():
         w(f"wrote {v}\n")

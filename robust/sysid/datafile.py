@@ -98,7 +98,9 @@ def load_channels(path: str | os.PathLike) -> ChannelData:
         return _load_csv(path)
     if suffix == ".mat":
         return _load_mat(path)
-    raise DataError(f"data file {path.name!r}: expected a .csv, .txt or .mat file; got suffix {suffix!r}")
+    raise DataError(
+        f"data file {path.name!r}: expected a .csv, .txt or .mat file; got suffix {suffix!r}"
+    )
 
 
 def _parse_meta(lines: list[str]) -> dict:
@@ -115,7 +117,9 @@ def _meta_number(meta, key, cast, source):
     try:
         return cast(meta[key])
     except ValueError:
-        raise DataError(f"{source}: comment field {key}={meta[key]!r} is not a valid {cast.__name__}") from None
+        raise DataError(
+            f"{source}: comment field {key}={meta[key]!r} is not a valid {cast.__name__}"
+        ) from None
 
 
 def _is_number(text: str) -> bool:
@@ -140,16 +144,22 @@ def _load_csv(path: Path) -> ChannelData:
     if any(not h for h in header) or len(set(header)) != len(header):
         raise DataError(f"{path.name}: header must name every column once; got {header}")
     if _is_number(header[0]):
-        raise DataError(f"{path.name}: first row {header} looks numeric; the first row must name the channels")
+        raise DataError(
+            f"{path.name}: first row {header} looks numeric; the first row must name the channels"
+        )
     body = "\n".join(lines[i + 1 :])
     if not body.strip():
         raise DataError(f"{path.name}: header found but no data rows")
     try:
         arr = np.loadtxt(io.StringIO(body), delimiter=",", dtype=float, ndmin=2, comments="#")
     except ValueError as exc:
-        raise DataError(f"{path.name}: non-numeric or missing value in the data rows ({exc})") from None
+        raise DataError(
+            f"{path.name}: non-numeric or missing value in the data rows ({exc})"
+        ) from None
     if arr.shape[1] != len(header):
-        raise DataError(f"{path.name}: header has {len(header)} columns but rows have {arr.shape[1]}")
+        raise DataError(
+            f"{path.name}: header has {len(header)} columns but rows have {arr.shape[1]}"
+        )
     cols = {h: arr[:, j] for j, h in enumerate(header)}
     meta = _parse_meta(comments)
     fs = _meta_number(meta, "fs", float, path.name)
@@ -177,7 +187,9 @@ def _record_bounds(rec: np.ndarray | None, source: str) -> list[tuple[int, int]]
     ends = np.concatenate([change, [rec.size]])
     ids = rec[starts]
     if len(set(ids.tolist())) != ids.size:
-        raise DataError(f"{source}: rows of each record must be contiguous; record ids repeat: {ids.tolist()}")
+        raise DataError(
+            f"{source}: rows of each record must be contiguous; record ids repeat: {ids.tolist()}"
+        )
     return [(int(a), int(b)) for a, b in zip(starts, ends)]
 
 
@@ -186,8 +198,10 @@ def _load_mat(path: Path) -> ChannelData:
 
     try:
         raw = scipy.io.loadmat(str(path), squeeze_me=False)
-    except Exception as exc:  # scipy raises several types for malformed files
-        raise DataError(f"{path.name}: cannot read as a MATLAB .mat file ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # noqa: BLE001 - scipy raises several unrelated types for malformed files
+        raise DataError(
+            f"{path.name}: cannot read as a MATLAB .mat file ({type(exc).__name__}: {exc})"
+        ) from None
     fs = seed = None
     channels = {}
     time = None
@@ -197,7 +211,9 @@ def _load_mat(path: Path) -> ChannelData:
         arr = np.asarray(val)
         if key in ("fs", "seed"):
             if arr.size != 1 or not np.issubdtype(arr.dtype, np.number):
-                raise DataError(f"{path.name}: variable {key!r} must be a numeric scalar; got shape {arr.shape}")
+                raise DataError(
+                    f"{path.name}: variable {key!r} must be a numeric scalar; got shape {arr.shape}"
+                )
             if key == "fs":
                 fs = float(arr.ravel()[0])
             else:
@@ -257,15 +273,23 @@ def select_channels(
     fs = check_scalar("fs", fs, POSITIVE)
     for name in (input_name, output_name):
         if name not in data.channels:
-            raise DataError(f"channel {name!r} not found in {Path(data.source).name}; available: {data.names}")
+            raise DataError(
+                f"channel {name!r} not found in {Path(data.source).name}; available: {data.names}"
+            )
     if input_name == output_name:
-        raise ParameterError(f"input and output must be different channels; got {input_name!r} for both")
+        raise ParameterError(
+            f"input and output must be different channels; got {input_name!r} for both"
+        )
     if data.fs is not None and abs(data.fs - fs) > _REL_FS_TOL * fs:
-        raise DataError(f"mismatched sampling: the file states fs={data.fs:g} Hz but fs={fs:g} Hz was given")
+        raise DataError(
+            f"mismatched sampling: the file states fs={data.fs:g} Hz but fs={fs:g} Hz was given"
+        )
     u = list(data.channels[input_name])
     y = list(data.channels[output_name])
     if len(u) != len(y):
-        raise DataError(f"channel {input_name!r} has {len(u)} record(s) but {output_name!r} has {len(y)}")
+        raise DataError(
+            f"channel {input_name!r} has {len(u)} record(s) but {output_name!r} has {len(y)}"
+        )
     for k, (a, b) in enumerate(zip(u, y)):
         for name, rec in ((input_name, a), (output_name, b)):
             bad = np.flatnonzero(~np.isfinite(rec))
@@ -358,9 +382,13 @@ def save_experiment(experiment, path: str | os.PathLike, *, source: str = "") ->
     if suffix == ".mat":
         import scipy.io
 
-        mdict = {"fs": float(experiment.fs), "t": t, experiment.input_name: u, experiment.output_name: y}
+        mdict = {
+            "fs": float(experiment.fs),
+            "t": t,
+            experiment.input_name: u,
+            experiment.output_name: y,
+        }
         if seed is not None:
             mdict["seed"] = int(seed)
         return atomic_write(path, lambda tmp: scipy.io.savemat(tmp, mdict, appendmat=False))
     raise ParameterError(f"save_experiment: path must end in .csv or .mat; got {path.name!r}")
-

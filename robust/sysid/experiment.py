@@ -31,16 +31,16 @@ from .._checks import NONNEGATIVE, POSITIVE, check_scalar, validate_fields
 from ..errors import ModelStructureError, ParameterError
 
 __all__ = [
+    "ENGINE_TONES_HZ",
+    "PAPER_COMPONENTS",
     "ChirpProtocol",
-    "MeasurementNoise",
     "Experiment",
+    "MeasurementNoise",
     "chirp_excitation",
+    "paper_experiment",
+    "select_path",
     "simulate_experiment",
     "simulate_response",
-    "select_path",
-    "paper_experiment",
-    "PAPER_COMPONENTS",
-    "ENGINE_TONES_HZ",
 ]
 
 #: Components of the paper that :func:`paper_experiment` can simulate.
@@ -92,16 +92,28 @@ class ChirpProtocol:
     def __post_init__(self):
         validate_fields(
             self,
-            {"fs": POSITIVE, "duration": POSITIVE, "f0_hz": POSITIVE, "f1_hz": POSITIVE, "amplitude": POSITIVE,
-             "tail_s": NONNEGATIVE},
+            {
+                "fs": POSITIVE,
+                "duration": POSITIVE,
+                "f0_hz": POSITIVE,
+                "f1_hz": POSITIVE,
+                "amplitude": POSITIVE,
+                "tail_s": NONNEGATIVE,
+            },
         )
         if self.tail_s >= self.duration:
             raise ParameterError(
                 f"ChirpProtocol.tail_s must be shorter than duration; got tail_s={self.tail_s:g} s, "
                 f"duration={self.duration:g} s"
             )
-        if isinstance(self.n_records, bool) or not isinstance(self.n_records, (int, np.integer)) or self.n_records < 1:
-            raise ParameterError(f"ChirpProtocol.n_records must be a positive integer; got {self.n_records!r}")
+        if (
+            isinstance(self.n_records, bool)
+            or not isinstance(self.n_records, (int, np.integer))
+            or self.n_records < 1
+        ):
+            raise ParameterError(
+                f"ChirpProtocol.n_records must be a positive integer; got {self.n_records!r}"
+            )
         object.__setattr__(self, "n_records", int(self.n_records))
         if self.f1_hz <= self.f0_hz:
             raise ParameterError(
@@ -113,7 +125,9 @@ class ChirpProtocol:
                 f"got f1_hz={self.f1_hz:g}"
             )
         if self.method not in _CHIRP_METHODS:
-            raise ParameterError(f"ChirpProtocol.method must be one of {_CHIRP_METHODS}; got {self.method!r}")
+            raise ParameterError(
+                f"ChirpProtocol.method must be one of {_CHIRP_METHODS}; got {self.method!r}"
+            )
         if self.n_samples < 16:
             raise ParameterError(
                 f"ChirpProtocol gives {self.n_samples} samples per record (duration*fs); need at least 16"
@@ -122,7 +136,7 @@ class ChirpProtocol:
     @property
     def n_samples(self) -> int:
         """Samples per record, ``round(duration * fs)``."""
-        return int(round(self.duration * self.fs))
+        return round(self.duration * self.fs)
 
     def time(self) -> np.ndarray:
         """Sample times of one record in s, shape ``(n_samples,)``."""
@@ -134,16 +148,25 @@ class ChirpProtocol:
         The sweep fills ``duration - tail_s``; the tail is zero.
         """
         t = self.time()
-        n_sweep = int(round((self.duration - self.tail_s) * self.fs))
+        n_sweep = round((self.duration - self.tail_s) * self.fs)
         out = np.zeros_like(t)
         out[:n_sweep] = chirp_excitation(
-            t[:n_sweep], f0_hz=self.f0_hz, f1_hz=self.f1_hz, amplitude=self.amplitude, method=self.method
+            t[:n_sweep],
+            f0_hz=self.f0_hz,
+            f1_hz=self.f1_hz,
+            amplitude=self.amplitude,
+            method=self.method,
         )
         return out
 
 
 def chirp_excitation(
-    t: np.ndarray, *, f0_hz: float, f1_hz: float, amplitude: float = 1.0, method: str = "logarithmic"
+    t: np.ndarray,
+    *,
+    f0_hz: float,
+    f1_hz: float,
+    amplitude: float = 1.0,
+    method: str = "logarithmic",
 ) -> np.ndarray:
     """Swept sine from ``f0_hz`` to ``f1_hz`` over the span of ``t``, built on :func:`scipy.signal.chirp`.
 
@@ -167,7 +190,9 @@ def chirp_excitation(
     """
     t = np.asarray(t, dtype=float)
     if t.ndim != 1 or t.size < 2:
-        raise ParameterError(f"t must be a 1-D array of at least 2 sample times; got shape {t.shape}")
+        raise ParameterError(
+            f"t must be a 1-D array of at least 2 sample times; got shape {t.shape}"
+        )
     f0 = check_scalar("f0_hz", f0_hz, POSITIVE)
     f1 = check_scalar("f1_hz", f1_hz, POSITIVE)
     a = check_scalar("amplitude", amplitude, POSITIVE)
@@ -195,8 +220,10 @@ class MeasurementNoise:
 
     def __post_init__(self):
         validate_fields(self, {"std": NONNEGATIVE, "tone_amplitude": NONNEGATIVE})
-        tones = tuple(check_scalar(f"tone_hz[{i}]", f, POSITIVE, owner="MeasurementNoise")
-                      for i, f in enumerate(self.tone_hz))
+        tones = tuple(
+            check_scalar(f"tone_hz[{i}]", f, POSITIVE, owner="MeasurementNoise")
+            for i, f in enumerate(self.tone_hz)
+        )
         object.__setattr__(self, "tone_hz", tones)
 
     @property
@@ -272,7 +299,9 @@ def _check_seed(seed) -> int:
 
 def _siso_labels(system) -> tuple[str, str]:
     if not isinstance(system, ct.LTI):
-        raise ModelStructureError(f"system must be a python-control LTI system; got {type(system).__name__}")
+        raise ModelStructureError(
+            f"system must be a python-control LTI system; got {type(system).__name__}"
+        )
     if system.ninputs != 1 or system.noutputs != 1:
         raise ModelStructureError(
             f"system must be SISO for a single-channel experiment; got {system.ninputs} input(s), "
@@ -293,18 +322,36 @@ def select_path(system, input: str | None = None, output: str | None = None):
         without naming the path.
     """
     if not isinstance(system, ct.LTI):
-        raise ModelStructureError(f"system must be a python-control LTI system; got {type(system).__name__}")
+        raise ModelStructureError(
+            f"system must be a python-control LTI system; got {type(system).__name__}"
+        )
     if input is None and output is None:
         return system
     ins, outs = list(system.input_labels), list(system.output_labels)
-    i = ins.index(input) if input is not None and input in ins else (0 if input is None and len(ins) == 1 else None)
-    o = outs.index(output) if output is not None and output in outs else (0 if output is None and len(outs) == 1 else None)
+    i = (
+        ins.index(input)
+        if input is not None and input in ins
+        else (0 if input is None and len(ins) == 1 else None)
+    )
+    o = (
+        outs.index(output)
+        if output is not None and output in outs
+        else (0 if output is None and len(outs) == 1 else None)
+    )
     if i is None or o is None:
         raise ModelStructureError(
             f"path {input!r} -> {output!r} not found in system {system.name!r}: inputs {ins}, outputs {outs}"
         )
     sub = ct.ss(system)[o, i]
-    return ct.ss(sub.A, sub.B, sub.C, sub.D, inputs=ins[i], outputs=outs[o], name=f"{system.name}:{ins[i]}->{outs[o]}")
+    return ct.ss(
+        sub.A,
+        sub.B,
+        sub.C,
+        sub.D,
+        inputs=ins[i],
+        outputs=outs[o],
+        name=f"{system.name}:{ins[i]}->{outs[o]}",
+    )
 
 
 def simulate_response(system, u: np.ndarray, fs: float) -> np.ndarray:
@@ -343,7 +390,7 @@ def _dlsim_rows(ad, bd, cd, dd, u2):
     # Diagonalise when possible: n_states independent first-order recursions run in
     # compiled code through scipy.signal.lfilter.
     evals, vecs = np.linalg.eig(ad)
-    if np.linalg.cond(vecs) < 1e8:
+    if np.linalg.cond(vecs) < 1e6:
         bm = np.linalg.solve(vecs, bd.astype(complex))
         cm = cd @ vecs
         y = dd * u2.astype(complex)
@@ -428,8 +475,16 @@ def simulate_experiment(
     if seed is not None:
         seed = _check_seed(seed)
         rng = np.random.default_rng(seed)
-    n_in = input_noise if isinstance(input_noise, MeasurementNoise) else MeasurementNoise(std=input_noise)
-    n_out = output_noise if isinstance(output_noise, MeasurementNoise) else MeasurementNoise(std=output_noise)
+    n_in = (
+        input_noise
+        if isinstance(input_noise, MeasurementNoise)
+        else MeasurementNoise(std=input_noise)
+    )
+    n_out = (
+        output_noise
+        if isinstance(output_noise, MeasurementNoise)
+        else MeasurementNoise(std=output_noise)
+    )
     shape = (protocol.n_records, protocol.n_samples)
     if excitation is None:
         u = np.broadcast_to(protocol.excitation(), shape).copy()
@@ -438,9 +493,13 @@ def simulate_experiment(
         if u.ndim == 1:
             u = np.broadcast_to(u, (protocol.n_records, u.size)).copy()
         if u.shape != shape:
-            raise ParameterError(f"excitation must have shape {shape} or ({shape[1]},); got {u.shape}")
+            raise ParameterError(
+                f"excitation must have shape {shape} or ({shape[1]},); got {u.shape}"
+            )
     if rng is None and not (n_in.is_zero and n_out.is_zero):
-        raise ParameterError("noisy experiments need a seed (or a numpy Generator) so they can be reproduced")
+        raise ParameterError(
+            "noisy experiments need a seed (or a numpy Generator) so they can be reproduced"
+        )
     if upstream is None:
         y = simulate_response(system, u, protocol.fs)
     else:
@@ -456,10 +515,17 @@ def simulate_experiment(
     for arr in arrays:
         arr.setflags(write=False)
     return Experiment(
-        u=um, y=ym, fs=protocol.fs, seed=seed, protocol=protocol, system=system,
-        input_name=in_name, output_name=out_name, u_clean=u, y_clean=y,
+        u=um,
+        y=ym,
+        fs=protocol.fs,
+        seed=seed,
+        protocol=protocol,
+        system=system,
+        input_name=in_name,
+        output_name=out_name,
+        u_clean=u,
+        y_clean=y,
     )
-
 
 
 def _pi_loop():
@@ -528,9 +594,15 @@ def paper_experiment(
     check_scalar("engine_tone", engine_tone, NONNEGATIVE)
     protocol = protocol or ChirpProtocol()
     r_to_e, r_to_y = _pi_loop()
-    expected = {"valve": ValveCylinderParams, "structure": StructureParams, "human": LiteralHumanParams}[component]
+    expected = {
+        "valve": ValveCylinderParams,
+        "structure": StructureParams,
+        "human": LiteralHumanParams,
+    }[component]
     if truth is not None and not isinstance(truth, expected):
-        raise ParameterError(f"truth for {component!r} must be a {expected.__name__}; got {type(truth).__name__}")
+        raise ParameterError(
+            f"truth for {component!r} must be a {expected.__name__}; got {type(truth).__name__}"
+        )
     if component == "valve":
         system = valve_cylinder(truth)
         upstream = r_to_e
@@ -546,10 +618,16 @@ def paper_experiment(
     accel_in = component == "human"
     accel_out = component == "structure"
     tones = ENGINE_TONES_HZ if engine_tone > 0 else ()
-    n_in = MeasurementNoise(std=noise * rms_in, tone_hz=tones if accel_in else (),
-                            tone_amplitude=engine_tone * rms_in if accel_in else 0.0)
-    n_out = MeasurementNoise(std=noise * rms_out, tone_hz=tones if accel_out else (),
-                             tone_amplitude=engine_tone * rms_out if accel_out else 0.0)
+    n_in = MeasurementNoise(
+        std=noise * rms_in,
+        tone_hz=tones if accel_in else (),
+        tone_amplitude=engine_tone * rms_in if accel_in else 0.0,
+    )
+    n_out = MeasurementNoise(
+        std=noise * rms_out,
+        tone_hz=tones if accel_out else (),
+        tone_amplitude=engine_tone * rms_out if accel_out else 0.0,
+    )
     rng = np.random.default_rng(_check_seed(seed))
     shape = clean.u.shape
     um = clean.u_clean + n_in.sample(shape, protocol.fs, rng)
@@ -558,4 +636,6 @@ def paper_experiment(
         arr.setflags(write=False)
     in_name = {"valve": "e", "structure": "y", "human": "c"}[component]
     out_name = {"valve": "y", "structure": "c", "human": "h"}[component]
-    return dataclasses.replace(clean, u=um, y=ym, seed=int(seed), input_name=in_name, output_name=out_name)
+    return dataclasses.replace(
+        clean, u=um, y=ym, seed=int(seed), input_name=in_name, output_name=out_name
+    )

@@ -44,6 +44,7 @@ estimate corrected for its ``1/n_d`` bias and capped at 0.999, and by
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import control as ct
@@ -51,20 +52,29 @@ import numpy as np
 import scipy.optimize
 
 from ..errors import InfeasibleError, ParameterError, SolverError
-from .forms import FORM_SPECS, FORMS, ZETA_BOUNDS, RationalParams, _Form, _tf_of, form_system, parse_form
+from .forms import (
+    FORM_SPECS,
+    FORMS,
+    ZETA_BOUNDS,
+    RationalParams,
+    _Form,
+    _tf_of,
+    form_system,
+    parse_form,
+)
 from .linear import levy_sk
 from .spectral import FrequencyResponseEstimate, check_band
 
 __all__ = [
     "FORMS",
-    "RationalParams",
     "BandError",
     "FitResult",
+    "RationalParams",
+    "coherence_threshold",
     "fit_frequency_response",
+    "form_system",
     "levy_sk",
     "parse_form",
-    "form_system",
-    "coherence_threshold",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -203,7 +213,9 @@ def _debiased_coherence(coh: np.ndarray, n_effective: float) -> np.ndarray:
     return np.clip((nd * coh - 1.0) / (nd - 1.0), 0.0, 1.0)
 
 
-def _weights(f: np.ndarray, coh: np.ndarray, n_effective: float, weighting: str, log_spacing: bool) -> np.ndarray:
+def _weights(
+    f: np.ndarray, coh: np.ndarray, n_effective: float, weighting: str, log_spacing: bool
+) -> np.ndarray:
     if weighting == "coherence":
         g2 = np.clip(_debiased_coherence(coh, n_effective), 0.0, _COH_CAP)
         w = np.sqrt(g2 / (1.0 - g2))
@@ -225,7 +237,7 @@ def _band_errors(f, model, meas, coh, lo, hi, n_sub) -> tuple[BandError, ...]:
     edges = np.geomspace(lo, hi, n_sub + 1)
     lr = _log_ratio(model, meas)
     out = []
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in itertools.pairwise(edges):
         m = (f >= a) & (f <= b)
         if not np.any(m):
             continue
@@ -322,14 +334,18 @@ def fit_frequency_response(
     lo, hi = check_band(band_hz)
     if not (isinstance(min_coherence, (int, float)) and 0.0 <= min_coherence < 1.0):
         raise ParameterError(f"min_coherence must be in [0, 1); got {min_coherence!r}")
-    if significance is not None and not (isinstance(significance, (int, float)) and 0.0 < significance < 1.0):
+    if significance is not None and not (
+        isinstance(significance, (int, float)) and 0.0 < significance < 1.0
+    ):
         raise ParameterError(f"significance must be in (0, 1) or None; got {significance!r}")
     mask, threshold = _usable(estimate, (lo, hi), min_coherence, significance)
     f = estimate.f_hz[mask]
     hm = estimate.h1[mask]
     coh = estimate.coherence[mask]
     w = _weights(f, coh, estimate.n_effective, weighting, log_spacing)
-    n_par = (parsed[0] + parsed[1] + 1) if isinstance(parsed, tuple) else len(FORM_SPECS[parsed].names)
+    n_par = (
+        (parsed[0] + parsed[1] + 1) if isinstance(parsed, tuple) else len(FORM_SPECS[parsed].names)
+    )
     if f.size < max(n_par, 3) or np.count_nonzero(w > 0) < n_par:
         raise InfeasibleError(
             f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz (coherence >= {threshold:.3g}); "
@@ -340,7 +356,9 @@ def fit_frequency_response(
     if isinstance(parsed, tuple):
         result = _fit_rational(form, parsed, f, s, hm, coh, w, lo, hi, n_subbands)
     else:
-        result = _fit_fixed(FORM_SPECS[parsed], f, s, hm, coh, w, lo, hi, n_subbands, initial, starts)
+        result = _fit_fixed(
+            FORM_SPECS[parsed], f, s, hm, coh, w, lo, hi, n_subbands, initial, starts
+        )
     return dataclasses.replace(result, coherence_threshold=float(threshold))
 
 
@@ -393,8 +411,9 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
         num, den = levy_sk(2 * np.pi * f, target, m, n, weights=w / np.abs(target))
         inverted = _linear_gain_sign(spec, num, den) < 0
         p_lin = spec.from_rational(num, den)
-        if not np.all(np.isfinite(p_lin)) or np.any(p_lin[[i for i, nm in enumerate(spec.names)
-                                                            if not nm.startswith("zeta")]] <= 0):
+        if not np.all(np.isfinite(p_lin)) or np.any(
+            p_lin[[i for i, nm in enumerate(spec.names) if not nm.startswith("zeta")]] <= 0
+        ):
             raise SolverError("linear estimate gave non-physical parameters")
     except (SolverError, np.linalg.LinAlgError):
         p_lin = _generic_start(spec, f, hm)
@@ -415,16 +434,21 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
     for q in _starts(spec, p0, starts):
         theta0 = _clip_theta(spec.to_theta(_physical(spec, q)), tlo, thi)
         try:
-            res = scipy.optimize.least_squares(fun, theta0, bounds=(tlo, thi), method="trf", x_scale="jac",
-                                               max_nfev=2000)
+            res = scipy.optimize.least_squares(
+                fun, theta0, bounds=(tlo, thi), method="trf", x_scale="jac", max_nfev=2000
+            )
         except (ValueError, np.linalg.LinAlgError) as exc:
-            raise SolverError(f"nonlinear least squares failed for form {spec.name!r}: {exc}") from None
+            raise SolverError(
+                f"nonlinear least squares failed for form {spec.name!r}: {exc}"
+            ) from None
         if not np.all(np.isfinite(res.x)) or not math.isfinite(res.cost):
             continue
         if best is None or res.cost < best.cost:
             best = res
     if best is None:
-        raise SolverError(f"nonlinear least squares for form {spec.name!r} did not return a usable solution")
+        raise SolverError(
+            f"nonlinear least squares for form {spec.name!r} did not return a usable solution"
+        )
     p = spec.from_theta(best.x)
     try:
         params = spec.params_class(**dict(zip(spec.names, (float(v) for v in p))))
@@ -437,14 +461,36 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
         notes += ("nonlinear least squares stopped at its evaluation limit before converging",)
     offset = _mean_phase_offset_deg(model, hm, w)
     if inverted or abs(offset) > 90.0:
-        why = ("the linear estimate's gain is negative" if inverted
-               else f"the measured phase sits {offset:+.0f} deg from the fitted form's on average")
-        notes += (
-            f"{why}: the data look inverted (check the sign of a sensor or channel; the form's gain is "
-            "positive) or the form does not match them",
+        why = (
+            "the linear estimate's gain is negative"
+            if inverted
+            else f"the measured phase sits {offset:+.0f} deg from the fitted form's on average"
         )
-    return _result(spec.name, params, _tf_of(spec.name, p), f, model, hm, coh, w, lo, hi, n_sub,
-                   spec.names, p, cov_nat, dict(zip(spec.names, map(float, p_lin))), notes, best.cost)
+        notes += (
+            (
+                f"{why}: the data look inverted (check the sign of a sensor or channel; the form's gain "
+                "is positive) or the form does not match them"
+            ),
+        )
+    return _result(
+        spec.name,
+        params,
+        _tf_of(spec.name, p),
+        f,
+        model,
+        hm,
+        coh,
+        w,
+        lo,
+        hi,
+        n_sub,
+        spec.names,
+        p,
+        cov_nat,
+        dict(zip(spec.names, map(float, p_lin))),
+        notes,
+        best.cost,
+    )
 
 
 def _linear_gain_sign(spec, num, den) -> float:
@@ -473,8 +519,19 @@ def _physical(spec, p):
 def _generic_start(spec, f, hm) -> np.ndarray:
     """A start when the linear estimate fails: frequencies at the band's geometric centre."""
     fc = float(np.exp(np.mean(np.log(f))))
-    guess = {"k_vc": 1.0, "p1": TWO_PI * fc * 4, "wn_hz": fc, "zeta": 0.3, "k_s": 1.0, "zeta1": 0.2,
-             "zeta2": 0.2, "f1_hz": fc, "f2_hz": fc * 1.1, "k_h": 1.0, "z1": TWO_PI * fc * 2}
+    guess = {
+        "k_vc": 1.0,
+        "p1": TWO_PI * fc * 4,
+        "wn_hz": fc,
+        "zeta": 0.3,
+        "k_s": 1.0,
+        "zeta1": 0.2,
+        "zeta2": 0.2,
+        "f1_hz": fc,
+        "f2_hz": fc * 1.1,
+        "k_h": 1.0,
+        "z1": TWO_PI * fc * 2,
+    }
     if spec.name == "human":
         guess["p1"] = TWO_PI * fc / 4
     p = np.array([guess[nm] for nm in spec.names])
@@ -514,7 +571,9 @@ def _bound_note(spec, i: int, edge: float, side: str) -> str:
         what = "f2_hz/f1_hz" if side == "upper" else "f2_hz/f1_hz (the modes merged into one)"
         return f"{what} is at its {side} bound {math.exp(edge):g}: the two modes are not separated by these data"
     if label.startswith("ln "):
-        return f"{label[3:]} is at its {side} bound {math.exp(edge):.4g}: not identified by these data"
+        return (
+            f"{label[3:]} is at its {side} bound {math.exp(edge):.4g}: not identified by these data"
+        )
     return f"{label} is at its {side} bound {edge:g}: not identified by these data"
 
 
@@ -528,13 +587,17 @@ def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     for i, nm in enumerate(names):
         if p[i] != 0 and sd[i] / abs(p[i]) > 0.25:
-            notes.append(f"{nm} is poorly determined: linearised relative standard error {sd[i] / abs(p[i]):.0%}")
+            notes.append(
+                f"{nm} is poorly determined: linearised relative standard error {sd[i] / abs(p[i]):.0%}"
+            )
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             if np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.95:
-                notes.append(f"{names[i]} and {names[j]} are strongly correlated (r = {corr[i, j]:+.3f})")
+                notes.append(
+                    f"{names[i]} and {names[j]} are strongly correlated (r = {corr[i, j]:+.3f})"
+                )
     if spec.name == "structure":
         z1, z2, f1, f2 = p[1], p[2], p[3], p[4]
         sep = (f2 - f1) / f1
@@ -548,7 +611,9 @@ def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
             )
     for nm, val in zip(names, p):
         if nm.endswith("_hz") and not (lo <= val <= hi):
-            notes.append(f"{nm} = {val:.4g} Hz lies outside the fit band [{lo:g}, {hi:g}] Hz: extrapolated")
+            notes.append(
+                f"{nm} = {val:.4g} Hz lies outside the fit band [{lo:g}, {hi:g}] Hz: extrapolated"
+            )
         if nm in ("p1", "z1") and not (lo <= val / TWO_PI <= hi):
             notes.append(
                 f"{nm} = {val:.4g} rad/s ({val / TWO_PI:.3g} Hz) lies outside the fit band "
@@ -557,7 +622,9 @@ def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def _result(form, params, system, f, model, hm, coh, w, lo, hi, n_sub, names, p, cov, initial, notes, cost):
+def _result(
+    form, params, system, f, model, hm, coh, w, lo, hi, n_sub, names, p, cov, initial, notes, cost
+):
     lr = _log_ratio(model, hm)
     wn = w**2 / np.sum(w**2)
     err_db = float(np.sqrt(np.sum(wn * (20.0 / math.log(10.0) * lr.real) ** 2)))
@@ -608,9 +675,13 @@ def _fit_rational(form, orders, f, s, hm, coh, w, lo, hi, n_sub) -> FitResult:
     try:
         res = scipy.optimize.least_squares(fun, x0, method="trf", x_scale="jac", max_nfev=4000)
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise SolverError(f"nonlinear least squares failed for rational form {form!r}: {exc}") from None
+        raise SolverError(
+            f"nonlinear least squares failed for rational form {form!r}: {exc}"
+        ) from None
     if not np.all(np.isfinite(res.x)):
-        raise SolverError(f"nonlinear least squares for rational form {form!r} returned non-finite coefficients")
+        raise SolverError(
+            f"nonlinear least squares for rational form {form!r} returned non-finite coefficients"
+        )
     b, a = unpack(res.x)
     num = b[::-1] / w0 ** np.arange(m, -1, -1) * w0**n
     den = a[::-1] / w0 ** np.arange(n, -1, -1) * w0**n
@@ -620,7 +691,9 @@ def _fit_rational(form, orders, f, s, hm, coh, w, lo, hi, n_sub) -> FitResult:
     notes = []
     poles = np.roots(den)
     if np.any(poles.real > 0):
-        notes.append(f"fitted model has {int(np.sum(poles.real > 0))} pole(s) in the right half-plane")
+        notes.append(
+            f"fitted model has {int(np.sum(poles.real > 0))} pole(s) in the right half-plane"
+        )
     names = list(params.as_dict())
     # covariance in scaled coefficients -> natural coefficients (diagonal scaling)
     dof = max(res.fun.size - res.x.size, 1)
@@ -637,6 +710,22 @@ def _fit_rational(form, orders, f, s, hm, coh, w, lo, hi, n_sub) -> FitResult:
                 cov[i, j] = cov_nat_x[oi, oj]
     initial = RationalParams(num=tuple(num0), den=tuple(den0)).as_dict()
     p_nat = np.array(list(params.as_dict().values()))
-    return _result(form, params, system, f, model, hm, coh, w, lo, hi, n_sub, names, p_nat, cov, initial,
-                   tuple(notes), res.cost)
-
+    return _result(
+        form,
+        params,
+        system,
+        f,
+        model,
+        hm,
+        coh,
+        w,
+        lo,
+        hi,
+        n_sub,
+        names,
+        p_nat,
+        cov,
+        initial,
+        tuple(notes),
+        res.cost,
+    )

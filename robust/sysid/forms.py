@@ -21,7 +21,7 @@ from ..components import StructureParams, ValveCylinderParams
 from ..errors import ParameterError
 from ..human import LiteralHumanParams
 
-__all__ = ["FORMS", "RationalParams", "parse_form", "form_system", "FORM_SPECS", "ZETA_BOUNDS"]
+__all__ = ["FORMS", "FORM_SPECS", "ZETA_BOUNDS", "RationalParams", "form_system", "parse_form"]
 
 TWO_PI = 2.0 * math.pi
 #: The paper's fixed forms, by name.
@@ -48,9 +48,13 @@ class RationalParams:
         num = tuple(float(x) for x in self.num)
         den = tuple(float(x) for x in self.den)
         if not all(math.isfinite(x) for x in num + den):
-            raise ParameterError(f"RationalParams coefficients must be finite; got num={num}, den={den}")
+            raise ParameterError(
+                f"RationalParams coefficients must be finite; got num={num}, den={den}"
+            )
         if len(num) > len(den):
-            raise ParameterError(f"RationalParams must be proper: {len(num) - 1=} > {len(den) - 1=}")
+            raise ParameterError(
+                f"RationalParams must be proper: {len(num) - 1=} > {len(den) - 1=}"
+            )
         object.__setattr__(self, "num", num)
         object.__setattr__(self, "den", den)
 
@@ -170,7 +174,9 @@ FORM_SPECS: dict[str, _Form] = {
         from_rational=_valve_from_rational,
         to_theta=lambda p: np.array([math.log(p[0]), math.log(p[1]), math.log(p[2]), p[3]]),
         from_theta=lambda t: np.array([math.exp(t[0]), math.exp(t[1]), math.exp(t[2]), t[3]]),
-        theta_bounds=lambda a, b: _log_bounds([(1, 1.0), (2, TWO_PI)], 4, a, b, lin=[(3, ZETA_BOUNDS)]),
+        theta_bounds=lambda a, b: _log_bounds(
+            [(1, 1.0), (2, TWO_PI)], 4, a, b, lin=[(3, ZETA_BOUNDS)]
+        ),
         theta_labels=("ln k_vc", "ln p1", "ln wn_hz", "zeta"),
     ),
     "structure": _Form(
@@ -182,10 +188,18 @@ FORM_SPECS: dict[str, _Form] = {
         response=_structure_response,
         from_rational=_structure_from_rational,
         # f2 = f1 * exp(d), d >= 0 keeps the modes ordered (f1 <= f2)
-        to_theta=lambda p: np.array([math.log(p[0]), p[1], p[2], math.log(p[3]), math.log(p[4] / p[3])]),
-        from_theta=lambda t: np.array([math.exp(t[0]), t[1], t[2], math.exp(t[3]), math.exp(t[3] + t[4])]),
+        to_theta=lambda p: np.array(
+            [math.log(p[0]), p[1], p[2], math.log(p[3]), math.log(p[4] / p[3])]
+        ),
+        from_theta=lambda t: np.array(
+            [math.exp(t[0]), t[1], t[2], math.exp(t[3]), math.exp(t[3] + t[4])]
+        ),
         theta_bounds=lambda a, b: _log_bounds(
-            [(3, TWO_PI)], 5, a, b, lin=[(1, ZETA_BOUNDS), (2, ZETA_BOUNDS), (4, (0.0, math.log(100.0)))]
+            [(3, TWO_PI)],
+            5,
+            a,
+            b,
+            lin=[(1, ZETA_BOUNDS), (2, ZETA_BOUNDS), (4, (0.0, math.log(100.0)))],
         ),
         theta_labels=("ln k_s", "zeta1", "zeta2", "ln f1_hz", "ln(f2_hz/f1_hz)"),
     ),
@@ -224,7 +238,9 @@ def parse_form(form: str) -> str | tuple[int, int]:
         )
     m, n = int(match.group(1)), int(match.group(2))
     if n < 1 or m > n:
-        raise ParameterError(f"rational form 'M/N' needs 1 <= N and M <= N (proper); got M={m}, N={n}")
+        raise ParameterError(
+            f"rational form 'M/N' needs 1 <= N and M <= N (proper); got M={m}, N={n}"
+        )
     return (m, n)
 
 
@@ -266,5 +282,3 @@ def _tf_of(name: str, p: np.ndarray) -> ct.TransferFunction:
         return ct.tf(num, den)
     k, z1, p1 = p
     return ct.tf([k, 2.0 * k * z1, k * z1 * z1], [1.0, 2.0 * p1, p1 * p1, 0.0, 0.0])
-
-

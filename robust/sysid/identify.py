@@ -13,7 +13,7 @@ from .datafile import load_channels, select_channels
 from .fit import FitResult, fit_frequency_response
 from .spectral import FrequencyResponseEstimate, check_band, estimate_frequency_response
 
-__all__ = ["Identification", "identify_records", "identify_file", "MIN_PERIODS"]
+__all__ = ["MIN_PERIODS", "Identification", "identify_file", "identify_records"]
 
 #: A record must hold at least this many periods of the band's lowest frequency.
 MIN_PERIODS = 2.0
@@ -123,7 +123,12 @@ def identify_records(
     check_band(band_hz)
     est = estimate_frequency_response(u, y, fs, nperseg=nperseg, window=window, detrend=detrend)
     fit = fit_frequency_response(
-        est, form, band_hz, weighting=weighting, min_coherence=min_coherence, significance=significance
+        est,
+        form,
+        band_hz,
+        weighting=weighting,
+        min_coherence=min_coherence,
+        significance=significance,
     )
     return Identification(est, fit, input_name, output_name, float(fs), seed, source)
 
@@ -165,6 +170,14 @@ def identify_file(
     data = load_channels(path)
     u, y = select_channels(data, input_name, output_name, fs, min_duration_s=MIN_PERIODS / lo)
     return identify_records(
-        u, y, fs, form, band_hz, input_name=input_name, output_name=output_name, seed=data.seed,
-        source=str(path), **options,
+        u,
+        y,
+        fs,
+        form,
+        band_hz,
+        input_name=input_name,
+        output_name=output_name,
+        seed=data.seed,
+        source=str(path),
+        **options,
     )

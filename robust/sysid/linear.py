@@ -1,9 +1,9 @@
 """Linear rational fits to a frequency response: Levy's method and Sanathanan-Koerner iterations.
 
-    E. C. Levy, "Complex-curve fitting", IRE Trans. Automatic Control AC-4(1),
-    1959, pp. 37-44;
-    C. K. Sanathanan and J. Koerner, "Transfer function synthesis as a ratio of
-    two complex polynomials", IEEE Trans. Automatic Control 8(1), 1963, pp. 56-58.
+E. C. Levy, "Complex-curve fitting", IRE Trans. Automatic Control AC-4(1),
+1959, pp. 37-44;
+C. K. Sanathanan and J. Koerner, "Transfer function synthesis as a ratio of
+two complex polynomials", IEEE Trans. Automatic Control 8(1), 1963, pp. 56-58.
 """
 
 from __future__ import annotations
@@ -99,5 +99,3 @@ def levy_sk(
     num = num * w0**n
     den = den * w0**n
     return num, den
-
-

@@ -32,7 +32,7 @@ from ..components import StructureParams, ValveCylinderParams
 from ..errors import ArtifactError, ParameterError
 from ..human import LiteralHumanParams
 
-__all__ = ["KIND", "ComponentFit", "save_component_fit", "read_component_fit", "load_component_fit"]
+__all__ = ["KIND", "ComponentFit", "load_component_fit", "read_component_fit", "save_component_fit"]
 
 #: Value of the ``kind`` field.
 KIND = "bdft-component-fit"
@@ -156,7 +156,9 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ArtifactError(f"cannot read component-fit file {label!r}: {exc.strerror or exc}") from None
+        raise ArtifactError(
+            f"cannot read component-fit file {label!r}: {exc.strerror or exc}"
+        ) from None
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -192,10 +194,15 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     if (
         not isinstance(band, list)
         or len(band) != 2
-        or not all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b) for b in band)
+        or not all(
+            isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b)
+            for b in band
+        )
         or not 0 < band[0] < band[1]
     ):
-        raise ArtifactError(f"{label}: field 'band' must be [lo, hi] in Hz with 0 < lo < hi; got {band!r}")
+        raise ArtifactError(
+            f"{label}: field 'band' must be [lo, hi] in Hz with 0 < lo < hi; got {band!r}"
+        )
     fs = _number(obj, "fs", label)
     if fs <= 0:
         raise ArtifactError(f"{label}: field 'fs' must be positive; got {fs!r}")
@@ -205,7 +212,17 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     source = obj.get("source")
     if not isinstance(source, str):
         raise ArtifactError(f"{label}: field 'source' must be a string; got {source!r}")
-    known = {"kind", "form", "params_class", "params", "fit_error_db", "band", "fs", "seed", "source"}
+    known = {
+        "kind",
+        "form",
+        "params_class",
+        "params",
+        "fit_error_db",
+        "band",
+        "fs",
+        "seed",
+        "source",
+    }
     return ComponentFit(
         form=form,
         params=pobj,

@@ -78,8 +78,13 @@ def bode_figure(
     else:
         phase = meas
     with np.errstate(divide="ignore"):
-        ax_m.fill_between(f, 20 * np.log10(lo[m]), 20 * np.log10(hi[m]), color="0.8",
-                          label=f"{confidence:.0%} bounds")
+        ax_m.fill_between(
+            f,
+            20 * np.log10(lo[m]),
+            20 * np.log10(hi[m]),
+            color="0.8",
+            label=f"{confidence:.0%} bounds",
+        )
     ax_m.semilogx(f, mag, ".", ms=2.5, color="C0", label="measured H1")
     ax_p.fill_between(f, phase - half, phase + half, color="0.8")
     ax_p.semilogx(f, phase, ".", ms=2.5, color="C0")

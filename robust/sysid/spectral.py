@@ -44,7 +44,12 @@ import scipy.stats
 from .._checks import POSITIVE, Spec, check_scalar
 from ..errors import DataError, ParameterError
 
-__all__ = ["FrequencyResponseEstimate", "estimate_frequency_response", "effective_averages", "default_nperseg"]
+__all__ = [
+    "FrequencyResponseEstimate",
+    "default_nperseg",
+    "effective_averages",
+    "estimate_frequency_response",
+]
 
 _DETRENDS = {"none": False, "constant": "constant", "linear": "linear"}
 
@@ -138,7 +143,9 @@ class FrequencyResponseEstimate:
     def coherence_random_error(self) -> np.ndarray:
         """Normalised random error of the coherence estimate, ``sqrt(2)(1-g^2)/(|g| sqrt(n_d))``."""
         g2 = np.clip(self.coherence, 1e-300, 1.0)
-        return math.sqrt(2.0) * (1.0 - g2) / (np.sqrt(g2) * math.sqrt(max(self.n_effective, 1e-300)))
+        return (
+            math.sqrt(2.0) * (1.0 - g2) / (np.sqrt(g2) * math.sqrt(max(self.n_effective, 1e-300)))
+        )
 
     def band_mask(self, band_hz: tuple[float, float]) -> np.ndarray:
         """Boolean mask of the frequencies in ``[lo, hi]`` Hz, checking the band lies in the data.
@@ -153,7 +160,9 @@ class FrequencyResponseEstimate:
         df = self.fs / self.nperseg
         nyq = self.fs / 2.0
         if hi > nyq:
-            raise DataError(f"band upper edge {hi:g} Hz lies beyond the Nyquist frequency fs/2 = {nyq:g} Hz")
+            raise DataError(
+                f"band upper edge {hi:g} Hz lies beyond the Nyquist frequency fs/2 = {nyq:g} Hz"
+            )
         if lo < df:
             raise DataError(
                 f"band lower edge {lo:g} Hz lies below the frequency resolution fs/nperseg = {df:g} Hz; "
@@ -179,10 +188,10 @@ class FrequencyResponseEstimate:
                 "mag_db": self.magnitude_db,
                 "phase_deg": self.phase_deg,
                 "coherence": self.coherence,
-                f"mag_lo_db_{int(round(confidence * 100))}": 20.0 * np.log10(mlo),
-                f"mag_hi_db_{int(round(confidence * 100))}": 20.0 * np.log10(mhi),
-                f"phase_lo_deg_{int(round(confidence * 100))}": plo,
-                f"phase_hi_deg_{int(round(confidence * 100))}": phi,
+                f"mag_lo_db_{round(confidence * 100)}": 20.0 * np.log10(mlo),
+                f"mag_hi_db_{round(confidence * 100)}": 20.0 * np.log10(mhi),
+                f"phase_lo_deg_{round(confidence * 100)}": plo,
+                f"phase_hi_deg_{round(confidence * 100)}": phi,
                 "g_uu": self.g_uu,
                 "g_yy": self.g_yy,
             }
@@ -276,8 +285,10 @@ def default_nperseg(record_lengths: Sequence[int]) -> int:
 
 
 def _as_records(name: str, x) -> list[np.ndarray]:
-    if isinstance(x, np.ndarray) or not isinstance(x, Sequence) or (
-        len(x) > 0 and np.isscalar(x[0])
+    if (
+        isinstance(x, np.ndarray)
+        or not isinstance(x, Sequence)
+        or (len(x) > 0 and np.isscalar(x[0]))
     ):
         arr = np.asarray(x, dtype=float)
         if arr.ndim == 1:
@@ -285,7 +296,9 @@ def _as_records(name: str, x) -> list[np.ndarray]:
         elif arr.ndim == 2:
             rows = list(arr)
         else:
-            raise DataError(f"{name} must be 1-D (one record) or 2-D (records x samples); got shape {arr.shape}")
+            raise DataError(
+                f"{name} must be 1-D (one record) or 2-D (records x samples); got shape {arr.shape}"
+            )
     else:
         rows = [np.asarray(r, dtype=float) for r in x]
     for i, r in enumerate(rows):
@@ -372,15 +385,27 @@ def estimate_frequency_response(
         )
     if noverlap is None:
         noverlap = 0 if all(r.size == nperseg for r in us) else nperseg // 2
-    if isinstance(noverlap, bool) or not isinstance(noverlap, (int, np.integer)) or not 0 <= noverlap < nperseg:
-        raise ParameterError(f"noverlap must be an integer in [0, {nperseg}); got {noverlap=}, {nperseg=}")
+    if (
+        isinstance(noverlap, bool)
+        or not isinstance(noverlap, (int, np.integer))
+        or not 0 <= noverlap < nperseg
+    ):
+        raise ParameterError(
+            f"noverlap must be an integer in [0, {nperseg}); got {noverlap=}, {nperseg=}"
+        )
     if window is None:
         window = "boxcar" if all(r.size == nperseg for r in us) else "hann"
     try:
         win = sps.get_window(window, nperseg)
     except (ValueError, TypeError) as exc:
         raise ParameterError(f"window {window!r} is not a scipy.signal window: {exc}") from None
-    kw = dict(fs=fs, window=win, nperseg=nperseg, noverlap=int(noverlap), detrend=_DETRENDS[detrend])
+    kw = {
+        "fs": fs,
+        "window": win,
+        "nperseg": nperseg,
+        "noverlap": int(noverlap),
+        "detrend": _DETRENDS[detrend],
+    }
     hop = nperseg - int(noverlap)
     acc_uu = acc_yy = 0.0
     acc_uy = 0.0j
@@ -413,7 +438,18 @@ def estimate_frequency_response(
     for arr in arrays:
         arr.setflags(write=False)
     return FrequencyResponseEstimate(
-        f_hz=f, h1=h1, coherence=coh, g_uu=g_uu, g_yy=g_yy, g_uy=g_uy, fs=fs, nperseg=nperseg,
-        noverlap=int(noverlap), window=str(window), detrend=detrend, n_segments=n_seg_total,
-        n_effective=float(n_eff), n_records=len(us),
+        f_hz=f,
+        h1=h1,
+        coherence=coh,
+        g_uu=g_uu,
+        g_yy=g_yy,
+        g_uy=g_uy,
+        fs=fs,
+        nperseg=nperseg,
+        noverlap=int(noverlap),
+        window=str(window),
+        detrend=detrend,
+        n_segments=n_seg_total,
+        n_effective=float(n_eff),
+        n_records=len(us),
     )
