@@ -236,3 +236,9 @@ def test_rational_fit_cannot_be_saved_as_component(tmp_path, experiment):
     ):
         save_component_fit(tmp_path / "m.json", fit, fs=FS, seed=None, source="d.csv")
     assert not (tmp_path / "m.json").exists()
+
+
+def test_unreadable_mat_file(tmp_path):
+    (tmp_path / "d.mat").write_bytes(b"not a mat file at all")
+    with pytest.raises(DataError, match=r"d.mat: cannot read as a MATLAB .mat file"):
+        load_channels(tmp_path / "d.mat")

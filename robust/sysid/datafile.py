@@ -199,8 +199,11 @@ def _load_mat(path: Path) -> ChannelData:
     try:
         raw = scipy.io.loadmat(str(path), squeeze_me=False)
     except Exception as exc:  # noqa: BLE001 - scipy raises several unrelated types for malformed files
+        hint = (
+            " (MATLAB v7.3 files are HDF5: save with save(..., '-v7'))" if "7.3" in str(exc) else ""
+        )
         raise DataError(
-            f"{path.name}: cannot read as a MATLAB .mat file ({type(exc).__name__}: {exc})"
+            f"{path.name}: cannot read as a MATLAB .mat file ({type(exc).__name__}: {exc}){hint}"
         ) from None
     fs = seed = None
     channels = {}

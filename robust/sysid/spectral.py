@@ -10,6 +10,11 @@ Spectra come from :func:`scipy.signal.csd` and :func:`scipy.signal.welch`
 and over records. ``scipy.signal.csd(u, y)`` computes ``conj(U) Y``, the
 convention under which ``G_uy / G_uu`` is the response from ``u`` to ``y``.
 
+H1 is unbiased for noise on the output only. Noise on the measured input (the
+paper's seat accelerometer on a running tractor) biases it low by the factor
+``G_uu,true / (G_uu,true + G_nn,input)``, most where the input is weak; the
+coherence falls there too, which is how the fits notice.
+
 Random errors and confidence bounds follow
 
     J. S. Bendat and A. G. Piersol, *Random Data: Analysis and Measurement
