@@ -8,7 +8,11 @@ Public API (import from here; module layout may change):
 * families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`;
 * sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`;
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
-  :func:`closed_loop_matrices`, :func:`batched_poles`, :data:`BDFT_BAND_HZ`.
+  :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
+  :data:`BDFT_BAND_HZ`;
+* files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
+* sweeps: :func:`workspace_sweep`, :func:`stiffness_damping_sweep`,
+  :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
 from .anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
@@ -19,12 +23,15 @@ from .batched import (
     ValidationResult,
     batched_poles,
     closed_loop_matrices,
+    member_metrics,
     validate_family,
 )
+from .files import ComponentFit, family_nominals, load_component_fit, load_controller
 from .family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
 from .human import PhysicalHuman, PhysicalHumanParams, fit_summary, physical_human_matrices
 from .parameters import DISTRIBUTIONS, UncertainParameter
 from .sampling import METHODS, SampleSet, sample
+from .sweeps import SWEEPS, SweepResult, stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
 
 __all__ = [
     "NOMINAL_BODY_MASS",
@@ -50,4 +57,14 @@ __all__ = [
     "batched_poles",
     "closed_loop_matrices",
     "validate_family",
+    "member_metrics",
+    "load_controller",
+    "ComponentFit",
+    "load_component_fit",
+    "family_nominals",
+    "SWEEPS",
+    "SweepResult",
+    "workspace_sweep",
+    "stiffness_damping_sweep",
+    "structure_frequency_sweep",
 ]

@@ -65,6 +65,7 @@ __all__ = [
     "batched_poles",
     "ValidationResult",
     "validate_family",
+    "member_metrics",
 ]
 
 #: Band (Hz) of the poles whose damping ratio is reported: the structure's modes from
@@ -391,6 +392,51 @@ def _member_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]
     return max_real, zeta.min(axis=1)
 
 
+def member_metrics(
+    family: Family,
+    values: np.ndarray,
+    *,
+    controller: ct.StateSpace | None = None,
+    chunk: int = DEFAULT_CHUNK,
+    band_hz: tuple[float, float] = BDFT_BAND_HZ,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per-member largest real part and smallest in-band damping ratio, chunk by chunk.
+
+    Parameters
+    ----------
+    family : Family
+    values : ndarray, shape (N, d)
+        Uncertain-parameter values (columns in ``family.names`` order).
+    controller, chunk, band_hz, progress
+        As for :func:`validate_family`.
+
+    Returns
+    -------
+    max_real : ndarray, shape (N,)
+        Largest real part of each member's closed-loop poles, 1/s.
+    min_damping : ndarray, shape (N,)
+        Smallest damping ratio of each member's poles in ``band_hz`` (``inf`` if none).
+    nstates : int
+        Closed-loop order.
+    """
+    values = np.asarray(values, float)
+    N = values.shape[0]
+    max_real = np.empty(N)
+    min_damp = np.empty(N)
+    nstates = 0
+    for start in range(0, N, chunk):
+        stop = min(N, start + chunk)
+        Acl = closed_loop_matrices(family, values[start:stop], controller=controller)
+        nstates = Acl.shape[-1]
+        poles = np.linalg.eigvals(Acl)
+        del Acl
+        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, band_hz)
+        if progress is not None:
+            progress(stop - start)
+    return max_real, min_damp, int(nstates)
+
+
 def validate_family(
     family: Family,
     samples: SampleSet,
@@ -432,18 +478,8 @@ def validate_family(
     if not (0.0 <= lo < hi):
         raise ParameterError(f"validate_family: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
     N = len(samples)
-    max_real = np.empty(N)
-    min_damp = np.empty(N)
-    nstates = 0
-    for start in range(0, N, chunk):
-        stop = min(N, start + chunk)
-        Acl = closed_loop_matrices(family, samples.slice(start, stop), controller=controller)
-        nstates = Acl.shape[-1]
-        poles = np.linalg.eigvals(Acl)
-        del Acl
-        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, (lo, hi))
-        if progress is not None:
-            progress(stop - start)
+    max_real, min_damp, nstates = member_metrics(family, samples.values, controller=controller, chunk=chunk,
+                                                 band_hz=(lo, hi), progress=progress)
     if not np.all(np.isfinite(max_real)):
         raise ModelStructureError("non-finite closed-loop poles for some members; check parameter ranges")
     stable = max_real < stability_threshold

@@ -22,6 +22,7 @@ __all__ = ["main", "build_parser"]
 COMMANDS = [
     "reproduce",
     "validate",
+    "sweep",
     "identify",
 ]
 
