@@ -79,6 +79,10 @@ class HtmlPage:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>"
         )
 
+    def raw(self, markup: str) -> None:
+        """Append trusted, already-escaped markup."""
+        self._parts.append(markup)
+
     def attach(self, fname: str, data: bytes | str) -> None:
         self.files[fname] = data.encode() if isinstance(data, str) else data
 

@@ -187,6 +187,8 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
     )
     # claims table ------------------------------------------------------------------------
     page.h2("Claims C1-C5")
+    _claim_matrix(page, res)
+    page.p("The numbers behind each verdict:", cls="note")
     rows, classes = [], []
     for v in res.variants:
         for key, c in v.claims.items():
@@ -292,11 +294,11 @@ def _calibration_section(page: HtmlPage, res: ReproductionResult) -> None:
         ],
     )
     adm = sorted((x for x in s.candidates if x.admissible), key=lambda x: (-x.reproduces_c1_c3, -x.crossover_hz))
-    page.p("Admissible candidates (the full table is in claims.json):", cls="note")
+    page.p(f"The {min(12, len(adm))} best of {len(adm)} admissible candidates (every candidate is in claims.json):", cls="note")
     page.table(
         ["kp", "ki", "sign", "GM dB", "PM deg", "crossover Hz", "pair crossing", "crossing Hz", "kappa", "margin", "C1-C3"],
         [[x.kp, x.ki, x.handle_sign, x.gain_margin_db, x.phase_margin_deg, x.crossover_hz, x.pair_crossing,
-          x.crossing_hz, x.kappa, x.margin, x.reproduces_c1_c3] for x in adm[:40]],
+          x.crossing_hz, x.kappa, x.margin, x.reproduces_c1_c3] for x in adm[:12]],
     )
 
 
@@ -305,3 +307,18 @@ def _fit_section(page: HtmlPage, fit: dict) -> None:
     rows = [[k, v if not isinstance(v, dict) else ", ".join(f"{a}={fmt(b)}" for a, b in v.items())] for k, v in fit.items()
             if not isinstance(v, (list, tuple))]
     page.table(["quantity", "value"], rows)
+
+
+def _claim_matrix(page: HtmlPage, res: ReproductionResult) -> None:
+    """One row per claim, one column per variant, each cell coloured by its status."""
+    import html as _html
+
+    cls = {"holds": "holds", "fails": "fails"}
+    header = "<tr><th>claim</th>" + "".join(f"<th>{_html.escape(v.label)}</th>" for v in res.variants) + "</tr>"
+    body = []
+    for key, text in CLAIM_TEXT.items():
+        cells = "".join(
+            f'<td class="{cls.get(v.claims[key].status, "nt")}">{_html.escape(v.claims[key].status)}</td>' for v in res.variants
+        )
+        body.append(f"<tr><td>{key}: {_html.escape(text)}</td>{cells}</tr>")
+    page.raw("<table>" + header + "".join(body) + "</table>")
