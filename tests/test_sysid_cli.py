@@ -162,3 +162,16 @@ def test_measured_csv_to_model_that_validate_accepts(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["plant_files"] == [str(model)]
     assert report["nominals"]["struct"] == pytest.approx(json.loads(model.read_text())["params"])
+
+
+def test_identify_spectral_and_fit_options_reach_the_estimate(tmp_path, capsys):
+    data = _data(tmp_path, "structure")
+    extra = ["--json", "--nperseg", "5000", "--window", "hann", "--detrend", "linear",
+             "--significance", "1", "--min-coherence", "0.5"]  # fmt: skip
+    assert _identify(data, "structure", tmp_path / "out", *extra) == 0
+    summary = json.loads(capsys.readouterr().out)
+    spec = summary["spectral"]
+    assert (spec["nperseg"], spec["window"], spec["detrend"]) == (5000, "hann", "linear")
+    assert spec["n_segments"] == 6 * 9  # 25 s records, 5 s segments, 50 % overlap
+    assert summary["coherence_threshold"] == 0.5
+    assert summary["params"]["f1_hz"] == pytest.approx(6.3, rel=0.02)
