@@ -140,3 +140,16 @@ def test_path_of_the_closed_loop_is_identified_as_its_transfer_function():
     band = est.band_mask((0.5, 10.0))
     g = np.asarray(select_path(loop, "u", "y")(2j * np.pi * est.f_hz[band])).ravel()
     np.testing.assert_allclose(est.h1[band], g, rtol=3e-3)
+
+
+def test_valve_experiment_runs_the_loop_with_the_true_valve():
+    # y must be the closed loop's output with the true valve, and e its valve command
+    from robust import ValveCylinderParams, pi_controller, valve_cylinder
+    from robust.loop import DEFAULT_CALIBRATION
+
+    truth = ValveCylinderParams(k_vc=20.0, p1=150.0, wn_hz=3.0, zeta=0.3)
+    p = ChirpProtocol(n_records=1, duration=6.0, f0_hz=0.5)
+    e = paper_experiment("valve", p, noise=0.0, seed=0, truth=truth)
+    loop = ct.feedback(ct.series(pi_controller(DEFAULT_CALIBRATION.pi), valve_cylinder(truth)), 1)
+    ref = ct.forced_response(loop, T=p.time(), U=p.excitation()).outputs
+    np.testing.assert_allclose(e.y_clean[0], ref, rtol=1e-6, atol=1e-9 * np.abs(ref).max())

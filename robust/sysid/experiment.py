@@ -528,12 +528,12 @@ def simulate_experiment(
     )
 
 
-def _pi_loop():
+def _pi_loop(valve_params=None):
     from ..components import pi_controller, valve_cylinder
     from ..loop import DEFAULT_CALIBRATION
 
     pi = pi_controller(DEFAULT_CALIBRATION.pi)
-    valve = valve_cylinder()
+    valve = valve_cylinder(valve_params)
     r_to_e = ct.feedback(ct.ss(pi), ct.ss(valve))
     r_to_y = ct.feedback(ct.series(ct.ss(pi), ct.ss(valve)), 1)
     return r_to_e, r_to_y
@@ -593,7 +593,6 @@ def paper_experiment(
     check_scalar("noise", noise, NONNEGATIVE)
     check_scalar("engine_tone", engine_tone, NONNEGATIVE)
     protocol = protocol or ChirpProtocol()
-    r_to_e, r_to_y = _pi_loop()
     expected = {
         "valve": ValveCylinderParams,
         "structure": StructureParams,
@@ -603,6 +602,8 @@ def paper_experiment(
         raise ParameterError(
             f"truth for {component!r} must be a {expected.__name__}; got {type(truth).__name__}"
         )
+    # the loop runs with the true valve when the valve is what is being identified
+    r_to_e, r_to_y = _pi_loop(truth if component == "valve" else None)
     if component == "valve":
         system = valve_cylinder(truth)
         upstream = r_to_e
