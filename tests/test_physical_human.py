@@ -81,3 +81,29 @@ def test_fit_reproduces_stored_result():
     assert fresh["gain"] == pytest.approx(stored["gain"], rel=1e-4)
     assert fresh["err_db_max"] == pytest.approx(stored["err_db_max"], rel=1e-4)
     assert fresh["at_bounds"] == []
+
+
+def test_handle_offset_scales_only_the_arm_by_the_arm_geometry():
+    from uncertainty.arm import ArmGeometry
+
+    h = PhysicalHuman()
+    g = ArmGeometry()
+    fwd = h.with_handle_offset(0.1016)
+    s = g.stiffness_scale(0.1016)
+    assert fwd.params.k_arm == pytest.approx(h.params.k_arm * s)
+    assert fwd.params.c_arm == pytest.approx(h.params.c_arm * s)
+    assert fwd.params.k_trunk == h.params.k_trunk and fwd.handle_offset_m == pytest.approx(0.1016)
+    back = fwd.with_handle_offset(-0.1016)  # offsets compose
+    assert back.params.k_arm == pytest.approx(h.params.k_arm, rel=1e-12)
+    # independent check of the compliance: the Jacobian from finite differences of the kinematics
+    L1, L2 = g.lengths
+    q = np.array(g.joint_angles(0.05))
+
+    def hand(q):
+        return np.array([L1 * np.cos(q[0]) + L2 * np.cos(q[0] + q[1]), L1 * np.sin(q[0]) + L2 * np.sin(q[0] + q[1])])
+
+    J = np.column_stack([(hand(q + e) - hand(q - e)) / 2e-7 for e in (np.array([1e-7, 0]), np.array([0, 1e-7]))])
+    np.testing.assert_allclose(hand(q), [g.hand_x + 0.05, g.hand_y], atol=1e-12)
+    assert g.fore_aft_compliance(0.05) == pytest.approx((J @ J.T)[0, 0], rel=1e-6)
+    with pytest.raises(ParameterError, match="out of the arm's reach"):
+        h.with_handle_offset(1.0)

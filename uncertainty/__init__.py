@@ -4,7 +4,8 @@ Public API (import from here; module layout may change):
 
 * uncertain parameters: :class:`UncertainParameter`, :data:`DISTRIBUTIONS`;
 * physical human: :class:`PhysicalHuman`, :class:`PhysicalHumanParams`,
-  :func:`physical_human_matrices`, :func:`fit_summary`, :func:`segment_masses`;
+  :func:`physical_human_matrices`, :func:`fit_summary`, :func:`segment_masses`,
+  :class:`ArmGeometry` (handle position, claim C5);
 * families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`;
 * sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`;
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
@@ -15,6 +16,7 @@ Public API (import from here; module layout may change):
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
+from .arm import ArmGeometry
 from .anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
 from .batched import (
     BDFT_BAND_HZ,
@@ -34,6 +36,7 @@ from .sampling import METHODS, SampleSet, sample
 from .sweeps import SWEEPS, SweepResult, stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
 
 __all__ = [
+    "ArmGeometry",
     "NOMINAL_BODY_MASS",
     "SEGMENT_MASS_FRACTIONS",
     "segment_masses",

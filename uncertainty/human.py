@@ -47,6 +47,7 @@ from robust._checks import POSITIVE, Spec, check_scalar, validate_fields
 from robust.errors import ParameterError
 
 from ._human_fit_data import FIT_RESULT
+from .arm import ArmGeometry
 from .anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
 
 __all__ = [
@@ -173,6 +174,7 @@ class PhysicalHuman:
     """
 
     params: PhysicalHumanParams = dataclasses.field(default_factory=PhysicalHumanParams)
+    handle_offset_m: float = 0.0
     variant: str = dataclasses.field(default="physical", init=False)
     has_force_port: bool = dataclasses.field(default=True, init=False)
 
@@ -181,6 +183,22 @@ class PhysicalHuman:
             raise ParameterError(
                 f"PhysicalHuman.params must be PhysicalHumanParams; got {type(self.params).__name__}"
             )
+        object.__setattr__(self, "handle_offset_m", check_scalar("handle_offset_m", self.handle_offset_m,
+                                                                 owner="PhysicalHuman"))
+
+    def with_handle_offset(self, dx_m: float, *, geometry: ArmGeometry | None = None) -> "PhysicalHuman":
+        """The same operator with the handle moved ``dx_m`` metres forward (paper's C5: +-4 in = +-0.1016 m).
+
+        The arm's fore-aft stiffness and damping are scaled by the two-link arm
+        geometry of :class:`uncertainty.arm.ArmGeometry` (its declared assumptions
+        apply); the masses and the trunk do not change. ``params`` hold the scaled
+        values, ``handle_offset_m`` the offset from the nominal grip.
+        """
+        dx = check_scalar("dx_m", dx_m)
+        g = geometry or ArmGeometry()
+        s = g.stiffness_scale(self.handle_offset_m + dx, from_dx=self.handle_offset_m)
+        p = dataclasses.replace(self.params, k_arm=self.params.k_arm * s, c_arm=self.params.c_arm * s)
+        return dataclasses.replace(self, params=p, handle_offset_m=self.handle_offset_m + dx)
 
     @classmethod
     def for_body_mass(cls, body_mass: float, **changes) -> "PhysicalHuman":
@@ -199,6 +217,7 @@ class PhysicalHuman:
             "variant": self.variant,
             "model": "2-DOF seated chain: seat-(k_trunk, c_trunk)-trunk-(k_arm, c_arm)-arm/hand, force port on the hand",
             **dataclasses.asdict(self.params),
+            "handle_offset_m": self.handle_offset_m,
             "units": dict(_UNITS),
         }
 
@@ -247,5 +266,8 @@ def fit_summary() -> dict:
             "parameters at search bounds": ", ".join(three["at_bounds"]) or "none",
         },
         "masses from": "Winter, Biomechanics and Motor Control of Human Movement (2009), Table 4.1 fractions",
+        "handle position (C5)": "arm stiffness and damping scaled by a two-link sagittal arm (uncertainty.arm: "
+                                "equal shoulder and elbow stiffness, Winter's segment lengths, grip 0.30 m forward "
+                                "and 0.35 m below the shoulder)",
         "regenerate with": "python -m uncertainty.fit_human --write",
     }
