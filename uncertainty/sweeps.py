@@ -81,13 +81,17 @@ def _metrics_on_grid(family: Family, grid_values: list[dict], members: int, *, m
     S = sample(base_params, members, method=method, seed=seed)
     names = family.names
     M = len(S)
-    rows = {"fraction_stable": [], "max_real_pole": [], "min_damping": [], "n_unstable": []}
+    rows = {"fraction_stable": [], "max_real_pole": [], "min_damping": [], "n_unstable": [], "nominal_max_real": []}
+    nominal = dict(zip(names, family.nominal_values()))
     for g in grid_values:
         fam = g.get("__family__", family)
-        vals = np.empty((M, len(names)))
+        vals = np.empty((M + 1, len(names)))
         for j, name in enumerate(names):
-            vals[:, j] = g[name] if name in g else S.column(name)
-        mr, md, _ = member_metrics(fam, vals, chunk=chunk, band_hz=band_hz, progress=progress)
+            vals[:M, j] = g[name] if name in g else S.column(name)
+            vals[M, j] = g.get(name, nominal[name])  # the other parameters at their nominal values
+        mr_all, md_all, _ = member_metrics(fam, vals, chunk=chunk, band_hz=band_hz, progress=progress)
+        mr, md = mr_all[:M], md_all[:M]
+        rows["nominal_max_real"].append(float(mr_all[M]))
         stable = mr < STABILITY_THRESHOLD
         rows["fraction_stable"].append(float(np.mean(stable)))
         rows["max_real_pole"].append(float(mr.max()))
@@ -277,7 +281,8 @@ def _map_figures(res: SweepResult):
     a = ax[0, 0]
     lim = float(np.max(np.abs(Z))) or 1.0
     mesh = a.pcolormesh(K, C, Z, shading="nearest", cmap="RdBu_r", vmin=-lim, vmax=lim)
-    a.contour(K, C, Z, levels=[0.0], colors="k", linewidths=1.2)
+    if Z.min() < 0.0 < Z.max():
+        a.contour(K, C, Z, levels=[0.0], colors="k", linewidths=1.2)
     nom = res.settings["nominal"]
     a.plot(nom[kname], nom[cname], "k*", ms=12, label="nominal (fit to Eqn 5)")
     a.set_xscale("log")
@@ -296,8 +301,23 @@ def _map_figures(res: SweepResult):
     ax2[0, 0].set_ylabel(f"{cname} [N s/m]")
     ax2[0, 0].set_title("Fraction of members stable")
     fig2.colorbar(m2, ax=ax2[0, 0], label="fraction stable")
+    fig3, ax3 = _figure(1, 1, (7.0, 5.5))
+    Zn = res.columns["nominal_max_real"].reshape(nk, nc)
+    lim3 = float(np.max(np.abs(Zn))) or 1.0
+    m3 = ax3[0, 0].pcolormesh(K, C, Zn, shading="nearest", cmap="RdBu_r", vmin=-lim3, vmax=lim3)
+    if Zn.min() < 0.0 < Zn.max():
+        ax3[0, 0].contour(K, C, Zn, levels=[0.0], colors="k", linewidths=1.2)
+    ax3[0, 0].plot(nom[kname], nom[cname], "k*", ms=12)
+    ax3[0, 0].set_xscale("log")
+    ax3[0, 0].set_yscale("log")
+    ax3[0, 0].set_xlabel(f"{kname} [N/m]")
+    ax3[0, 0].set_ylabel(f"{cname} [N s/m]")
+    ax3[0, 0].set_title("Largest real part, other parameters nominal")
+    fig3.colorbar(m3, ax=ax3[0, 0], label="largest real part of a pole [1/s] (black: 0)")
     n = res.settings["members_per_point"]
     return [
+        ("nominal_real_part", fig3, "Largest real part of the poles with every other parameter at its nominal value; "
+                                    "black line: stability boundary."),
         ("worst_real_part", fig, f"Worst real part over {n} members at each grid point; black line: 0 (stability "
                                  "boundary of the worst member)."),
         ("fraction_stable", fig2, f"Fraction of the {n} members stable at each grid point."),

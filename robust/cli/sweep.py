@@ -61,7 +61,7 @@ def _total(args) -> int:
     pts = {"workspace": 19 if args.points is None else args.points,
            "stiffness-damping": (args.points or 12) ** 2,
            "structure-frequency": args.points or 13}[args.name]
-    return members * pts
+    return (members + 1) * pts  # plus the nominal member at each point
 
 
 def _page(res, figures, csv_name: str) -> str:
