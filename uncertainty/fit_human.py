@@ -61,8 +61,9 @@ FIT_BAND_HZ = (1.0, 10.0)
 N_FREQ = 120
 #: Seed of the multi-start draws (the fit is deterministic given it).
 FIT_SEED = 20240
-#: Number of optimiser starts.
+#: Number of optimiser starts (2-DOF; the 3-DOF exploration has more local minima and uses more).
 N_STARTS = 24
+N_STARTS_3DOF = 96
 #: Search bounds for every stiffness (N/m) and damping (N s/m): wide, physical.
 K_BOUNDS = (10.0, 1.0e5)
 C_BOUNDS = (1.0, 3.0e3)
@@ -193,7 +194,7 @@ def run_fit() -> dict:
 
     seg = segment_masses(NOMINAL_BODY_MASS)
     two = fit_chain([seg["trunk"], seg["arm"]])
-    three = fit_chain([seg["trunk"], seg["upper_arm"], seg["forearm_hand"]])
+    three = fit_chain([seg["trunk"], seg["upper_arm"], seg["forearm_hand"]], n_starts=N_STARTS_3DOF)
     return {
         "two_dof": two,
         "three_dof": three,
@@ -202,6 +203,7 @@ def run_fit() -> dict:
             "n_freq": N_FREQ,
             "seed": FIT_SEED,
             "n_starts": N_STARTS,
+            "n_starts_3dof": N_STARTS_3DOF,
             "k_bounds": list(K_BOUNDS),
             "c_bounds": list(C_BOUNDS),
             "body_mass_kg": NOMINAL_BODY_MASS,

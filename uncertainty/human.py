@@ -264,6 +264,8 @@ def fit_summary() -> dict:
             "err_db_rms": three["err_db_rms"],
             "err_deg_rms": three["err_deg_rms"],
             "parameters at search bounds": ", ".join(three["at_bounds"]) or "none",
+            "retained": "no: the extra degree of freedom lowers the magnitude error only with a joint damping "
+                        "driven to the search bound (an undamped joint), and the phase error grows",
         },
         "masses from": "Winter, Biomechanics and Motor Control of Human Movement (2009), Table 4.1 fractions",
         "handle position (C5)": "arm stiffness and damping scaled by a two-link sagittal arm (uncertainty.arm: "
