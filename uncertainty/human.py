@@ -251,6 +251,7 @@ def fit_summary() -> dict:
     return {
         "model": "2-DOF seated chain (trunk on the seat, arm and hand on the trunk), force port on the hand",
         "fit band [Hz]": f"{st['band_hz'][0]:g}-{st['band_hz'][1]:g}",
+        "fitted quantity": "magnitude in dB (least squares, log-spaced grid); gain sign chosen by phase",
         "fit error, magnitude [dB]": {"max": two["err_db_max"], "rms": two["err_db_rms"]},
         "fit error, phase [deg]": {"max": two["err_deg_max"], "rms": two["err_deg_rms"]},
         "masses [kg]": {"m_trunk": p.m_trunk, "m_arm": p.m_arm, "body_mass": st["body_mass_kg"]},
