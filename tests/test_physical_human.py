@@ -107,3 +107,8 @@ def test_handle_offset_scales_only_the_arm_by_the_arm_geometry():
     assert g.fore_aft_compliance(0.05) == pytest.approx((J @ J.T)[0, 0], rel=1e-6)
     with pytest.raises(ParameterError, match="out of the arm's reach"):
         h.with_handle_offset(1.0)
+
+
+def test_phase_weighted_fit_needs_a_sign():
+    with pytest.raises(ValueError, match="needs sign"):
+        fit_chain([47.1, 3.75], phase_weight=1.0)
