@@ -3,6 +3,8 @@
 import control as ct
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 
 from robust.errors import ModelStructureError, ParameterError
@@ -115,3 +117,23 @@ def test_bad_inputs_raise():
     bad = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs=["u"], outputs=["f"])
     with pytest.raises(ModelStructureError, match="controller inputs must be"):
         closed_loop_matrices(fam, fam.nominal_values()[None], controller=bad)
+
+
+def test_results_do_not_depend_on_the_chunk_size():
+    fam = default_family("physical")
+    S = sample(fam.parameters, 257, method="mc", seed=8)
+    a = validate_family(fam, S, chunk=257)
+    b = validate_family(fam, S, chunk=16)
+    np.testing.assert_array_equal(a.max_real, b.max_real)
+    assert a.to_json() == b.to_json()
+
+
+_PHYS = default_family("physical")
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=len(_PHYS.parameters), max_size=len(_PHYS.parameters)))
+def test_property_any_member_of_the_box_matches_python_control(u):
+    row = np.array([p.ppf(x) for p, x in zip(_PHYS.parameters, u)])
+    ref = ct.poles(_PHYS.member(row).system())
+    assert _max_matched_error(ref, batched_poles(_PHYS, row[None])[0]) < 1e-9
