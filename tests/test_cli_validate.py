@@ -95,7 +95,7 @@ def _structure_fit(**params):
     p = {"k_s": 210.0, "zeta1": 0.12, "zeta2": 0.2, "f1_hz": 5.0, "f2_hz": 5.5}
     p.update(params)
     return {"kind": "bdft-component-fit", "form": "structure", "params_class": "StructureParams", "params": p,
-            "fit_error_db": 0.1, "band": [2, 15], "seed": 7}
+            "fit_error_db": 0.1, "band": [2, 15], "fs": 1000.0, "seed": 7, "source": "rig.csv"}
 
 
 def test_plant_file_replaces_the_nominal(capsys, tmp_path):
@@ -105,12 +105,13 @@ def test_plant_file_replaces_the_nominal(capsys, tmp_path):
     assert obj["worst"]["struct.f1_hz"] <= 5.0 + 1e-12  # the range now ends at the fitted frequency
     assert obj["plant_files"] == [path]
     fit = load_component_fit(path)
-    assert fit.form == "structure" and fit.params.k_s == 210.0 and fit.extra["seed"] == 7
+    assert fit.form == "structure" and fit.params.k_s == 210.0 and fit.seed == 7
 
 
 def test_literal_human_fit_needs_the_literal_variant(capsys, tmp_path):
     fit = {"kind": "bdft-component-fit", "form": "human", "params_class": "LiteralHumanParams",
-           "params": {"k_h": 4.0, "z1": 50.0, "p1": 1.6}}
+           "params": {"k_h": 4.0, "z1": 50.0, "p1": 1.6}, "fit_error_db": 0.5, "band": [1, 10], "fs": 1000.0,
+           "seed": None, "source": "subject.csv"}
     path = _write(tmp_path / "h.json", fit)
     assert main(["validate", "--samples", "10", "--plant-file", path]) == 2
     assert "Use --human literal" in capsys.readouterr().err
@@ -121,8 +122,8 @@ def test_literal_human_fit_needs_the_literal_variant(capsys, tmp_path):
 @pytest.mark.parametrize(
     "change, match",
     [
-        (dict(kind="other"), "kind must be 'bdft-component-fit'"),
-        (dict(form="seat"), "form must be one of"),
+        (dict(kind="other"), "'kind' must be 'bdft-component-fit'; got 'other'"),
+        (dict(form="seat"), "'form' must be one of"),
         (dict(params_class="ValveCylinderParams"), "needs params_class 'StructureParams'"),
         (dict(params={"k_s": 1.0}), "missing"),
         (dict(params={"k_s": -1.0, "zeta1": 0.1, "zeta2": 0.2, "f1_hz": 6.0, "f2_hz": 6.0}), "StructureParams.k_s"),

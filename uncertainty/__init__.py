@@ -28,7 +28,7 @@ from .batched import (
     member_metrics,
     validate_family,
 )
-from .files import ComponentFit, family_nominals, load_component_fit, load_controller
+from .files import family_nominals, load_component_fit, load_controller
 from .family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
 from .human import PhysicalHuman, PhysicalHumanParams, fit_summary, physical_human_matrices
 from .parameters import DISTRIBUTIONS, UncertainParameter
@@ -62,7 +62,6 @@ __all__ = [
     "validate_family",
     "member_metrics",
     "load_controller",
-    "ComponentFit",
     "load_component_fit",
     "family_nominals",
     "SWEEPS",

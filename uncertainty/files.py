@@ -21,7 +21,6 @@ the field.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,18 +28,11 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from robust.components import StructureParams, ValveCylinderParams
 from robust.errors import ArtifactError, BDFTError
-from robust.human import LiteralHumanParams
 
-__all__ = ["load_controller", "ComponentFit", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
+__all__ = ["load_controller", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
 
 COMPONENT_FIT_KIND = "bdft-component-fit"
-_FORMS = {
-    "valve": ValveCylinderParams,
-    "structure": StructureParams,
-    "human": LiteralHumanParams,
-}
 
 
 def _read_json(path, what: str) -> dict:
@@ -132,58 +124,35 @@ def load_controller(path) -> ct.StateSpace:
     return ct.ss(A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller")))
 
 
-@dataclasses.dataclass(frozen=True)
-class ComponentFit:
-    """A component-fit file's ``form`` and parameters (other keys kept in ``extra``)."""
+def load_component_fit(path):
+    """Read and validate a ``bdft-component-fit`` file (the format :mod:`robust.sysid` writes).
 
-    path: str
-    form: str
-    params: object
-    extra: dict
+    One reader serves the whole workbench: this is
+    :func:`robust.sysid.read_component_fit`, re-exported for the family code.
 
-
-def load_component_fit(path) -> ComponentFit:
-    """Parse a ``bdft-component-fit`` file.
+    Returns
+    -------
+    robust.sysid.ComponentFit
+        ``form``, ``params`` (the plant's own parameter object), ``fit_error_db``,
+        ``band``, ``fs``, ``seed``, ``source`` and ``extra``.
 
     Raises
     ------
     ArtifactError
-        Wrong ``kind``, unknown ``form``, ``params_class`` not matching the form,
-        missing or unexpected parameter names, or values the parameter class rejects.
+        Unreadable file, wrong ``kind``, unknown ``form``, ``params_class`` not
+        matching the form, missing or unexpected parameter names, invalid values.
     """
-    where = f"component-fit file {str(path)!r}"
-    obj = _read_json(path, "component-fit file")
-    if obj.get("kind") != COMPONENT_FIT_KIND:
-        raise ArtifactError(f"{where}: kind must be {COMPONENT_FIT_KIND!r}; got {obj.get('kind')!r}")
-    form = obj.get("form")
-    if form not in _FORMS:
-        raise ArtifactError(f"{where}: form must be one of {sorted(_FORMS)}; got {form!r}")
-    cls = _FORMS[form]
-    if obj.get("params_class") != cls.__name__:
-        raise ArtifactError(f"{where}: form {form!r} needs params_class {cls.__name__!r}; "
-                            f"got {obj.get('params_class')!r}")
-    params = obj.get("params")
-    if not isinstance(params, dict):
-        raise ArtifactError(f"{where}: 'params' must be an object of parameter values; got {params!r}")
-    names = {f.name for f in dataclasses.fields(cls)}
-    missing, unexpected = names - set(params), set(params) - names
-    if missing or unexpected:
-        raise ArtifactError(f"{where}: {cls.__name__} needs parameters {sorted(names)}; "
-                            f"missing {sorted(missing)}, unexpected {sorted(unexpected)}")
-    try:
-        value = cls(**params)
-    except ValueError as exc:
-        raise ArtifactError(f"{where}: parameters are not valid: {exc}") from None
-    extra = {k: v for k, v in obj.items() if k not in ("kind", "form", "params_class", "params")}
-    return ComponentFit(path=str(path), form=form, params=value, extra=extra)
+    from robust.sysid import read_component_fit
+
+    return read_component_fit(path)
 
 
-def family_nominals(fits: Sequence[ComponentFit], *, human: str) -> dict:
+def family_nominals(fits: Sequence, *, human: str) -> dict:
     """Keyword arguments of :func:`uncertainty.default_family` from component fits.
 
     Parameters
     ----------
-    fits : sequence of ComponentFit
+    fits : sequence of robust.sysid.ComponentFit
         At most one per form.
     human : {"physical", "literal"}
         The family's human variant. A ``human`` fit is of the paper's Eqn 5
@@ -200,10 +169,10 @@ def family_nominals(fits: Sequence[ComponentFit], *, human: str) -> dict:
     for fit in fits:
         key = keys[fit.form]
         if key in out:
-            raise ArtifactError(f"two component fits of form {fit.form!r} given (second: {fit.path!r}); give one")
+            raise ArtifactError(f"two component fits of form {fit.form!r} given ; give one per component")
         if fit.form == "human" and human != "literal":
             raise ArtifactError(
-                f"component-fit file {fit.path!r} is a fit of the paper's Eqn 5 (LiteralHumanParams), which "
+                f"the component fit of {fit.source or 'unknown data'!r} is a fit of the paper's Eqn 5 (LiteralHumanParams), which "
                 f"replaces the literal human; the family uses the {human!r} human. Use --human literal."
             )
         out[key] = fit.params
