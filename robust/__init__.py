@@ -43,3 +43,10 @@ from .realization import MinimalRealization, minimal_realization
 from .simulation import SweptSine, TimeResponse, simulate, simulate_swept_sine
 
 __version__ = "0.1.0"
+
+# --- H-infinity synthesis ---
+from .genplant import GeneralizedPlant, as_generalized_plant
+from .hinfsyn import HinfResult, LMISynthesisProblem, MultiHinfResult, check_hinf_assumptions, hinfsyn_lmi, hinfsyn_multi
+from .norms import hinf_norm, is_stable, spectral_abscissa
+from .solve import SolveResult, solve_problem
+# --- end H-infinity synthesis ---

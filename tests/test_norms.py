@@ -1,0 +1,86 @@
+"""H-infinity norm: the Bruinsma-Steinbuch iteration against a frequency grid and SLICOT ab13dd."""
+
+import control
+import numpy as np
+import pytest
+
+from robust.errors import ModelStructureError, ParameterError
+from robust.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
+
+
+def _fr(sys, w):
+    """Frequency response array, shape (outputs, inputs, len(w))."""
+    return np.stack([np.atleast_2d(sys(1j * x)) for x in np.atleast_1d(w)], axis=-1)
+
+
+def _stable_rss(n, p, m, seed):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    A -= (np.max(np.linalg.eigvals(A).real) + rng.uniform(0.05, 1.0)) * np.eye(n)
+    return control.ss(A, rng.standard_normal((n, m)), rng.standard_normal((p, n)), rng.standard_normal((p, m)))
+
+
+@pytest.mark.parametrize(
+    "n,p,m,seed", [(1, 1, 1, 0), (3, 2, 2, 1), (8, 3, 1, 2), (20, 2, 4, 3), (40, 4, 4, 4)],
+    ids=["n1", "n3", "n8", "n20", "n40"],
+)
+def test_bb_matches_grid_and_slicot(n, p, m, seed):
+    sys = _stable_rss(n, p, m, seed)
+    bb = hinf_norm(sys)
+    grid = hinf_norm(sys, method="grid")
+    ref = hinf_norm(sys, method="slicot")
+    # bb is an upper bound within rtol (1e-9) plus its 2*rtol step; grid is a lower bound
+    assert grid <= bb * (1 + 1e-9)
+    assert bb == pytest.approx(ref, rel=1e-6)
+    assert grid == pytest.approx(ref, rel=1e-6)
+
+
+@pytest.mark.parametrize("zeta", [1e-1, 1e-3, 1e-5], ids=["zeta1e-1", "zeta1e-3", "zeta1e-5"])
+def test_lightly_damped_resonance_peak(zeta):
+    # |G(jw)| of wn^2/(s^2 + 2 zeta wn s + wn^2) peaks at 1/(2 zeta sqrt(1 - zeta^2))
+    wn = 37.7  # rad/s, the structure's 6 Hz mode
+    sys = control.ss(control.tf([wn**2], [1, 2 * zeta * wn, wn**2]))
+    exact = 1.0 / (2 * zeta * np.sqrt(1 - zeta**2))
+    val, w = hinf_norm(sys, return_frequency=True)
+    assert val == pytest.approx(exact, rel=1e-7)
+    assert w == pytest.approx(wn * np.sqrt(1 - 2 * zeta**2), rel=1e-4)
+
+
+def test_feedthrough_dominates_at_infinite_frequency():
+    sys = control.ss([[-1.0]], [[1.0]], [[1.0]], [[-2.0]])  # G = -2 + 1/(s+1): |G| rises to 2 as w -> inf
+    val, w = hinf_norm(sys, return_frequency=True)
+    assert val == pytest.approx(2.0, rel=1e-8)
+    assert w == np.inf
+
+
+def test_unstable_is_inf_and_stability_check():
+    sys = control.ss([[0.5, 1.0], [0.0, -1.0]], [[1.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    assert not is_stable(sys)
+    assert spectral_abscissa(sys) == pytest.approx(0.5)
+    for method in ("bb", "grid", "slicot"):
+        assert hinf_norm(sys, method=method) == np.inf
+
+
+def test_static_gain():
+    sys = control.ss([], [], [], [[3.0, 4.0]])
+    assert hinf_norm(sys) == pytest.approx(5.0)
+
+
+def test_sigma_max_matches_freqresp():
+    sys = _stable_rss(5, 2, 3, 7)
+    w = np.array([0.0, 0.3, 2.0, 11.0])
+    resp = _fr(sys, w)
+    ref = [np.linalg.norm(resp[:, :, k], 2) for k in range(len(w))]
+    np.testing.assert_allclose(sigma_max(sys, w), ref, rtol=1e-10)
+
+
+def test_bad_inputs():
+    sys = _stable_rss(2, 1, 1, 0)
+    with pytest.raises(ParameterError, match="method must be"):
+        hinf_norm(sys, method="fast")
+    with pytest.raises(ParameterError, match="rtol"):
+        hinf_norm(sys, rtol=0.0)
+    with pytest.raises(ModelStructureError, match="continuous-time"):
+        hinf_norm(control.c2d(sys, 0.01))
+    with pytest.raises(ModelStructureError, match="control.StateSpace"):
+        hinf_norm(np.eye(2))
