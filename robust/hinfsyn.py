@@ -143,7 +143,7 @@ def check_hinf_assumptions(gp: GeneralizedPlant, *, require_regular: bool = True
         Naming the failed condition: (A, B2) not stabilisable, (C2, A) not
         detectable, D12 without full column rank or D21 without full row rank.
     """
-    if not gp.sys.isctime(strict=True):
+    if not gp.sys.isctime():
         raise ModelStructureError(
             f"hinfsyn_lmi: only continuous-time plants are supported; got dt={gp.dt}. "
             "Design in continuous time and discretise the controller"

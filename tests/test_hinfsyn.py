@@ -213,3 +213,47 @@ def test_multi_model_input_errors():
     with_d22 = as_generalized_plant(plants[1], 1, 1).with_blocks(D22=[[0.5]])
     with pytest.raises(AssumptionError, match="member 1: hinfsyn_multi requires D22 = 0"):
         hinfsyn_multi([as_generalized_plant(plants[0], 1, 1), with_d22])
+
+
+# --------------------------------------------------------------------------- solver wrapper
+def test_scs_fallback_when_clarabel_fails(monkeypatch):
+    import cvxpy as cp
+
+    original = cp.Problem.solve
+
+    def failing_clarabel(self, *args, **kwargs):
+        if kwargs.get("solver") == "CLARABEL":
+            raise cp.error.SolverError("simulated Clarabel failure")
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "solve", failing_clarabel)
+    P = dgkf_scalar_plant(0.0)
+    res = hinfsyn_lmi(P, 1, 1)
+    assert res.solver == "SCS"
+    assert res.gamma_opt == pytest.approx(np.sqrt(2.0), rel=1e-4)
+    _check_certificate(as_generalized_plant(P, 1, 1), res)
+
+
+def test_no_usable_solver_raises_solver_error():
+    from robust.errors import SolverError
+
+    with pytest.raises(SolverError, match=r"no solver returned a usable answer.*not installed"):
+        hinfsyn_lmi(dgkf_scalar_plant(0.0), 1, 1, solvers=("NOT_A_SOLVER",))
+
+
+def test_scherer_gahinet_chilali_example_against_slicot():
+    # Plant of Scherer, Gahinet & Chilali (1997), IEEE TAC 42(7), Example 7 (p. 907), as
+    # transcribed in dkpy.utilities.example_scherer1997_p907.  Reference: the norm SLICOT's
+    # controller achieves, from
+    #   K = control.hinfsyn(P, 1, 1)[0]; robust.hinf_norm(GeneralizedPlant.from_counts(P, nmeas=1, ncon=1).closed_loop(K))
+    # -> 9.50808550543373 (control 0.10.2, slycot sb10ad); the LMI optimum cannot be above it.
+    A = np.array([[0.0, 10.0, 2.0], [-1.0, 1.0, 0.0], [0.0, 2.0, -5.0]])
+    P = _plant(
+        A, np.array([[1.0], [0.0], [1.0]]), np.array([[0.0], [1.0], [0.0]]),
+        np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]), np.zeros((2, 1)),
+        np.array([[0.0], [1.0]]), np.array([[2.0]]),
+    )
+    res = hinfsyn_lmi(P, 1, 1)
+    assert res.gamma_opt == pytest.approx(9.50808550543373, rel=1e-4)
+    assert res.gamma <= 1.01 * 9.50808550543373
+    _check_certificate(as_generalized_plant(P, 1, 1), res)
