@@ -25,15 +25,16 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import functools
 import platform
 import resource
 import time
 import tracemalloc
 import warnings
 
+import control
 import numpy as np
 
-import control
 import robust
 from robust.genplant import as_generalized_plant
 from robust.norms import hinf_norm, spectral_abscissa
@@ -55,7 +56,7 @@ def _run(fn, use_tracemalloc):
     t0 = time.perf_counter()
     try:
         out, err = fn(), None
-    except Exception as exc:  # a benchmark records every failure, whatever its type
+    except Exception as exc:  # noqa: BLE001 - a benchmark records every failure, whatever its type
         out, err = None, f"{type(exc).__name__}: {str(exc)[:80]}"
     dt = time.perf_counter() - t0
     peak = None
@@ -65,20 +66,29 @@ def _run(fn, use_tracemalloc):
     return out, err, dt, peak
 
 
+def _lmi(P):
+    res = robust.hinfsyn_lmi(P, NMEAS, NCON)
+    return res.K, res.gamma_bound
+
+
+def _slicot(P):
+    K, _, gam, _ = control.hinfsyn(P, NMEAS, NCON)
+    return K, float(gam)
+
+
 def _methods():
-    ms = {
-        "lmi": lambda P: (lambda r: (r.K, r.gamma_bound))(robust.hinfsyn_lmi(P, NMEAS, NCON)),
-        "slicot": lambda P: (lambda o: (o[0], float(o[2])))(control.hinfsyn(P, NMEAS, NCON)),
-    }
+    ms = {"lmi": _lmi, "slicot": _slicot}
     try:
         import dkpy
 
         def _dk(P):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                K, _, gamma, info = dkpy.HinfSynLmi().synthesize(P, NMEAS, NCON)
+                K, _, gamma, _info = dkpy.HinfSynLmi().synthesize(P, NMEAS, NCON)
             if K is None:
-                raise RuntimeError("no controller returned (dkpy default settings: Clarabel, 1e-9 tolerances)")
+                raise RuntimeError(
+                    "no controller returned (dkpy default settings: Clarabel, 1e-9 tolerances)"
+                )
             return K, gamma
 
         ms["dkpy"] = _dk
@@ -106,16 +116,24 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--orders", type=int, nargs="+", default=[8, 16, 24, 32])
     ap.add_argument("--seeds", type=int, default=3, help="number of seeds per order (seeds 0..N-1)")
-    ap.add_argument("--tracemalloc", action="store_true", help="also report traced peak memory per method")
+    ap.add_argument(
+        "--tracemalloc", action="store_true", help="also report traced peak memory per method"
+    )
     args = ap.parse_args(argv)
 
     methods, dk_version = _methods()
-    print(f"python {platform.python_version()}, control {control.__version__}, "
-          f"dkpy {dk_version if dk_version else 'not installed'}, machine {platform.machine()}")
-    print(f"plants: robust.testing.random_generalized_plant(n, seed=s), nw=nz=4, nu=ny=2, 2 unstable poles; "
-          f"seeds 0..{args.seeds - 1}")
+    print(
+        f"python {platform.python_version()}, control {control.__version__}, "
+        f"dkpy {dk_version if dk_version else 'not installed'}, machine {platform.machine()}"
+    )
+    print(
+        f"plants: robust.testing.random_generalized_plant(n, seed=s), nw=nz=4, nu=ny=2, 2 unstable poles; "
+        f"seeds 0..{args.seeds - 1}"
+    )
     names = list(methods)
-    header = f"{'n':>3} {'seed':>4} | " + " | ".join(f"{m + ' t[s]':>10} {m + ' gam':>10}" for m in names)
+    header = f"{'n':>3} {'seed':>4} | " + " | ".join(
+        f"{m + ' t[s]':>10} {m + ' gam':>10}" for m in names
+    )
     header += f" | {'slicot rep':>10} | {'lmi/slicot':>10} | {'t lmi/slicot':>12}"
     if args.tracemalloc:
         header += " | " + " ".join(f"{m + ' MiB':>10}" for m in names)
@@ -129,9 +147,15 @@ def main(argv=None):
             gp = as_generalized_plant(P, NMEAS, NCON)
             rec = {}
             for m, fn in methods.items():
-                out, err, dt, peak = _run(lambda: fn(P), args.tracemalloc)
+                out, err, dt, peak = _run(functools.partial(fn, P), args.tracemalloc)
                 ach = _achieved(gp, out[0]) if out is not None else None
-                rec[m] = dict(t=dt, gam=ach, err=err, peak=peak, rep=None if out is None else out[1])
+                rec[m] = {
+                    "t": dt,
+                    "gam": ach,
+                    "err": err,
+                    "peak": peak,
+                    "rep": None if out is None else out[1],
+                }
             slicot_rep = rec["slicot"]["rep"]
             ratio = None
             s_ach = rec["slicot"]["gam"]
@@ -140,7 +164,8 @@ def main(argv=None):
                 ratio = l_ach / s_ach
             tratio = rec["lmi"]["t"] / rec["slicot"]["t"]
             line = f"{n:>3} {seed:>4} | " + " | ".join(
-                f"{rec[m]['t']:>10.3g} {_fmt(rec[m]['gam'] if rec[m]['err'] is None else 'FAILED', 10)}" for m in names
+                f"{rec[m]['t']:>10.3g} {_fmt(rec[m]['gam'] if rec[m]['err'] is None else 'FAILED', 10)}"
+                for m in names
             )
             line += f" | {_fmt(slicot_rep, 10)} | {_fmt(ratio, 10)} | {tratio:>12.3g}"
             if args.tracemalloc:
@@ -159,17 +184,25 @@ def main(argv=None):
     print(head)
     print("-" * len(head))
     for n, rows in summary.items():
-        fails = {m: sum(1 for rec, _, _ in rows if rec[m]["gam"] is None or not np.isfinite(rec[m]["gam"]))
-                 for m in names}
+        fails = {
+            m: sum(
+                1 for rec, _, _ in rows if rec[m]["gam"] is None or not np.isfinite(rec[m]["gam"])
+            )
+            for m in names
+        }
         ratios = [r for _, r, _ in rows if r is not None]
         tr = [t for _, _, t in rows]
-        dk = [rec["dkpy"]["t"] / rec["slicot"]["t"] for rec, _, _ in rows] if "dkpy" in names else []
+        dk = (
+            [rec["dkpy"]["t"] / rec["slicot"]["t"] for rec, _, _ in rows] if "dkpy" in names else []
+        )
         line = f"{n:>3} | " + " | ".join(f"{fails[m]:>6}/{len(rows):<4}" for m in names)
         line += f" | {(f'{max(ratios):.4f} ({len(ratios)} plants)' if ratios else 'n/a'):>30}"
         line += f" | {np.median(tr):>19.3g} | {(f'{np.median(dk):.3g}' if dk else 'n/a'):>20}"
         print(line)
     print()
-    print(f"process peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+    print(
+        f"process peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB"
+    )
     if dk_version is None:
         print("dkpy not installed")
 

@@ -63,7 +63,9 @@ class GeneralizedPlant:
         if not isinstance(sys, control.StateSpace):
             raise ModelStructureError(f"sys must be a control.StateSpace; got {type(sys).__name__}")
         for name in ("A", "B", "C", "D"):
-            check_finite_array(f"GeneralizedPlant.sys.{name}", getattr(sys, name), error=ModelStructureError)
+            check_finite_array(
+                f"GeneralizedPlant.sys.{name}", getattr(sys, name), error=ModelStructureError
+            )
         if len(self.w) + len(self.u) != sys.ninputs or len(self.z) + len(self.y) != sys.noutputs:
             raise ModelStructureError(
                 f"partition sizes w={len(self.w)}, u={len(self.u)}, z={len(self.z)}, y={len(self.y)} "
@@ -108,8 +110,15 @@ class GeneralizedPlant:
         ii = [ins.index(s) for s in w + u]
         oi = [outs.index(s) for s in z + y]
         P = control.ss(
-            sys.A, sys.B[:, ii], sys.C[oi, :], sys.D[np.ix_(oi, ii)], sys.dt,
-            inputs=w + u, outputs=z + y, states=list(sys.state_labels), name=sys.name,
+            sys.A,
+            sys.B[:, ii],
+            sys.C[oi, :],
+            sys.D[np.ix_(oi, ii)],
+            sys.dt,
+            inputs=w + u,
+            outputs=z + y,
+            states=list(sys.state_labels),
+            name=sys.name,
         )
         return cls(P, tuple(w), tuple(u), tuple(z), tuple(y))
 
@@ -122,7 +131,9 @@ class GeneralizedPlant:
         sys = control.ss(sys)
         for label, val, top in (("nmeas", nmeas, sys.noutputs), ("ncon", ncon, sys.ninputs)):
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or not 0 < val < top:
-                raise ModelStructureError(f"{label} must be an integer in [1, {top - 1}]; got {val!r}")
+                raise ModelStructureError(
+                    f"{label} must be an integer in [1, {top - 1}]; got {val!r}"
+                )
         ins, outs = list(sys.input_labels), list(sys.output_labels)
         nw, nz = sys.ninputs - ncon, sys.noutputs - nmeas
         return cls(sys, tuple(ins[:nw]), tuple(ins[nw:]), tuple(outs[:nz]), tuple(outs[nz:]))
@@ -133,9 +144,13 @@ class GeneralizedPlant:
         for pname, names in parts.items():
             for s in names:
                 if s not in available:
-                    raise ModelStructureError(f"{pname}: {s!r} is not an {kind} of sys; its {kind}s are {available}")
+                    raise ModelStructureError(
+                        f"{pname}: {s!r} is not an {kind} of sys; its {kind}s are {available}"
+                    )
                 if s in seen:
-                    raise ModelStructureError(f"{kind} {s!r} is listed in both {seen[s]} and {pname}")
+                    raise ModelStructureError(
+                        f"{kind} {s!r} is listed in both {seen[s]} and {pname}"
+                    )
                 seen[s] = pname
         missing = [s for s in available if s not in seen]
         if missing:
@@ -209,7 +224,10 @@ class GeneralizedPlant:
 
     def blocks(self) -> dict[str, np.ndarray]:
         """All nine blocks ``A, B1, B2, C1, C2, D11, D12, D21, D22`` as a dict of copies."""
-        return {k: getattr(self, k).copy() for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")}
+        return {
+            k: getattr(self, k).copy()
+            for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
+        }
 
     def with_blocks(self, **blocks) -> GeneralizedPlant:
         """A new plant with some blocks replaced (same signal names and sizes)."""
@@ -224,7 +242,16 @@ class GeneralizedPlant:
         B = np.hstack([b["B1"], b["B2"]])
         C = np.vstack([b["C1"], b["C2"]])
         D = np.block([[b["D11"], b["D12"]], [b["D21"], b["D22"]]])
-        sys = control.ss(b["A"], B, C, D, self.dt, inputs=self.w + self.u, outputs=self.z + self.y, name=self.sys.name)
+        sys = control.ss(
+            b["A"],
+            B,
+            C,
+            D,
+            self.dt,
+            inputs=self.w + self.u,
+            outputs=self.z + self.y,
+            name=self.sys.name,
+        )
         return GeneralizedPlant(sys, self.w, self.u, self.z, self.y)
 
     def closed_loop(self, K) -> control.StateSpace:
@@ -249,7 +276,9 @@ class GeneralizedPlant:
             Ak, Bk, Ck = np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0))
         M = np.eye(self.ny) - D22 @ Dk
         if np.linalg.cond(M) > 1e12:
-            raise ModelStructureError(f"loop is ill-posed: I - D22*Dk is singular (cond={np.linalg.cond(M):.3g})")
+            raise ModelStructureError(
+                f"loop is ill-posed: I - D22*Dk is singular (cond={np.linalg.cond(M):.3g})"
+            )
         Mi = np.linalg.inv(M)  # y = Mi (C2 x + D21 w + D22 Ck xk)
         # u = Ck xk + Dk y
         Cy_x, Cy_k, Dy_w = Mi @ C2, Mi @ D22 @ Ck, Mi @ D21
@@ -258,7 +287,9 @@ class GeneralizedPlant:
         Bcl = np.vstack([B1 + B2 @ Du_w, Bk @ Dy_w])
         Ccl = np.hstack([C1 + D12 @ Cu_x, D12 @ Cu_k])
         Dcl = D11 + D12 @ Du_w
-        return control.ss(Acl, Bcl, Ccl, Dcl, self.dt, inputs=list(self.w), outputs=list(self.z), name="F_l(P,K)")
+        return control.ss(
+            Acl, Bcl, Ccl, Dcl, self.dt, inputs=list(self.w), outputs=list(self.z), name="F_l(P,K)"
+        )
 
     def __repr__(self) -> str:
         return (

@@ -27,7 +27,14 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import AssumptionError, InfeasibleError, ModelStructureError, ParameterError, SolverError, VerificationError
+from .errors import (
+    AssumptionError,
+    InfeasibleError,
+    ModelStructureError,
+    ParameterError,
+    SolverError,
+    VerificationError,
+)
 from .genplant import GeneralizedPlant, as_generalized_plant
 from .lmi import (
     PlantBlocks,
@@ -42,11 +49,11 @@ from .solve import DEFAULT_SOLVERS, SOLVER_TOL, solve_problem
 
 __all__ = [
     "HinfResult",
-    "MultiHinfResult",
     "LMISynthesisProblem",
+    "MultiHinfResult",
+    "check_hinf_assumptions",
     "hinfsyn_lmi",
     "hinfsyn_multi",
-    "check_hinf_assumptions",
 ]
 
 #: strict LMIs are enforced as ``<= -MARGIN_FACTOR * tol * I`` (tol: the first solver's feasibility tolerance)
@@ -211,7 +218,12 @@ def _scale(b: PlantBlocks) -> tuple[PlantBlocks, _Scaling]:
 
 
 def _unscale_controller(Ak, Bk, Ck, Dk, sc: _Scaling):
-    return Ak * sc.w0, (Bk * sc.w0) / sc.sy[None, :], sc.su[:, None] * Ck, sc.su[:, None] * Dk / sc.sy[None, :]
+    return (
+        Ak * sc.w0,
+        (Bk * sc.w0) / sc.sy[None, :],
+        sc.su[:, None] * Ck,
+        sc.su[:, None] * Dk / sc.sy[None, :],
+    )
 
 
 def _gamma_unscale(g: float, sc: _Scaling) -> float:
@@ -225,7 +237,9 @@ def _remove_d22(Ak, Bk, Ck, Dk, D22):
     M = np.eye(Dk.shape[0]) + Dk @ D22
     c = float(np.linalg.cond(M))
     if c > 1e10:
-        raise VerificationError(f"D22 loop transformation is ill-posed: I + Dk*D22 has condition number {c:.3g}")
+        raise VerificationError(
+            f"D22 loop transformation is ill-posed: I + Dk*D22 has condition number {c:.3g}"
+        )
     E = np.linalg.inv(M)
     return (Ak - Bk @ D22 @ E @ Ck, Bk - Bk @ D22 @ E @ Dk, E @ Ck, E @ Dk), c
 
@@ -238,7 +252,10 @@ def _verify(gp, K, gamma_bound, verify_rtol):
         return None, f"closed loop unstable (max real part of poles {sa:.3g})"
     g = hinf_norm(cl)
     if not g <= gamma_bound * (1.0 + verify_rtol):
-        return None, f"closed-loop norm {g:.6g} exceeds the bound {gamma_bound:.6g} by more than {verify_rtol:g}"
+        return (
+            None,
+            f"closed-loop norm {g:.6g} exceeds the bound {gamma_bound:.6g} by more than {verify_rtol:g}",
+        )
     return (cl, sa, g), ""
 
 
@@ -341,7 +358,9 @@ def hinfsyn_lmi(
             break
         gb_s = (1.0 + b) * g_opt_s
         candidates = [("optimal-point", R1, S1, gb_s, sol)]
-        for label, R, S, gs, s_used in _candidate_points(candidates, prob, gb_s, solvers, verbose, stats, log):
+        for label, R, S, gs, s_used in _candidate_points(
+            candidates, prob, gb_s, solvers, verbose, stats, log
+        ):
             try:
                 (Ak, Bk, Ck, Dk), info = reconstruct_controller(bs, R, S, gs)
                 Ak, Bk, Ck, Dk = _unscale_controller(Ak, Bk, Ck, Dk, sc)
@@ -414,7 +433,9 @@ class LMISynthesisProblem:
         else:
             # only an interior point is needed here: the answer is verified afterwards
             what, gap = f"centring at gamma={gamma_floor:.6g}", GAP_TOL_CENTRE
-        return solve_problem(self.problem, step=f"hinfsyn_lmi: {what}", solvers=solvers, gap_tol=gap, verbose=verbose)
+        return solve_problem(
+            self.problem, step=f"hinfsyn_lmi: {what}", solvers=solvers, gap_tol=gap, verbose=verbose
+        )
 
 
 def _candidate_points(candidates, prob, gb_s, solvers, verbose, stats, log):
@@ -503,9 +524,14 @@ def _p_step(blocks, Om, nk, margin, solvers, verbose):
         Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
         P = cp.Variable((Acl.shape[0], Acl.shape[0]), symmetric=True)
         Ps.append(P)
-        cons += [P >> margin * np.eye(Acl.shape[0]), bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, g, margin=margin)]
+        cons += [
+            P >> margin * np.eye(Acl.shape[0]),
+            bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, g, margin=margin),
+        ]
     prob = cp.Problem(cp.Minimize(g), cons)
-    sol = solve_problem(prob, step="hinfsyn_multi: analysis (P) step", solvers=solvers, verbose=verbose)
+    sol = solve_problem(
+        prob, step="hinfsyn_multi: analysis (P) step", solvers=solvers, verbose=verbose
+    )
     return float(g.value), [P.value for P in Ps], sol
 
 
@@ -518,7 +544,9 @@ def _k_step(blocks, Ps, Om0, nk, margin, trust, solvers, verbose):
         Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
         cons.append(bounded_real_lmi(Acl, Bcl, Ccl, Dcl, _sym_np(P), g, margin=margin))
     prob = cp.Problem(cp.Minimize(g), cons)
-    sol = solve_problem(prob, step="hinfsyn_multi: synthesis (K) step", solvers=solvers, verbose=verbose)
+    sol = solve_problem(
+        prob, step="hinfsyn_multi: synthesis (K) step", solvers=solvers, verbose=verbose
+    )
     return float(g.value), Om.value, sol
 
 
@@ -528,7 +556,9 @@ def _sym_np(P):
 
 def _initial_controller(gps, solvers, log):
     """Nominal design on the mean plant, then on each member, until one stabilises every member."""
-    mean = gps[0].with_blocks(**{k: np.mean([gp.blocks()[k] for gp in gps], axis=0) for k in gps[0].blocks()})
+    mean = gps[0].with_blocks(
+        **{k: np.mean([gp.blocks()[k] for gp in gps], axis=0) for k in gps[0].blocks()}
+    )
     tried = [("mean plant", mean)] + [(f"member {i}", gp) for i, gp in enumerate(gps)]
     best = None
     for label, gp in tried:
@@ -544,7 +574,9 @@ def _initial_controller(gps, solvers, log):
             if label == "mean plant":
                 break
         else:
-            log.append(f"initial design on {label} leaves {int(np.sum(sa >= 0))} member(s) unstable")
+            log.append(
+                f"initial design on {label} leaves {int(np.sum(sa >= 0))} member(s) unstable"
+            )
         if best is not None:
             break
     return best
@@ -635,14 +667,18 @@ def hinfsyn_multi(
         raise ModelStructureError("plants must contain at least one member; got an empty sequence")
     sizes = {(gp.nw, gp.nu, gp.nz, gp.ny) for gp in gps}
     if len(sizes) != 1:
-        raise ModelStructureError(f"all members must have the same (nw, nu, nz, ny); got {sorted(sizes)}")
+        raise ModelStructureError(
+            f"all members must have the same (nw, nu, nz, ny); got {sorted(sizes)}"
+        )
     for i, gp in enumerate(gps):
         try:
             check_hinf_assumptions(gp, require_regular=False)
         except AssumptionError as exc:
             raise AssumptionError(f"member {i}: {exc}") from None
         if np.any(gp.D22):
-            raise AssumptionError(f"member {i}: hinfsyn_multi requires D22 = 0; got max |D22| = {np.abs(gp.D22).max():.3g}")
+            raise AssumptionError(
+                f"member {i}: hinfsyn_multi requires D22 = 0; got max |D22| = {np.abs(gp.D22).max():.3g}"
+            )
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 0):
         raise ParameterError(f"{max_iter=} must be a nonnegative integer")
     log: list[str] = []
@@ -658,7 +694,9 @@ def hinfsyn_multi(
         K = control.ss(K0)
     sa, norms = _cl_norms(gps, K)
     if not np.all(sa < 0):
-        raise InfeasibleError(f"hinfsyn_multi: K0 leaves members {np.flatnonzero(sa >= 0).tolist()} unstable")
+        raise InfeasibleError(
+            f"hinfsyn_multi: K0 leaves members {np.flatnonzero(sa >= 0).tolist()} unstable"
+        )
     blocks = [_blocks(gp) for gp in gps]
     margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
     nk = K.nstates
@@ -677,7 +715,9 @@ def hinfsyn_multi(
         K_new = _controller_from_omega(Om_new, nk, gps[0])
         sa_new, norms_new = _cl_norms(gps, K_new)
         if not np.all(sa_new < 0) or norms_new.max() >= best:
-            log.append(f"iteration {it}: no verified improvement (worst norm {norms_new.max():.6g} vs {best:.6g})")
+            log.append(
+                f"iteration {it}: no verified improvement (worst norm {norms_new.max():.6g} vs {best:.6g})"
+            )
             break
         improvement = (best - norms_new.max()) / best
         Om, K, best = Om_new, K_new, float(norms_new.max())
@@ -687,7 +727,11 @@ def hinfsyn_multi(
     gamma_bound, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
     solve_time += s3.solve_time
     sa, norms = _cl_norms(gps, K)
-    bad = [i for i in range(len(gps)) if not (sa[i] < 0 and norms[i] <= gamma_bound * (1.0 + verify_rtol))]
+    bad = [
+        i
+        for i in range(len(gps))
+        if not (sa[i] < 0 and norms[i] <= gamma_bound * (1.0 + verify_rtol))
+    ]
     if bad:
         raise VerificationError(
             f"hinfsyn_multi: members {bad} fail the independent check against the certified bound "
@@ -709,4 +753,12 @@ def hinfsyn_multi(
 
 def _controller_from_omega(Om, nk, gp):
     Om = np.asarray(Om, float)
-    return control.ss(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:], inputs=list(gp.y), outputs=list(gp.u), name="K")
+    return control.ss(
+        Om[:nk, :nk],
+        Om[:nk, nk:],
+        Om[nk:, :nk],
+        Om[nk:, nk:],
+        inputs=list(gp.y),
+        outputs=list(gp.u),
+        name="K",
+    )

@@ -32,12 +32,12 @@ from .errors import AssumptionError, VerificationError
 __all__ = [
     "PlantBlocks",
     "ProjectionLMIs",
+    "bounded_real_lmi",
+    "check_regularity",
+    "closed_loop_matrices",
     "nullspace",
     "projection_lmis",
-    "closed_loop_matrices",
-    "bounded_real_lmi",
     "reconstruct_controller",
-    "check_regularity",
 ]
 
 
@@ -57,7 +57,13 @@ class PlantBlocks:
     @property
     def sizes(self) -> tuple[int, int, int, int, int]:
         """``(n, nw, nu, nz, ny)``."""
-        return self.A.shape[0], self.B1.shape[1], self.B2.shape[1], self.C1.shape[0], self.C2.shape[0]
+        return (
+            self.A.shape[0],
+            self.B1.shape[1],
+            self.B2.shape[1],
+            self.C1.shape[0],
+            self.C2.shape[0],
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,7 +103,9 @@ def _sym(E):
     return (E + E.T) / 2
 
 
-def projection_lmis(blocks: PlantBlocks, *, margin: float, gamma_cap: float | None = None) -> ProjectionLMIs:
+def projection_lmis(
+    blocks: PlantBlocks, *, margin: float, gamma_cap: float | None = None
+) -> ProjectionLMIs:
     """The two projected bounded-real LMIs and the coupling LMI of [GA94] Thm 4.3.
 
     ``gamma`` is feasible for some full-order controller iff there are symmetric
@@ -128,8 +136,10 @@ def projection_lmis(blocks: PlantBlocks, *, margin: float, gamma_cap: float | No
     -------
     ProjectionLMIs
     """
-    A, B1, B2, C1, C2, D11, D12, D21 = (getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21"))
-    n, nw, nu, nz, ny = blocks.sizes
+    A, B1, B2, C1, C2, D11, D12, D21 = (
+        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
+    )
+    n, nw, _nu, nz, _ny = blocks.sizes
     N12 = nullspace(np.hstack([B2.T, D12.T]))
     N21 = nullspace(np.hstack([C2, D21]))
     R = cp.Variable((n, n), symmetric=True, name="R")
@@ -140,14 +150,18 @@ def projection_lmis(blocks: PlantBlocks, *, margin: float, gamma_cap: float | No
     cons = []
     if N12.shape[1] > 0:
         T1 = sla.block_diag(N12, Iw)
-        M1 = cp.bmat([[A @ R + R @ A.T, R @ C1.T, B1], [C1 @ R, -g * Iz, D11], [B1.T, D11.T, -g * Iw]])
+        M1 = cp.bmat(
+            [[A @ R + R @ A.T, R @ C1.T, B1], [C1 @ R, -g * Iz, D11], [B1.T, D11.T, -g * Iw]]
+        )
         L1 = _sym(T1.T @ M1 @ T1)
         cons.append(L1 << -margin * np.eye(L1.shape[0]))
     else:
         cons.append(cp.bmat([[-g * Iw]]) << -margin * np.eye(nw))
     if N21.shape[1] > 0:
         T2 = sla.block_diag(N21, Iz)
-        M2 = cp.bmat([[A.T @ S + S @ A, S @ B1, C1.T], [B1.T @ S, -g * Iw, D11.T], [C1, D11, -g * Iz]])
+        M2 = cp.bmat(
+            [[A.T @ S + S @ A, S @ B1, C1.T], [B1.T @ S, -g * Iw, D11.T], [C1, D11, -g * Iz]]
+        )
         L2 = _sym(T2.T @ M2 @ T2)
         cons.append(L2 << -margin * np.eye(L2.shape[0]))
     I = np.eye(n)
@@ -164,7 +178,9 @@ def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):
     ``Omega = [[Ak, Bk], [Ck, Dk]]``, shape ``(nk + nu, nk + ny)``, numeric or a
     cvxpy expression ([GA94] eq. (2.5)): ``Acl = A0 + Bb Omega Cb`` etc.
     """
-    A, B1, B2, C1, C2, D11, D12, D21 = (getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21"))
+    A, B1, B2, C1, C2, D11, D12, D21 = (
+        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
+    )
     n, nw, nu, nz, ny = blocks.sizes
     A0 = sla.block_diag(A, np.zeros((nk, nk)))
     B0 = np.vstack([B1, np.zeros((nk, nw))])
@@ -173,7 +189,12 @@ def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):
     Cb = np.block([[np.zeros((nk, n)), np.eye(nk)], [C2, np.zeros((ny, nk))]])
     D12b = np.hstack([np.zeros((nz, nk)), D12])
     D21b = np.vstack([np.zeros((nk, nw)), D21])
-    return (A0 + Bb @ Omega @ Cb, B0 + Bb @ Omega @ D21b, C0 + D12b @ Omega @ Cb, D11 + D12b @ Omega @ D21b)
+    return (
+        A0 + Bb @ Omega @ Cb,
+        B0 + Bb @ Omega @ D21b,
+        C0 + D12b @ Omega @ Cb,
+        D11 + D12b @ Omega @ D21b,
+    )
 
 
 def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
@@ -200,7 +221,9 @@ def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
     return M << -margin * np.eye(nx + nw + nz)
 
 
-def reconstruct_controller(blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, gamma: float, *, rank_rtol: float = 1e-9):
+def reconstruct_controller(
+    blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, gamma: float, *, rank_rtol: float = 1e-9
+):
     """Controller from a solution (R, S, gamma) of :func:`projection_lmis`.
 
     Steps:
@@ -231,12 +254,16 @@ def reconstruct_controller(blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, ga
         If ``S - R^-1`` is not positive semidefinite (the coupling LMI fails) or
         the projected inequality needed by the formula does not hold at ``gamma``.
     """
-    A, B1, B2, C1, C2, D11, D12, D21 = (getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21"))
+    A, B1, B2, C1, C2, D11, D12, D21 = (
+        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
+    )
     n, nw, nu, nz, ny = blocks.sizes
     R, S = _sym(np.asarray(R, float)), _sym(np.asarray(S, float))
     wR = np.linalg.eigvalsh(R)
     if wR.min() <= 0:
-        raise VerificationError(f"reconstruction: R must be positive definite; smallest eigenvalue {wR.min():.3g}")
+        raise VerificationError(
+            f"reconstruction: R must be positive definite; smallest eigenvalue {wR.min():.3g}"
+        )
     Z = _sym(S - np.linalg.inv(R))
     w, V = np.linalg.eigh(Z)
     scale = max(float(np.linalg.norm(S, 2)), 1.0 / float(wR.min()))
@@ -256,7 +283,11 @@ def reconstruct_controller(blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, ga
     D12b = np.hstack([np.zeros((nz, k)), D12])
     D21b = np.vstack([np.zeros((k, nw)), D21])
     Theta = np.block(
-        [[A0.T @ X + X @ A0, X @ B0, C0.T], [B0.T @ X, -gamma * np.eye(nw), D11.T], [C0, D11, -gamma * np.eye(nz)]]
+        [
+            [A0.T @ X + X @ A0, X @ B0, C0.T],
+            [B0.T @ X, -gamma * np.eye(nw), D11.T],
+            [C0, D11, -gamma * np.eye(nz)],
+        ]
     )
     Gam = np.vstack([X @ Bb, np.zeros((nw, k + nu)), D12b])
     Lam = np.hstack([Cb, D21b, np.zeros((k + ny, nz))])
@@ -293,7 +324,7 @@ def reconstruct_controller(blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, ga
 
 def check_regularity(blocks: PlantBlocks, *, rtol: float = 1e-8) -> None:
     """Raise :class:`AssumptionError` unless D12 has full column rank and D21 full row rank."""
-    n, nw, nu, nz, ny = blocks.sizes
+    _n, _nw, nu, _nz, ny = blocks.sizes
     for name, M, need in (("D12", blocks.D12, nu), ("D21", blocks.D21, ny)):
         s = np.linalg.svd(M, compute_uv=False) if M.size else np.zeros(0)
         rank = int(np.sum(s > rtol * max(1.0, s.max() if s.size else 0.0)))

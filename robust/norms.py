@@ -25,12 +25,14 @@ import scipy.optimize as sopt
 
 from .errors import ModelStructureError, ParameterError
 
-__all__ = ["hinf_norm", "is_stable", "spectral_abscissa", "sigma_max"]
+__all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
 
 
 def _abcd(sys):
     try:
-        A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (sys.A, sys.B, sys.C, sys.D))
+        A, B, C, D = (
+            np.atleast_2d(np.asarray(m, dtype=float)) for m in (sys.A, sys.B, sys.C, sys.D)
+        )
     except AttributeError:
         raise ModelStructureError(
             f"sys must be a control.StateSpace (or have A, B, C, D); got {type(sys).__name__}"
@@ -141,7 +143,7 @@ def _candidate_frequencies(A):
 
 
 def _bb_norm(A, B, C, D, sys, rtol):
-    n = A.shape[0]
+    A.shape[0]
     wc = _candidate_frequencies(A)
     vals = sigma_max(sys, wc)
     sd = float(np.linalg.norm(D, 2))
@@ -166,7 +168,11 @@ def _bb_norm(A, B, C, D, sys, rtol):
         )
         ev = np.linalg.eigvals(H)
         tol = 1e-7 * max(scale, 1.0)
-        imag = np.sort(np.unique(np.round(ev[(np.abs(ev.real) < tol + 1e-7 * np.abs(ev)) & (ev.imag >= 0)].imag, 12)))
+        imag = np.sort(
+            np.unique(
+                np.round(ev[(np.abs(ev.real) < tol + 1e-7 * np.abs(ev)) & (ev.imag >= 0)].imag, 12)
+            )
+        )
         if imag.size == 0:
             return g, wpk
         if imag.size == 1:
@@ -190,12 +196,19 @@ def _grid_norm(A, B, C, D, sys, n_points: int = 2000):
     w = np.concatenate([[0.0], np.geomspace(lo, hi, n_points)])
     s = sigma_max(sys, w)
     best, wbest = float(np.linalg.norm(D, 2)), np.inf
-    peaks = [i for i in range(len(w)) if (i == 0 or s[i] >= s[i - 1]) and (i == len(w) - 1 or s[i] >= s[i + 1])]
+    peaks = [
+        i
+        for i in range(len(w))
+        if (i == 0 or s[i] >= s[i - 1]) and (i == len(w) - 1 or s[i] >= s[i + 1])
+    ]
     for i in peaks:
         a, b = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
         if b > a:
             res = sopt.minimize_scalar(
-                lambda x: -sigma_max(sys, [x])[0], bounds=(a, b), method="bounded", options={"xatol": 1e-10 * max(b, 1e-12)}
+                lambda x: -sigma_max(sys, [x])[0],
+                bounds=(a, b),
+                method="bounded",
+                options={"xatol": 1e-10 * max(b, 1e-12)},
             )
             cand, wc = -float(res.fun), float(res.x)
         else:

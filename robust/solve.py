@@ -16,7 +16,7 @@ import cvxpy as cp
 
 from .errors import InfeasibleError, ParameterError, SolverError
 
-__all__ = ["SolveResult", "solve_problem", "DEFAULT_SOLVERS", "SOLVER_TOL"]
+__all__ = ["DEFAULT_SOLVERS", "SOLVER_TOL", "SolveResult", "solve_problem"]
 
 DEFAULT_SOLVERS = ("CLARABEL", "SCS")
 
@@ -135,7 +135,9 @@ def solve_problem(
                 status=status,
                 accurate=status == cp.OPTIMAL,
                 iterations=getattr(st, "num_iters", None),
-                solve_time=float(st.solve_time) if st.solve_time is not None else time.perf_counter() - t0,
+                solve_time=float(st.solve_time)
+                if st.solve_time is not None
+                else time.perf_counter() - t0,
                 wall_time=time.perf_counter() - t0,
                 objective=float(problem.value),
                 attempts=tuple(attempts),

@@ -8,7 +8,7 @@ import scipy.linalg as sla
 
 from ._checks import NONNEGATIVE, check_scalar
 
-__all__ = ["random_generalized_plant", "dgkf_scalar_plant", "dgkf_scalar_gamma_opt"]
+__all__ = ["dgkf_scalar_gamma_opt", "dgkf_scalar_plant", "random_generalized_plant"]
 
 
 def random_generalized_plant(
@@ -91,8 +91,13 @@ def dgkf_scalar_plant(a: float) -> control.StateSpace:
     :func:`dgkf_scalar_gamma_opt`.
     """
     return control.ss(
-        [[a]], [[1.0, 0.0, 1.0]], [[1.0], [0.0], [1.0]], [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
-        inputs=["w1", "w2", "u"], outputs=["z1", "z2", "y"], name="dgkf_scalar",
+        [[a]],
+        [[1.0, 0.0, 1.0]],
+        [[1.0], [0.0], [1.0]],
+        [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+        inputs=["w1", "w2", "u"],
+        outputs=["z1", "z2", "y"],
+        name="dgkf_scalar",
     )
 
 

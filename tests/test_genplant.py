@@ -20,8 +20,12 @@ def named_plant():
     # shuffle the signal order so that name-based partitioning has work to do
     perm_in, perm_out = [2, 0, 1], [1, 2, 0]
     return control.ss(
-        P.A, P.B[:, perm_in], P.C[perm_out, :], P.D[np.ix_(perm_out, perm_in)],
-        inputs=[P.input_labels[i] for i in perm_in], outputs=[P.output_labels[i] for i in perm_out],
+        P.A,
+        P.B[:, perm_in],
+        P.C[perm_out, :],
+        P.D[np.ix_(perm_out, perm_in)],
+        inputs=[P.input_labels[i] for i in perm_in],
+        outputs=[P.output_labels[i] for i in perm_out],
     ), P
 
 
@@ -39,8 +43,15 @@ def test_blocks_shapes():
     gp = GeneralizedPlant.from_counts(random_generalized_plant(5, seed=0), nmeas=2, ncon=2)
     shapes = {k: v.shape for k, v in gp.blocks().items()}
     assert shapes == {
-        "A": (5, 5), "B1": (5, 4), "B2": (5, 2), "C1": (4, 5), "C2": (2, 5),
-        "D11": (4, 4), "D12": (4, 2), "D21": (2, 4), "D22": (2, 2),
+        "A": (5, 5),
+        "B1": (5, 4),
+        "B2": (5, 2),
+        "C1": (4, 5),
+        "C2": (2, 5),
+        "D11": (4, 4),
+        "D12": (4, 2),
+        "D21": (2, 4),
+        "D22": (2, 2),
     }
 
 
@@ -83,10 +94,16 @@ def test_with_blocks_round_trip():
 @pytest.mark.parametrize(
     "kwargs,match",
     [
-        (dict(w=["w0"], u=["u0"], z=["z0", "z1"], y=["y0"]), r"inputs \['w1'\] are in no partition"),
-        (dict(w=["w0", "w1"], u=["w1"], z=["z0", "z1"], y=["y0"]), "listed in both"),
-        (dict(w=["w0", "w1"], u=["u9"], z=["z0", "z1"], y=["y0"]), "'u9' is not an input"),
-        (dict(w=["w0", "w1", "u0"], u=[], z=["z0", "z1"], y=["y0"]), "at least one control input"),
+        (
+            {"w": ["w0"], "u": ["u0"], "z": ["z0", "z1"], "y": ["y0"]},
+            r"inputs \['w1'\] are in no partition",
+        ),
+        ({"w": ["w0", "w1"], "u": ["w1"], "z": ["z0", "z1"], "y": ["y0"]}, "listed in both"),
+        ({"w": ["w0", "w1"], "u": ["u9"], "z": ["z0", "z1"], "y": ["y0"]}, "'u9' is not an input"),
+        (
+            {"w": ["w0", "w1", "u0"], "u": [], "z": ["z0", "z1"], "y": ["y0"]},
+            "at least one control input",
+        ),
     ],
     ids=["unlisted", "duplicate", "unknown", "no-control"],
 )

@@ -93,8 +93,9 @@ def test_result_fields_and_generalized_plant_input():
     assert {"cond_X", "cond_Phi", "cond_LPL", "lmi_max_eig"} <= set(res.condition)
     assert 0 < res.backoff < 0.1
     assert res.K.ninputs == 2 and res.K.noutputs == 2
-    gp = GeneralizedPlant.from_system(P, w=["w0", "w1", "w2", "w3"], u=["u0", "u1"], z=["z0", "z1", "z2", "z3"],
-                                      y=["y0", "y1"])
+    gp = GeneralizedPlant.from_system(
+        P, w=["w0", "w1", "w2", "w3"], u=["u0", "u1"], z=["z0", "z1", "z2", "z3"], y=["y0", "y1"]
+    )
     res2 = hinfsyn_lmi(gp)
     assert res2.gamma_opt == pytest.approx(res.gamma_opt, rel=1e-6)
     assert list(res2.K.input_labels) == ["y0", "y1"]
@@ -103,7 +104,9 @@ def test_result_fields_and_generalized_plant_input():
 
 def test_compiled_problem_is_reused_across_gamma_levels():
     gp = as_generalized_plant(random_generalized_plant(4, seed=5), 2, 2)
-    prob = LMISynthesisProblem(PlantBlocks(gp.A, gp.B1, gp.B2, gp.C1, gp.C2, gp.D11, gp.D12, gp.D21), margin=1e-6)
+    prob = LMISynthesisProblem(
+        PlantBlocks(gp.A, gp.B1, gp.B2, gp.C1, gp.C2, gp.D11, gp.D12, gp.D21), margin=1e-6
+    )
     prob.solve(gamma_floor=0.0)
     g_opt = float(prob.lmis.gamma.value)
     compiled = prob.problem._cache.param_prog
@@ -122,21 +125,26 @@ def _plant(A, B1, B2, C1, C2, D11, D12, D21, dt=0):
     return control.ss(A, B, C, D, dt)
 
 
-_OK = dict(
-    A=np.diag([1.0, -1.0]), B1=np.array([[1.0, 0.0], [1.0, 0.0]]), B2=np.array([[1.0], [1.0]]),
-    C1=np.array([[1.0, 1.0], [0.0, 0.0]]), C2=np.array([[1.0, 1.0]]), D11=np.zeros((2, 2)),
-    D12=np.array([[0.0], [1.0]]), D21=np.array([[0.0, 1.0]]),
-)
+_OK = {
+    "A": np.diag([1.0, -1.0]),
+    "B1": np.array([[1.0, 0.0], [1.0, 0.0]]),
+    "B2": np.array([[1.0], [1.0]]),
+    "C1": np.array([[1.0, 1.0], [0.0, 0.0]]),
+    "C2": np.array([[1.0, 1.0]]),
+    "D11": np.zeros((2, 2)),
+    "D12": np.array([[0.0], [1.0]]),
+    "D21": np.array([[0.0, 1.0]]),
+}
 
 
 @pytest.mark.parametrize(
     "change,error,match",
     [
-        (dict(B2=np.array([[0.0], [1.0]])), AssumptionError, r"\(A, B2\) is not stabilisable"),
-        (dict(C2=np.array([[0.0, 1.0]])), AssumptionError, r"\(C2, A\) is not detectable"),
-        (dict(D12=np.zeros((2, 1))), AssumptionError, "D12 must have full column rank"),
-        (dict(D21=np.zeros((1, 2))), AssumptionError, "D21 must have full row rank"),
-        (dict(dt=0.01), ModelStructureError, "only continuous-time"),
+        ({"B2": np.array([[0.0], [1.0]])}, AssumptionError, r"\(A, B2\) is not stabilisable"),
+        ({"C2": np.array([[0.0, 1.0]])}, AssumptionError, r"\(C2, A\) is not detectable"),
+        ({"D12": np.zeros((2, 1))}, AssumptionError, "D12 must have full column rank"),
+        ({"D21": np.zeros((1, 2))}, AssumptionError, "D21 must have full row rank"),
+        ({"dt": 0.01}, ModelStructureError, "only continuous-time"),
     ],
     ids=["unstabilisable", "undetectable", "D12-rank", "D21-rank", "discrete"],
 )
@@ -153,7 +161,9 @@ def test_baseline_of_assumption_cases_is_solvable():
 
 def test_infeasible_gamma_max_names_the_condition():
     P = dgkf_scalar_plant(0.0)
-    with pytest.raises(InfeasibleError, match=r"no controller achieves gamma <= gamma_max=1\.3.*coupling"):
+    with pytest.raises(
+        InfeasibleError, match=r"no controller achieves gamma <= gamma_max=1\.3.*coupling"
+    ):
         hinfsyn_lmi(P, 1, 1, gamma_max=1.3)
     assert hinfsyn_lmi(P, 1, 1, gamma_max=1.5).gamma <= 1.5
 
@@ -171,9 +181,14 @@ def _spring_family(n_members, seed):
         k, c = rng.uniform(0.5, 2.0), rng.uniform(0.05, 0.5)
         members.append(
             _plant(
-                np.array([[0.0, 1.0], [-k, -c]]), np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[0.0], [1.0]]),
-                np.array([[1.0, 0.0], [0.0, 0.0]]), np.array([[1.0, 0.0]]), np.zeros((2, 2)),
-                np.array([[0.0], [0.1]]), np.array([[0.0, 0.1]]),
+                np.array([[0.0, 1.0], [-k, -c]]),
+                np.array([[0.0, 0.0], [1.0, 0.0]]),
+                np.array([[0.0], [1.0]]),
+                np.array([[1.0, 0.0], [0.0, 0.0]]),
+                np.array([[1.0, 0.0]]),
+                np.zeros((2, 2)),
+                np.array([[0.0], [0.1]]),
+                np.array([[0.0, 0.1]]),
             )
         )
     return members
@@ -194,7 +209,9 @@ def test_multi_model_16_members_per_member_norms():
         assert np.linalg.eigvalsh(P).min() > 0
         A, B, C, D = cl.A, cl.B, cl.C, cl.D
         g = res.gamma_bound
-        M = np.block([[A.T @ P + P @ A, P @ B, C.T], [B.T @ P, -g * np.eye(2), D.T], [C, D, -g * np.eye(2)]])
+        M = np.block(
+            [[A.T @ P + P @ A, P @ B, C.T], [B.T @ P, -g * np.eye(2), D.T], [C, D, -g * np.eye(2)]]
+        )
         assert np.linalg.eigvalsh(M).max() < 0
     # iterations never make the worst member worse, and they improve on the initial design
     assert all(b <= a for a, b in zip(res.history, res.history[1:]))
@@ -249,9 +266,14 @@ def test_scherer_gahinet_chilali_example_against_slicot():
     # -> 9.50808550543373 (control 0.10.2, slycot sb10ad); the LMI optimum cannot be above it.
     A = np.array([[0.0, 10.0, 2.0], [-1.0, 1.0, 0.0], [0.0, 2.0, -5.0]])
     P = _plant(
-        A, np.array([[1.0], [0.0], [1.0]]), np.array([[0.0], [1.0], [0.0]]),
-        np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]), np.zeros((2, 1)),
-        np.array([[0.0], [1.0]]), np.array([[2.0]]),
+        A,
+        np.array([[1.0], [0.0], [1.0]]),
+        np.array([[0.0], [1.0], [0.0]]),
+        np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]),
+        np.array([[0.0, 1.0, 0.0]]),
+        np.zeros((2, 1)),
+        np.array([[0.0], [1.0]]),
+        np.array([[2.0]]),
     )
     res = hinfsyn_lmi(P, 1, 1)
     assert res.gamma_opt == pytest.approx(9.50808550543373, rel=1e-4)

@@ -17,11 +17,14 @@ def _stable_rss(n, p, m, seed):
     rng = np.random.default_rng(seed)
     A = rng.standard_normal((n, n))
     A -= (np.max(np.linalg.eigvals(A).real) + rng.uniform(0.05, 1.0)) * np.eye(n)
-    return control.ss(A, rng.standard_normal((n, m)), rng.standard_normal((p, n)), rng.standard_normal((p, m)))
+    return control.ss(
+        A, rng.standard_normal((n, m)), rng.standard_normal((p, n)), rng.standard_normal((p, m))
+    )
 
 
 @pytest.mark.parametrize(
-    "n,p,m,seed", [(1, 1, 1, 0), (3, 2, 2, 1), (8, 3, 1, 2), (20, 2, 4, 3), (40, 4, 4, 4)],
+    "n,p,m,seed",
+    [(1, 1, 1, 0), (3, 2, 2, 1), (8, 3, 1, 2), (20, 2, 4, 3), (40, 4, 4, 4)],
     ids=["n1", "n3", "n8", "n20", "n40"],
 )
 def test_bb_matches_grid_and_slicot(n, p, m, seed):
@@ -47,7 +50,9 @@ def test_lightly_damped_resonance_peak(zeta):
 
 
 def test_feedthrough_dominates_at_infinite_frequency():
-    sys = control.ss([[-1.0]], [[1.0]], [[1.0]], [[-2.0]])  # G = -2 + 1/(s+1): |G| rises to 2 as w -> inf
+    sys = control.ss(
+        [[-1.0]], [[1.0]], [[1.0]], [[-2.0]]
+    )  # G = -2 + 1/(s+1): |G| rises to 2 as w -> inf
     val, w = hinf_norm(sys, return_frequency=True)
     assert val == pytest.approx(2.0, rel=1e-8)
     assert w == np.inf
