@@ -59,9 +59,11 @@ __all__ = [
 #: strict LMIs are enforced as ``<= -MARGIN_FACTOR * tol * I`` (tol: the first solver's feasibility tolerance)
 MARGIN_FACTOR = 10.0
 #: Clarabel duality-gap tolerance of the gamma minimisation (relative accuracy of gamma_opt)
-GAP_TOL_MINIMISE = 1e-7
+GAP_TOL_MINIMISE = 1e-6
 #: gap tolerance of the centring solve (it only has to return an interior point)
 GAP_TOL_CENTRE = 1e-5
+#: multiples of the smallest admissible mu tried in the explicit reconstruction formula
+MU_FACTORS = (2.0, 1.1, 10.0)
 #: default relative back-off from the optimal gamma before reconstruction
 DEFAULT_BACKOFF = 0.003
 #: further back-off factors tried, relative to ``backoff``, if a reconstruction fails verification
@@ -361,25 +363,13 @@ def hinfsyn_lmi(
         for label, R, S, gs, s_used in _candidate_points(
             candidates, prob, gb_s, solvers, verbose, stats, log
         ):
-            try:
-                (Ak, Bk, Ck, Dk), info = reconstruct_controller(bs, R, S, gs)
-                Ak, Bk, Ck, Dk = _unscale_controller(Ak, Bk, Ck, Dk, sc)
-                (Ak, Bk, Ck, Dk), cd22 = _remove_d22(Ak, Bk, Ck, Dk, gp.D22)
-            except (VerificationError, np.linalg.LinAlgError) as exc:
-                log.append(f"backoff {b:g}, {label}: reconstruction failed: {exc}")
+            best = _best_reconstruction(gp, bs, sc, R, S, gs, verify_rtol, log, f"backoff {b:g}, {label}")
+            if best is None:
                 continue
-            K = control.ss(Ak, Bk, Ck, Dk, inputs=list(gp.y), outputs=list(gp.u), name="K")
-            gamma_bound = _gamma_unscale(gs, sc)
-            ok, why = _verify(gp, K, gamma_bound, verify_rtol)
-            if ok is None:
-                log.append(f"backoff {b:g}, {label}: {why}")
-                continue
-            cl, sa, g = ok
-            log.append(f"backoff {b:g}, {label}: verified")
-            info = dict(info, cond_I_D22Dk=cd22)
+            K, (cl, sa, g), info = best
             return HinfResult(
                 K=K,
-                gamma_bound=gamma_bound,
+                gamma_bound=_gamma_unscale(gs, sc),
                 gamma=g,
                 gamma_opt=_gamma_unscale(g_opt_s, sc),
                 closed_loop=cl,
@@ -391,13 +381,36 @@ def hinfsyn_lmi(
                 wall_time=time.perf_counter() - t_start,
                 backoff=gs / g_opt_s - 1.0,
                 condition=info,
-                order=int(Ak.shape[0]),
+                order=int(K.nstates),
                 attempts=tuple(log),
             )
     raise VerificationError(
         "hinfsyn_lmi: no reconstructed controller passed the independent check "
         f"(optimal LMI gamma {_gamma_unscale(g_opt_s, sc):.6g}); attempts: " + "; ".join(log)
     )
+
+
+def _best_reconstruction(gp, bs, sc, R, S, gs, verify_rtol, log, label):
+    """Rebuild K from (R, S) at scaled level ``gs`` for each ``MU_FACTORS``; keep the best verified one."""
+    best = None
+    gamma_bound = _gamma_unscale(gs, sc)
+    for mf in MU_FACTORS:
+        try:
+            (Ak, Bk, Ck, Dk), info = reconstruct_controller(bs, R, S, gs, mu_factor=mf)
+            Ak, Bk, Ck, Dk = _unscale_controller(Ak, Bk, Ck, Dk, sc)
+            (Ak, Bk, Ck, Dk), cd22 = _remove_d22(Ak, Bk, Ck, Dk, gp.D22)
+        except (VerificationError, np.linalg.LinAlgError) as exc:
+            log.append(f"{label}, mu x{mf:g}: reconstruction failed: {exc}")
+            continue
+        K = control.ss(Ak, Bk, Ck, Dk, inputs=list(gp.y), outputs=list(gp.u), name="K")
+        ok, why = _verify(gp, K, gamma_bound, verify_rtol)
+        if ok is None:
+            log.append(f"{label}, mu x{mf:g}: {why}")
+            continue
+        log.append(f"{label}, mu x{mf:g}: verified, gamma {ok[2]:.6g}")
+        if best is None or ok[2] < best[1][2]:
+            best = (K, ok, dict(info, cond_I_D22Dk=cd22, mu_factor=mf))
+    return best
 
 
 class LMISynthesisProblem:

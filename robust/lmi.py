@@ -222,7 +222,13 @@ def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
 
 
 def reconstruct_controller(
-    blocks: PlantBlocks, R: np.ndarray, S: np.ndarray, gamma: float, *, rank_rtol: float = 1e-9
+    blocks: PlantBlocks,
+    R: np.ndarray,
+    S: np.ndarray,
+    gamma: float,
+    *,
+    mu_factor: float = 2.0,
+    rank_rtol: float = 1e-9,
 ):
     """Controller from a solution (R, S, gamma) of :func:`projection_lmis`.
 
@@ -237,7 +243,9 @@ def reconstruct_controller(
        in ``Om = [[Ak, Bk], [Ck, Dk]]``; its central solution is the explicit
        formula of [IS94] / [SIG98] Thm 2.3.12 with the free matrix ``L = 0``:
        ``Om = -mu Gam' Phi Lam' (Lam Phi Lam')^-1``, ``Phi = (mu Gam Gam' - Theta)^-1``,
-       where ``mu`` is twice the smallest value that makes ``Phi > 0``.
+       where ``mu`` is ``mu_factor`` (> 1) times the smallest value that makes
+       ``Phi > 0``.  Every ``mu_factor > 1`` gives a solution in exact arithmetic;
+       in floating point the rounding error depends on it, so callers may try several.
 
     Returns
     -------
@@ -292,7 +300,7 @@ def reconstruct_controller(
     Gam = np.vstack([X @ Bb, np.zeros((nw, k + nu)), D12b])
     Lam = np.hstack([Cb, D21b, np.zeros((k + ny, nz))])
     # smallest mu with mu Gam Gam' - Theta > 0: Schur complement on ker(Gam')
-    U, sv, _ = np.linalg.svd(Gam, full_matrices=True)
+    U, sv, Vt = np.linalg.svd(Gam, full_matrices=True)
     r = Gam.shape[1]
     T = U.T @ Theta @ U
     T11, T12, T22 = T[:r, :r], T[:r, r:], T[r:, r:]
@@ -303,18 +311,29 @@ def reconstruct_controller(
             f"(largest eigenvalue {e22:.3g} >= 0); the LMI solution is not accurate enough"
         )
     G = _sym(T11 - T12 @ np.linalg.solve(T22, T12.T)) if T22.size else _sym(T11)
-    thr = np.linalg.eigvalsh(G / np.outer(sv[:r], sv[:r])).max()
-    mu = 2.0 * max(thr, 1e-12 * max(1.0, abs(thr)))
-    PhiInv = _sym(mu * Gam @ Gam.T - Theta)
-    Phi = np.linalg.inv(PhiInv)
-    LPL = _sym(Lam @ Phi @ Lam.T)
-    Om = -mu * np.linalg.solve(LPL.T, (Gam.T @ Phi @ Lam.T).T).T
+    sig = sv[:r]
+    thr = np.linalg.eigvalsh(G / np.outer(sig, sig)).max()
+    mu = mu_factor * max(thr, 1e-12 * max(1.0, abs(thr)))
+    # Phi^-1 = mu Gam Gam' - Theta, assembled and factored in the orthonormal basis U =
+    # [range(Gam), ker(Gam')], where it is [[mu Sig^2 - T11, -T12], [-T21, -T22]]: forming it
+    # in the original basis would add rounding of order eps*mu*|Gam|^2 to the small ker(Gam')
+    # block and ruin the solution when the LMI is nearly tight.
+    M = -T
+    M[:r, :r] += mu * np.diag(sig**2)
+    M = _sym(M)
+    cf = sla.cho_factor(M)  # raises LinAlgError if not numerically positive definite
+    LU = Lam @ U
+    Y = sla.cho_solve(cf, LU.T)  # M^-1 U' Lam'
+    LPL = _sym(LU @ Y)  # Lam Phi Lam'
+    GU = np.zeros((r, U.shape[0]))
+    GU[:, :r] = Vt.T * sig  # Gam' U = [V Sig, 0]
+    Om = -mu * np.linalg.solve(LPL, (GU @ Y).T).T
     E = Gam @ Om @ Lam
     lmi_max = float(np.linalg.eigvalsh(_sym(Theta + E + E.T)).max())
     info = {
         "order": k,
         "cond_X": float(np.linalg.cond(X)),
-        "cond_Phi": float(np.linalg.cond(PhiInv)),
+        "cond_Phi": float(np.linalg.cond(M)),
         "cond_LPL": float(np.linalg.cond(LPL)),
         "lmi_max_eig": lmi_max,
         "mu": float(mu),

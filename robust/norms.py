@@ -7,7 +7,10 @@
   Kabamba, "A bisection method for computing the H-infinity norm of a transfer
   matrix and related problems", Math. Control Signals Systems 2 (1989) 207-219.
   Quadratically convergent; the returned value is an upper bound within
-  ``rtol`` of the norm.
+  ``rtol`` of the norm, except that near a very flat peak the imaginary-axis
+  eigenvalues of the Hamiltonian are ill-conditioned and the iteration may stop
+  up to about 1e-7 (relative) below the peak.  When the supremum is attributed
+  to infinite frequency the result is cross-checked against the grid method.
 * ``method="grid"``: a dense logarithmic frequency grid followed by a bounded
   scalar refinement of every local peak.  It never forms a Hamiltonian, so it
   is an independent check of ``"bb"``; it is a lower bound.
@@ -18,6 +21,8 @@ Every method first checks stability: an unstable system has norm ``inf``.
 """
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 import scipy.linalg as sla
@@ -143,49 +148,87 @@ def _candidate_frequencies(A):
 
 
 def _bb_norm(A, B, C, D, sys, rtol):
-    A.shape[0]
-    wc = _candidate_frequencies(A)
+    val, w = _bb_iteration(A, B, C, D, sys, rtol)
+    if np.isinf(w):
+        # The supremum was attributed to infinite frequency: the Hamiltonian was then built
+        # with gamma close to sigma_max(D), where D'D - gamma^2 I is nearly singular and an
+        # imaginary-axis crossing can be lost to rounding.  Cross-check with a dense grid and
+        # restart from its peak if it is higher.
+        gval, gw = _grid_norm(A, B, C, D, sys)
+        if gval > val and np.isfinite(gw):
+            val, w = _bb_iteration(A, B, C, D, sys, rtol, start=(gval, gw))
+    return val, w
+
+
+def _bb_iteration(A, B, C, D, sys, rtol, start=None):
+    """Bruinsma-Steinbuch (1990) two-step iteration; returns (upper bound, peak frequency)."""
+    lam = np.abs(np.linalg.eigvals(A))
+    lam = lam[lam > 0]
+    coarse = np.geomspace(1e-2 * lam.min(), 1e2 * lam.max(), 200) if lam.size else np.zeros(0)
+    wc = np.concatenate([_candidate_frequencies(A), coarse])
     vals = sigma_max(sys, wc)
-    sd = float(np.linalg.norm(D, 2))
     i = int(np.argmax(vals))
     glb, wpk = float(vals[i]), float(wc[i])
+    if start is not None and start[0] > glb:
+        glb, wpk = start
+    sd = float(np.linalg.norm(D, 2))
     if sd > glb:
         glb, wpk = sd, np.inf
     if glb == 0.0:
         return 0.0, 0.0
-    scale = max(1.0, float(np.max(np.abs(np.linalg.eigvals(A)))))
+    scale = max(1.0, float(lam.max()) if lam.size else 1.0)
     for _ in range(100):
         g = (1.0 + 2.0 * rtol) * glb
-        R = D.T @ D - g * g * np.eye(D.shape[1])
-        S = D @ D.T - g * g * np.eye(D.shape[0])
-        Ri_DtC = np.linalg.solve(R, D.T @ C)
-        Ri_Bt = np.linalg.solve(R, B.T)
-        H = np.block(
-            [
-                [A - B @ Ri_DtC, -g * B @ Ri_Bt],
-                [g * C.T @ np.linalg.solve(S, C), -A.T + C.T @ D @ Ri_Bt],
-            ]
-        )
-        ev = np.linalg.eigvals(H)
-        tol = 1e-7 * max(scale, 1.0)
-        imag = np.sort(
-            np.unique(
-                np.round(ev[(np.abs(ev.real) < tol + 1e-7 * np.abs(ev)) & (ev.imag >= 0)].imag, 12)
-            )
-        )
+        imag = _imaginary_eigenvalues(A, B, C, D, g, scale)
         if imag.size == 0:
             return g, wpk
-        if imag.size == 1:
-            mids = imag
-        else:
-            mids = 0.5 * (imag[:-1] + imag[1:])
+        mids = imag if imag.size == 1 else 0.5 * (imag[:-1] + imag[1:])
         sv = sigma_max(sys, mids)
         j = int(np.argmax(sv))
         if sv[j] <= glb * (1.0 + rtol):
-            # the Hamiltonian sees crossings the resolvent cannot confirm (round-off): stop here
-            return g, wpk
+            # midpoints do not improve: maximise inside each interval between crossings
+            best, wbest = _refine_intervals(sys, imag)
+            if best <= glb * (1.0 + rtol):
+                return g, wpk
+            glb, wpk = best, wbest
+            continue
         glb, wpk = float(sv[j]), float(mids[j])
     return (1.0 + 2.0 * rtol) * glb, wpk
+
+
+def _imaginary_eigenvalues(A, B, C, D, g, scale):
+    """Nonnegative imaginary parts of the (numerically) imaginary eigenvalues of the Hamiltonian H(g)."""
+    R = D.T @ D - g * g * np.eye(D.shape[1])
+    S = D @ D.T - g * g * np.eye(D.shape[0])
+    Ri_DtC = np.linalg.solve(R, D.T @ C)
+    Ri_Bt = np.linalg.solve(R, B.T)
+    H = np.block(
+        [
+            [A - B @ Ri_DtC, -g * B @ Ri_Bt],
+            [g * C.T @ np.linalg.solve(S, C), -A.T + C.T @ D @ Ri_Bt],
+        ]
+    )
+    ev = np.linalg.eigvals(H)
+    tol = 1e-7 * scale
+    sel = (np.abs(ev.real) < tol + 1e-7 * np.abs(ev)) & (ev.imag >= 0)
+    return np.sort(np.unique(np.round(ev[sel].imag, 12)))
+
+
+def _refine_intervals(sys, imag):
+    pts = np.concatenate([[0.0], imag, [2.0 * imag[-1] + 1.0]])
+    best, wbest = -np.inf, np.nan
+    for a, b in itertools.pairwise(pts):
+        if b <= a:
+            continue
+        res = sopt.minimize_scalar(
+            lambda x: -sigma_max(sys, [x])[0],
+            bounds=(a, b),
+            method="bounded",
+            options={"xatol": 1e-10 * b},
+        )
+        if -res.fun > best:
+            best, wbest = -float(res.fun), float(res.x)
+    return best, wbest
 
 
 def _grid_norm(A, B, C, D, sys, n_points: int = 2000):
