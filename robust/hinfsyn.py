@@ -189,12 +189,14 @@ class _Scaling:
     sz: float  # zs = z / sz
 
 
-def _scale(b: PlantBlocks) -> tuple[PlantBlocks, _Scaling]:
+def _scale(b: PlantBlocks, common: _Scaling | None = None) -> tuple[PlantBlocks, _Scaling]:
     """State (diagonal balancing), time, input and output scaling that leaves the problem equivalent.
 
     u and y may be scaled channel by channel (the controller absorbs it); w and
     z only by one scalar each (gamma scales by ``sz / sw``); time scaling keeps
-    the H-infinity norm.
+    the H-infinity norm.  With ``common`` (multi-model design) the time, u, y,
+    w and z scalings are taken from it, so that one controller serves every
+    member; only the state balancing is per plant.
     """
     n = b.A.shape[0]
     _, (t, _) = sla.matrix_balance(b.A, permute=False, separate=True)
@@ -202,21 +204,43 @@ def _scale(b: PlantBlocks) -> tuple[PlantBlocks, _Scaling]:
     A = b.A * (1.0 / t)[:, None] * t[None, :]
     B1, B2 = b.B1 / t[:, None], b.B2 / t[:, None]
     C1, C2 = b.C1 * t[None, :], b.C2 * t[None, :]
-    # time scale: the spectral radius, or the matrix size when A is (nearly) nilpotent
-    rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if n else 0.0
-    w0 = max(rho, 1e-2 * float(np.linalg.norm(A, 2)) if n else 0.0)
-    w0 = w0 if w0 > 1e-12 else 1.0
+    if common is None:
+        # time scale: the spectral radius, or a fraction of |A| when A is (nearly) nilpotent
+        rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if n else 0.0
+        w0 = max(rho, 1e-2 * float(np.linalg.norm(A, 2)) if n else 0.0)
+        w0 = w0 if w0 > 1e-12 else 1.0
+    else:
+        w0 = common.w0
     A, B1, B2 = A / w0, B1 / w0, B2 / w0
-    su = 1.0 / np.maximum(np.linalg.norm(np.vstack([B2, b.D12]), axis=0), 1e-300)
-    sy = np.maximum(np.linalg.norm(np.hstack([C2, b.D21]), axis=1), 1e-300)
+    if common is None:
+        su = 1.0 / np.maximum(np.linalg.norm(np.vstack([B2, b.D12]), axis=0), 1e-300)
+        sy = np.maximum(np.linalg.norm(np.hstack([C2, b.D21]), axis=1), 1e-300)
+    else:
+        su, sy = common.su, common.sy
     B2, D12 = B2 * su[None, :], b.D12 * su[None, :]
     C2, D21 = C2 / sy[:, None], b.D21 / sy[:, None]
-    sw = 1.0 / max(np.linalg.norm(np.vstack([B1, D21]), 2), 1e-300)
+    if common is None:
+        sw = 1.0 / max(np.linalg.norm(np.vstack([B1, D21]), 2), 1e-300)
+    else:
+        sw = common.sw
     B1, D21 = B1 * sw, D21 * sw
     D11 = b.D11 * sw
-    sz = max(np.linalg.norm(np.hstack([C1, D11, D12]), 2), 1e-300)
+    if common is None:
+        sz = max(np.linalg.norm(np.hstack([C1, D11, D12]), 2), 1e-300)
+    else:
+        sz = common.sz
     C1, D11, D12 = C1 / sz, D11 / sz, D12 / sz
     return PlantBlocks(A, B1, B2, C1, C2, D11, D12, D21), _Scaling(t, w0, su, sy, sw, sz)
+
+
+def _scale_controller(Ak, Bk, Ck, Dk, sc: _Scaling):
+    """Inverse of :func:`_unscale_controller`."""
+    return (
+        Ak / sc.w0,
+        (Bk / sc.w0) * sc.sy[None, :],
+        Ck / sc.su[:, None],
+        Dk * sc.sy[None, :] / sc.su[:, None],
+    )
 
 
 def _unscale_controller(Ak, Bk, Ck, Dk, sc: _Scaling):
@@ -321,6 +345,46 @@ def hinfsyn_lmi(
         No solver returned an answer.
     VerificationError
         No reconstructed controller passed the independent check.
+
+    Notes
+    -----
+    Steps:
+
+    1. assumption checks (:func:`check_hinf_assumptions`): continuous time,
+       (A, B2) stabilisable, (C2, A) detectable (PBH tests on the closed
+       right-half-plane modes), D12 full column rank and D21 full row rank.
+       Singular problems are refused rather than regularised: add a control
+       penalty or measurement noise to the generalized plant instead, so the
+       regularisation is visible in the design.  A nonzero D22 is removed by
+       designing for ``y0 = y - D22 u`` and transforming the controller back,
+       ``K = K0 (I + D22 K0)^-1``.
+    2. scaling (``scale=True``): diagonal balancing of A, time scaling by the
+       spectral radius, unit-norm columns of [B2; D12] and rows of [C2 D21],
+       and one scalar each for w and z (gamma rescales exactly).
+    3. one SDP (:class:`LMISynthesisProblem`): minimise gamma subject to the
+       [GA94] Thm 4.3 LMIs, strict inequalities enforced with a margin of
+       ``MARGIN_FACTOR`` times the solver's feasibility tolerance; Clarabel
+       first, SCS if Clarabel fails (:func:`robust.solve.solve_problem`).
+    4. reconstruction at ``(1 + backoff) * gamma_opt`` from that solution by the
+       explicit formula of [IS94] (:func:`robust.lmi.reconstruct_controller`),
+       for each of ``MU_FACTORS``; the best verified controller is kept.
+    5. only if no reconstruction verifies: re-solve the same compiled problem
+       with ``gamma_floor`` at the backed-off level (the interior-point answer
+       is then centred in that slice of the feasible set) and reconstruct
+       again; then larger back-offs.
+    6. verification of every candidate: closed-loop poles in the open left
+       half plane, and the Bruinsma-Steinbuch norm of the closed loop at most
+       ``gamma_bound * (1 + verify_rtol)``.
+
+    Examples
+    --------
+    The first-order problem of Doyle, Glover, Khargonekar & Francis (1989),
+    whose optimal gamma is sqrt(2):
+
+    >>> from robust.testing import dgkf_scalar_plant
+    >>> res = hinfsyn_lmi(dgkf_scalar_plant(0.0), 1, 1)
+    >>> bool(abs(res.gamma_opt - 2 ** 0.5) < 1e-4), bool(res.gamma <= res.gamma_bound * (1 + 1e-6))
+    (True, True)
     """
     t_start = time.perf_counter()
     if not 0.0 < backoff < 1.0:
@@ -363,7 +427,9 @@ def hinfsyn_lmi(
         for label, R, S, gs, s_used in _candidate_points(
             candidates, prob, gb_s, solvers, verbose, stats, log
         ):
-            best = _best_reconstruction(gp, bs, sc, R, S, gs, verify_rtol, log, f"backoff {b:g}, {label}")
+            best = _best_reconstruction(
+                gp, bs, sc, R, S, gs, verify_rtol, log, f"backoff {b:g}, {label}"
+            )
             if best is None:
                 continue
             K, (cl, sa, g), info = best
@@ -488,7 +554,13 @@ class MultiHinfResult:
     spectral_abscissas : numpy.ndarray, shape (n_members,)
         Largest closed-loop pole real part of each member, rad/s (all negative).
     certificates : tuple of numpy.ndarray
-        The Lyapunov matrices ``P_i`` (closed-loop order square).
+        The Lyapunov matrices ``P_i`` of the closed loops ``F_l(P_i, K)`` in the
+        coordinates of :meth:`GeneralizedPlant.closed_loop` (plant states, then
+        controller states): ``[[Acl' P + P Acl, P Bcl, Ccl'], [., -g I, Dcl'],
+        [., ., -g I]] < 0`` with ``g = gamma_bound``.
+    scaling : dict
+        The common scaling used: time scale ``w0`` (rad/s), scalars ``sw``, ``sz``
+        (gamma_scaled = gamma * sw / sz) and per-channel ``su``, ``sy``.
     history : tuple of float
         Worst-member norm after the initial controller and after each accepted iteration.
     iterations : int
@@ -509,6 +581,7 @@ class MultiHinfResult:
     solve_time: float
     wall_time: float
     method: str
+    scaling: dict
 
     @property
     def gamma(self) -> float:
@@ -523,10 +596,6 @@ def _cl_norms(gps, K):
         sa = spectral_abscissa(cl)
         out.append((sa, hinf_norm(cl) if sa < 0 else np.inf))
     return np.array([o[0] for o in out]), np.array([o[1] for o in out])
-
-
-def _omega(K):
-    return np.block([[np.asarray(K.A), np.asarray(K.B)], [np.asarray(K.C), np.asarray(K.D)]])
 
 
 def _p_step(blocks, Om, nk, margin, solvers, verbose):
@@ -569,9 +638,7 @@ def _sym_np(P):
 
 def _initial_controller(gps, solvers, log):
     """Nominal design on the mean plant, then on each member, until one stabilises every member."""
-    mean = gps[0].with_blocks(
-        **{k: np.mean([gp.blocks()[k] for gp in gps], axis=0) for k in gps[0].blocks()}
-    )
+    mean = _mean_plant(gps)
     tried = [("mean plant", mean)] + [(f"member {i}", gp) for i, gp in enumerate(gps)]
     best = None
     for label, gp in tried:
@@ -710,10 +777,12 @@ def hinfsyn_multi(
         raise InfeasibleError(
             f"hinfsyn_multi: K0 leaves members {np.flatnonzero(sa >= 0).tolist()} unstable"
         )
-    blocks = [_blocks(gp) for gp in gps]
+    _, sc = _scale(_blocks(_mean_plant(gps)))
+    scaled = [_scale(_blocks(gp), common=sc) for gp in gps]
+    blocks = [b for b, _ in scaled]
     margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
     nk = K.nstates
-    Om = _omega(K)
+    Om = _omega_scaled(K, sc)
     best = float(norms.max())
     history = [best]
     solve_time, it = 0.0, 0
@@ -725,7 +794,7 @@ def hinfsyn_multi(
             log.append(f"iteration {it}: {exc}")
             break
         solve_time += s1.solve_time + s2.solve_time
-        K_new = _controller_from_omega(Om_new, nk, gps[0])
+        K_new = _controller_from_omega(Om_new, nk, gps[0], sc)
         sa_new, norms_new = _cl_norms(gps, K_new)
         if not np.all(sa_new < 0) or norms_new.max() >= best:
             log.append(
@@ -737,7 +806,8 @@ def hinfsyn_multi(
         history.append(best)
         if improvement < rtol:
             break
-    gamma_bound, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
+    gamma_bound_s, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
+    gamma_bound = _gamma_unscale(gamma_bound_s, sc)
     solve_time += s3.solve_time
     sa, norms = _cl_norms(gps, K)
     bad = [
@@ -755,23 +825,48 @@ def hinfsyn_multi(
         gamma_bound=gamma_bound,
         gammas=norms,
         spectral_abscissas=sa,
-        certificates=tuple(_sym_np(P) for P in Ps),
+        certificates=tuple(
+            _certificate_unscaled(P, msc, nk, sc) for P, (_, msc) in zip(Ps, scaled)
+        ),
         history=tuple(history),
         iterations=it,
         solve_time=solve_time,
         wall_time=time.perf_counter() - t_start,
         method="P-K iteration (El Ghaoui & Balakrishnan 1994) with per-member bounded-real certificates",
+        scaling={"w0": sc.w0, "sw": sc.sw, "sz": sc.sz, "su": sc.su.copy(), "sy": sc.sy.copy()},
     )
 
 
-def _controller_from_omega(Om, nk, gp):
+def _controller_from_omega(Om, nk, gp, sc):
     Om = np.asarray(Om, float)
-    return control.ss(
-        Om[:nk, :nk],
-        Om[:nk, nk:],
-        Om[nk:, :nk],
-        Om[nk:, nk:],
-        inputs=list(gp.y),
-        outputs=list(gp.u),
-        name="K",
-    )
+    Ak, Bk, Ck, Dk = _unscale_controller(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:], sc)
+    return control.ss(Ak, Bk, Ck, Dk, inputs=list(gp.y), outputs=list(gp.u), name="K")
+
+
+def _omega_scaled(K, sc):
+    nk = K.nstates
+    Ak = np.asarray(K.A, float).reshape(nk, nk)
+    Bk = np.asarray(K.B, float).reshape(nk, -1) if nk else np.zeros((0, K.ninputs))
+    Ck = np.asarray(K.C, float).reshape(-1, nk) if nk else np.zeros((K.noutputs, 0))
+    Dk = np.asarray(K.D, float).reshape(K.noutputs, K.ninputs)
+    Ak, Bk, Ck, Dk = _scale_controller(Ak, Bk, Ck, Dk, sc)
+    return np.block([[Ak, Bk], [Ck, Dk]])
+
+
+def _certificate_unscaled(P, msc, nk, sc):
+    """Map a bounded-real certificate of the scaled closed loop back to original coordinates.
+
+    With time scaled by w0, w by sw and z by 1/sz, ``P_orig = (sz sw / w0) T^-T P T^-1``
+    where ``x = T x_scaled`` (T = diag(t, I_nk)); a congruence of the scaled inequality.
+    """
+    tinv = 1.0 / np.concatenate([msc.T, np.ones(nk)])
+    P = _sym_np(P) * tinv[:, None] * tinv[None, :]
+    return P * (sc.sz * sc.sw / sc.w0)
+
+
+def _mean_plant(gps):
+    """Elementwise mean of the members' blocks (equal state dimensions), else the first member."""
+    if len({gp.nx for gp in gps}) != 1:
+        return gps[0]
+    keys = gps[0].blocks()
+    return gps[0].with_blocks(**{k: np.mean([gp.blocks()[k] for gp in gps], axis=0) for k in keys})

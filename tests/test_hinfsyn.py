@@ -279,3 +279,28 @@ def test_scherer_gahinet_chilali_example_against_slicot():
     assert res.gamma_opt == pytest.approx(9.50808550543373, rel=1e-4)
     assert res.gamma <= 1.01 * 9.50808550543373
     _check_certificate(as_generalized_plant(P, 1, 1), res)
+
+
+def test_unverified_controller_is_never_returned(monkeypatch):
+    # replace the reconstruction by one that returns a zero controller: on this open-loop
+    # unstable plant its loop is unstable, so every attempt must fail verification
+    import robust.hinfsyn as hs
+    from robust.errors import VerificationError
+
+    def zero_controller(blocks, R, S, gamma, **kw):
+        n, _, nu, _, ny = blocks.sizes
+        zeros = (np.zeros((n, n)), np.zeros((n, ny)), np.zeros((nu, n)), np.zeros((nu, ny)))
+        return zeros, {
+            "order": n,
+            "cond_X": 1.0,
+            "cond_Phi": 1.0,
+            "cond_LPL": 1.0,
+            "lmi_max_eig": 0.0,
+            "mu": 1.0,
+        }
+
+    monkeypatch.setattr(hs, "reconstruct_controller", zero_controller)
+    with pytest.raises(
+        VerificationError, match="no reconstructed controller passed.*closed loop unstable"
+    ):
+        hinfsyn_lmi(random_generalized_plant(3, seed=0), 2, 2)
