@@ -304,3 +304,27 @@ def test_unverified_controller_is_never_returned(monkeypatch):
         VerificationError, match="no reconstructed controller passed.*closed loop unstable"
     ):
         hinfsyn_lmi(random_generalized_plant(3, seed=0), 2, 2)
+
+
+def test_multi_model_members_of_different_order():
+    # two spring members plus two with a first-order actuator lag (3 states): one controller
+    base = _spring_family(4, seed=2)
+    members = base[:2]
+    for P in base[2:]:
+        gp = as_generalized_plant(P, 1, 1)
+        tau = 0.05  # s, actuator time constant
+        A = np.block([[gp.A, gp.B2], [np.zeros((1, 2)), -np.eye(1) / tau]])
+        B1 = np.vstack([gp.B1, np.zeros((1, 2))])
+        B2 = np.vstack([np.zeros((2, 1)), np.eye(1) / tau])
+        C1 = np.hstack([gp.C1, np.zeros((2, 1))])
+        C2 = np.hstack([gp.C2, np.zeros((1, 1))])
+        members.append(_plant(A, B1, B2, C1, C2, gp.D11, gp.D12, gp.D21))
+    res = hinfsyn_multi(members, 1, 1, max_iter=3)
+    assert [c.shape[0] for c in res.certificates] == [2 + res.K.nstates] * 2 + [
+        3 + res.K.nstates
+    ] * 2
+    for P, g in zip(members, res.gammas):
+        cl = as_generalized_plant(P, 1, 1).closed_loop(res.K)
+        assert np.all(control.poles(cl).real < 0)
+        assert g == pytest.approx(hinf_norm(cl, method="slicot"), rel=1e-6)
+        assert g <= res.gamma_bound * (1 + 1e-6)
