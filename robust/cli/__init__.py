@@ -24,6 +24,7 @@ COMMANDS = [
     "validate",
     "sweep",
     "identify",
+    "design",
 ]
 
 

@@ -1,0 +1,136 @@
+"""The designs the workbench ships, by name, and running one end to end.
+
+``run_design(name, ...)`` builds the compensator on the default family, validates
+it on a seeded sample of that family (:func:`robust.designs.evaluate.evaluate_design`),
+reduces it by balanced truncation, discretises it at the servo rate (Tustin,
+prewarped at the structure mode) and writes the artifact (JSON + ``.mat``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..device import DeviceLimits
+from ..errors import ParameterError
+from .evaluate import DesignEvaluation, evaluate_design
+from .simple import cancellation_controller, design_virtual_damping, design_workspace
+
+__all__ = ["DESIGNS", "DesignRun", "run_design", "design_names"]
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignRun:
+    """A design's controller (or workspace), its evaluation and where its artifact went."""
+
+    name: str
+    description: str
+    evaluation: DesignEvaluation
+    controller: object  # control.StateSpace or None
+    order_full: int
+    order_reduced: int
+    reduction_error_bound: float
+    details: dict
+    artifact: str | None
+
+    def to_json(self) -> dict:
+        ev = self.evaluation
+        return {
+            "name": self.name,
+            "description": self.description,
+            "fraction_stable": ev.fraction_stable,
+            "max_real_pole": ev.max_real_pole,
+            "min_damping": ev.min_damping,
+            "worst": ev.worst,
+            "suppression_db": ev.suppression_db,
+            "tracking_error": ev.tracking_error,
+            "peak_force_N": ev.peak_force_n,
+            "rms_force_N": ev.rms_force_n,
+            "force_within_limits": ev.force_within_limits,
+            "order": self.order_full,
+            "order_reduced": self.order_reduced,
+            "reduction_error_bound": self.reduction_error_bound,
+            "k_psf": ev.k_psf,
+            "samples": ev.samples,
+            "seed": ev.seed,
+            "method": ev.method,
+            "notes": list(ev.notes),
+            "details": self.details,
+            "artifact": self.artifact,
+        }
+
+
+def _workspace(family, samples, limits):
+    res = design_workspace(family, samples)
+    fam = family.with_workspace_factor(res.factor)
+    notes = [] if res.stabilises_family else [
+        f"no workspace factor up to {max(res.factors):g} stabilises every sampled member; "
+        f"best x{res.factor:g} with {max(res.fraction_stable):.4f} stable"
+    ]
+    details = {"factor": res.factor, "stabilises_family": res.stabilises_family,
+               "scan": {"factor": list(res.factors), "fraction_stable": list(res.fraction_stable),
+                        "max_real_pole": list(res.max_real_pole)}}
+    return fam, None, details, notes
+
+
+def _virtual_damping(family, samples, limits):
+    b, k, K, table = design_virtual_damping(family, samples)
+    details = {"damping_N_s_per_m": b, "stiffness_N_per_m": k,
+               "grid": [dict(zip(("damping", "stiffness", "fraction_stable", "max_real_pole"), r)) for r in table]}
+    return family, K, details, []
+
+
+def _cancellation(family, samples, limits):
+    nominal = family.member(family.nominal_values())
+    return family, cancellation_controller(nominal), {"model": "nominal physical human, c -> h"}, []
+
+
+#: name -> (description, builder(family, samples, limits) -> (family, controller, details, notes))
+DESIGNS: dict[str, tuple[str, Callable]] = {
+    "workspace": ("workspace scaling: smallest handle-workspace factor that stabilises the family", _workspace),
+    "virtual-damping": ("virtual damping and stiffness rendered by the handle, tuned over the family", _virtual_damping),
+    "cancellation": ("model-based cancellation of the hand's motion from the measured cab acceleration", _cancellation),
+}
+
+
+def design_names() -> list[str]:
+    return list(DESIGNS)
+
+
+def run_design(name: str, *, samples: int = 2000, seed: int = 0, method: str = "lhs", out_dir=None,
+               limits: DeviceLimits | None = None, reduce_tol: float | None = None) -> DesignRun:
+    """Build, validate, reduce, discretise and export the design ``name`` on the default family."""
+    from uncertainty import default_family, sample
+
+    from ..export import ControllerArtifact, discretize, write_artifact
+    from ..reduction import balanced_truncation
+
+    if name not in DESIGNS:
+        raise ParameterError(f"unknown design {name!r}; choose one of {design_names()}")
+    lim = limits or DeviceLimits()
+    description, builder = DESIGNS[name]
+    family = default_family()
+    members = sample(family.parameters, samples, method=method, seed=seed)
+    fam, K, details, notes = builder(family, members, lim)
+    order_full = 0 if K is None else K.nstates
+    order_red, bound = order_full, 0.0
+    if K is not None and K.nstates > 2 and reduce_tol is not None:
+        red = balanced_truncation(K, tol=reduce_tol)
+        K, order_red, bound = red.sys, red.order_after, red.error_bound
+    ev = evaluate_design(name, fam, members, K, limits=lim, notes=notes)
+    artifact = None
+    if out_dir is not None and K is not None:
+        prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
+        art = ControllerArtifact(
+            name=name, continuous=K, discrete=discretize(K, lim.sample_time_s, prewarp_hz=prewarp), prewarp_hz=prewarp,
+            weights=details if name != "virtual-damping" else {k: v for k, v in details.items() if k != "grid"},
+            family={"name": fam.name, "seed": members.seed, "method": members.method, "samples": len(members),
+                    "k_psf": fam.k_psf},
+            validation=ev.to_json(),
+        )
+        artifact = str(write_artifact(art, Path(out_dir) / f"{name}.json")["json"])
+    return DesignRun(name, description, ev, K, order_full, order_red, bound, details, artifact)

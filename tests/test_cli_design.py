@@ -1,0 +1,32 @@
+import json
+
+import numpy as np
+import pytest
+import scipy.io
+
+from robust.cli import main
+from robust.export import load_artifact
+
+
+def test_design_list(capsys):
+    assert main(["design", "--list"]) == 0
+    names = capsys.readouterr().out.split()
+    assert {"workspace", "virtual-damping", "cancellation"} <= set(names)
+
+
+def test_design_cancellation_json_and_artifact(tmp_path, capsys):
+    assert main(["design", "cancellation", "--samples", "200", "--seed", "5", "--out", str(tmp_path), "--json"]) == 0
+    obj = json.loads(capsys.readouterr().out)
+    for key in ("name", "fraction_stable", "max_real_pole", "min_damping", "peak_force_N", "rms_force_N", "order", "artifact"):
+        assert key in obj
+    assert obj["seed"] == 5 and obj["samples"] == 200 and obj["order"] == 4
+    art = load_artifact(obj["artifact"])
+    assert art.inputs == ["c"] and art.outputs == ["r_corr"] and art.discrete.dt == 0.001
+    m = scipy.io.loadmat(tmp_path / "cancellation.mat")
+    np.testing.assert_allclose(m["Ac"], art.continuous.A)
+    assert art.family["seed"] == 5
+
+
+def test_unknown_design(capsys):
+    assert main(["design", "magic"]) == 2
+    assert "unknown design 'magic'" in capsys.readouterr().err
