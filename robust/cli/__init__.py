@@ -25,6 +25,7 @@ COMMANDS = [
     "sweep",
     "identify",
     "design",
+    "report",
 ]
 
 

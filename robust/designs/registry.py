@@ -13,7 +13,6 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 
 from ..device import DeviceLimits
 from ..errors import ParameterError
@@ -89,11 +88,38 @@ def _cancellation(family, samples, limits):
     return family, cancellation_controller(nominal), {"model": "nominal physical human, c -> h"}, []
 
 
+def _hinf_nominal(family, samples, limits):
+    from .hinf import design_hinf_nominal, reduce_controller
+
+    d = design_hinf_nominal(family, limits=limits)
+    nominal = family.member(family.nominal_values())
+    K, bound = reduce_controller(d.controller, [nominal])
+    details = {"gamma": d.gamma, "gamma_bound": d.gamma_bound, "solver": d.solver,
+               "weights": dataclasses.asdict(d.weights), "order_synthesised": d.controller.nstates,
+               "reduction_error_bound": bound}
+    return family, K, details, []
+
+
+def _hinf_robust(family, samples, limits):
+    from .hinf import design_hinf_nominal, design_hinf_robust, design_members, reduce_controller
+
+    nominal_design = design_hinf_nominal(family, limits=limits)
+    d = design_hinf_robust(family, samples, K0=nominal_design.controller, limits=limits)
+    members, _ = design_members(family, samples, d.controller, 8)
+    K, bound = reduce_controller(d.controller, members)
+    details = {"gamma_worst_member": d.gamma, "gamma_bound": d.gamma_bound, "member_gammas": list(d.member_gammas),
+               "design_members": d.design_members, "solver": d.solver, "weights": dataclasses.asdict(d.weights),
+               "order_synthesised": d.controller.nstates, "reduction_error_bound": bound}
+    return family, K, details, []
+
+
 #: name -> (description, builder(family, samples, limits) -> (family, controller, details, notes))
 DESIGNS: dict[str, tuple[str, Callable]] = {
     "workspace": ("workspace scaling: smallest handle-workspace factor that stabilises the family", _workspace),
     "virtual-damping": ("virtual damping and stiffness rendered by the handle, tuned over the family", _virtual_damping),
     "cancellation": ("model-based cancellation of the hand's motion from the measured cab acceleration", _cancellation),
+    "hinf-nominal": ("H-infinity handle-force feedback, LMI synthesis on the nominal member", _hinf_nominal),
+    "hinf-robust": ("robust H-infinity handle-force feedback, multi-model LMI synthesis over family members", _hinf_robust),
 }
 
 
@@ -102,12 +128,11 @@ def design_names() -> list[str]:
 
 
 def run_design(name: str, *, samples: int = 2000, seed: int = 0, method: str = "lhs", out_dir=None,
-               limits: DeviceLimits | None = None, reduce_tol: float | None = None) -> DesignRun:
+               limits: DeviceLimits | None = None) -> DesignRun:
     """Build, validate, reduce, discretise and export the design ``name`` on the default family."""
     from uncertainty import default_family, sample
 
     from ..export import ControllerArtifact, discretize, write_artifact
-    from ..reduction import balanced_truncation
 
     if name not in DESIGNS:
         raise ParameterError(f"unknown design {name!r}; choose one of {design_names()}")
@@ -116,11 +141,9 @@ def run_design(name: str, *, samples: int = 2000, seed: int = 0, method: str = "
     family = default_family()
     members = sample(family.parameters, samples, method=method, seed=seed)
     fam, K, details, notes = builder(family, members, lim)
-    order_full = 0 if K is None else K.nstates
-    order_red, bound = order_full, 0.0
-    if K is not None and K.nstates > 2 and reduce_tol is not None:
-        red = balanced_truncation(K, tol=reduce_tol)
-        K, order_red, bound = red.sys, red.order_after, red.error_bound
+    order_red = 0 if K is None else K.nstates
+    order_full = int(details.get("order_synthesised", order_red))
+    bound = float(details.get("reduction_error_bound", 0.0))
     ev = evaluate_design(name, fam, members, K, limits=lim, notes=notes)
     artifact = None
     if out_dir is not None and K is not None:
