@@ -77,10 +77,12 @@ def _workspace(family, samples, limits):
 
 
 def _virtual_damping(family, samples, limits):
-    b, k, K, table = design_virtual_damping(family, samples)
-    details = {"damping_N_s_per_m": b, "stiffness_N_per_m": k,
+    b, k, K, table, within = design_virtual_damping(family, samples, limits=limits, seed=samples.seed)
+    notes = [] if within else ["no damping/stiffness pair in the grid keeps the nominal member's force within the "
+                               "device limits; the most stabilising pair is shown"]
+    details = {"damping_N_s_per_m": b, "stiffness_N_per_m": k, "force_limited_choice": within,
                "grid": [dict(zip(("damping", "stiffness", "fraction_stable", "max_real_pole"), r)) for r in table]}
-    return family, K, details, []
+    return family, K, details, notes
 
 
 def _cancellation(family, samples, limits):

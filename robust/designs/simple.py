@@ -8,8 +8,8 @@ import math
 import control as ct
 import numpy as np
 
-from ..components import K_PSF_NOMINAL
 from ..errors import ModelStructureError
+from ..analysis import loop_poles
 from ..loop import BDFTLoop
 
 __all__ = [
@@ -101,24 +101,50 @@ def virtual_damping_controller(loop: BDFTLoop, damping: float, stiffness: float,
     return ct.ss(g, inputs="x", outputs="f", name="virtual_damping")
 
 
-def design_virtual_damping(family, samples, *, dampings=(0, 2, 5, 10, 20, 40, 80), stiffnesses=(0, 50, 100, 200, 400)):
-    """Grid search of virtual damping and stiffness over the family.
+def design_virtual_damping(family, samples, *, dampings=(0, 1, 2, 5, 10, 20, 40, 80), stiffnesses=(0, 25, 50, 100, 200, 400),
+                           limits=None, intent_fraction: float = 0.25, seed: int = 0):
+    """Grid search of virtual damping and stiffness over the family, within the device's force limits.
 
-    Picks the pair with the largest fraction of stable members, ties broken by the
-    smallest worst real part, then by the smallest gains (least force).
-    Returns ``(damping, stiffness, controller, table)``.
+    Every pair is validated on ``samples``; candidates are ranked by fraction of
+    stable members (ties: smaller worst real part, then smaller gains). The first
+    candidate whose handle force on the nominal member (chirp and seeded intended
+    motion, :func:`robust.designs.evaluate.force_histories`) stays within ``limits``
+    is chosen; if none does, the most stabilising one is returned and flagged.
+
+    Returns
+    -------
+    damping, stiffness : float
+    controller : control.StateSpace
+    table : list of tuple
+        ``(damping, stiffness, fraction_stable, max_real_pole)`` for every pair.
+    within_limits : bool
     """
     from uncertainty.batched import validate_family
 
+    from ..device import DeviceLimits, check_force
+    from .evaluate import force_histories
+
+    lim = limits or DeviceLimits()
     nominal = family.member(family.nominal_values())
+    amp = intent_fraction * (lim.workspace_mm / 2) * 1e-3 * abs(signed_handle_units_per_m(nominal))
     table = []
     for b in dampings:
         for k in stiffnesses:
             K = virtual_damping_controller(nominal, b, k)
             v = validate_family(family, samples, controller=K)
             table.append((float(b), float(k), v.fraction_stable, v.max_real_pole))
-    best = max(table, key=lambda r: (r[2], -r[3], -r[0], -r[1]))
-    return best[0], best[1], virtual_damping_controller(nominal, best[0], best[1]), table
+    ranked = sorted(table, key=lambda r: (-r[2], r[3], r[0], r[1]))
+    for b, k, _, _ in ranked:
+        K = virtual_damping_controller(nominal, b, k)
+        if not loop_poles(nominal, controller=K).stable:
+            continue
+        hist = force_histories(nominal, K, amplitude=amp, seed=seed)
+        if hist and check_force(np.concatenate(hist), lim).within_limits and all(
+            np.sqrt(np.mean(np.asarray(h) ** 2)) <= lim.continuous_force_n for h in hist
+        ):
+            return b, k, K, table, True
+    b, k = ranked[0][:2]
+    return b, k, virtual_damping_controller(nominal, b, k), table, False
 
 
 def cancellation_controller(loop: BDFTLoop) -> ct.StateSpace:
