@@ -1,0 +1,15 @@
+"""Design script: hinf-robust.
+
+Runs the 'hinf-robust' design on the default family, validates it on a seeded sample,
+writes its artifact (JSON + .mat) and prints the validation summary as JSON.
+Equivalent to `bdft design hinf-robust --json`.
+
+    python designs/hinf_robust.py [--samples N] [--seed S] [--out DIR]
+"""
+
+import sys
+
+from robust.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main(["design", "hinf-robust", "--json", *sys.argv[1:]]))
