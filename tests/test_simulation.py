@@ -2,7 +2,6 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-import paper_formulas as pf
 from robust import DEFAULT_CALIBRATION, K_PSF_STABLE, BDFTLoop, ParameterError, SweptSine, simulate, simulate_swept_sine
 
 CAL = DEFAULT_CALIBRATION
