@@ -126,9 +126,28 @@ class HinfResult:
 
 
 # ---------------------------------------------------------------------------------- checks
-def _pbh_fails(A, M, *, side: str, tol: float):
-    """Eigenvalues with Re >= -tol at which the PBH rank test fails."""
+def _pbh_fails(A, M, *, side: str, tol: float, rank_rtol: float = 1e-9):
+    """Eigenvalues with Re >= -tol*max(1, |lambda|) at which the PBH rank test fails.
+
+    ``A`` is first balanced by a diagonal similarity (``scipy.linalg.matrix_balance``,
+    transforming ``M`` with it), and the columns (``side="right"``: ``M = B2``) or
+    rows (``side="left"``: ``M = C2``) of ``M`` are normalised to unit length, so
+    the signals' units do not matter; rank is decided relative to the largest
+    singular value of ``[A - lambda I, M]`` (or its transposed form).  Call it in
+    well-scaled state coordinates (:func:`check_hinf_assumptions` uses those of
+    :func:`_scale`): a rank decision is only as good as the coordinates.
+    """
     n = A.shape[0]
+    if n == 0:
+        return []
+    t = _diagonal_balance(A)
+    A = A * (1.0 / t)[:, None] * t[None, :]
+    if side == "right":
+        M = M / t[:, None]
+        M = M / np.maximum(np.linalg.norm(M, axis=0), 1e-300)[None, :]
+    else:
+        M = M * t[None, :]
+        M = M / np.maximum(np.linalg.norm(M, axis=1), 1e-300)[:, None]
     bad = []
     for lam in np.linalg.eigvals(A):
         if lam.real < -tol * max(1.0, abs(lam)):
@@ -136,7 +155,7 @@ def _pbh_fails(A, M, *, side: str, tol: float):
         E = A - lam * np.eye(n)
         T = np.hstack([E, M]) if side == "right" else np.vstack([E, M])
         s = np.linalg.svd(T, compute_uv=False)
-        if s[n - 1] <= 1e-9 * max(1.0, s[0]):
+        if s[n - 1] <= rank_rtol * s[0]:
             bad.append(lam)
     return bad
 
@@ -157,17 +176,20 @@ def check_hinf_assumptions(gp: GeneralizedPlant, *, require_regular: bool = True
             f"hinfsyn_lmi: only continuous-time plants are supported; got dt={gp.dt}. "
             "Design in continuous time and discretise the controller"
         )
-    A = gp.A
-    bad = _pbh_fails(A, gp.B2, side="right", tol=1e-12)
+    # rank decisions in the coordinates the LMIs are solved in (balanced realization, unit
+    # control and measurement channels): independent of how the plant's states are scaled
+    bs, sc = _scale(_blocks(gp))
+    A = bs.A
+    bad = _pbh_fails(A, bs.B2, side="right", tol=1e-12)
     if bad:
         raise AssumptionError(
-            f"(A, B2) is not stabilisable: the mode(s) {np.round(bad, 6).tolist()} are unstable and "
+            f"(A, B2) is not stabilisable: the mode(s) {np.round(np.multiply(bad, sc.w0), 6).tolist()} are unstable and "
             "uncontrollable from u; no controller can stabilise this plant"
         )
-    bad = _pbh_fails(A, gp.C2, side="left", tol=1e-12)
+    bad = _pbh_fails(A, bs.C2, side="left", tol=1e-12)
     if bad:
         raise AssumptionError(
-            f"(C2, A) is not detectable: the mode(s) {np.round(bad, 6).tolist()} are unstable and "
+            f"(C2, A) is not detectable: the mode(s) {np.round(np.multiply(bad, sc.w0), 6).tolist()} are unstable and "
             "unobservable from y; no controller can stabilise this plant"
         )
     if require_regular:
@@ -181,29 +203,101 @@ def _blocks(gp: GeneralizedPlant) -> PlantBlocks:
 # ---------------------------------------------------------------------------------- scaling
 @dataclasses.dataclass(frozen=True)
 class _Scaling:
-    T: np.ndarray  # x = diag(T) xs
+    T: np.ndarray  # x = T xs (n-by-n)
     w0: float  # time scale: tau = w0 t
     su: np.ndarray  # u = diag(su) us
     sy: np.ndarray  # ys = y / sy
     sw: float  # w = sw ws
     sz: float  # zs = z / sz
+    state_scaling: str = "none"  # "balanced" or "diagonal"
+
+
+#: largest condition number accepted for the balancing state transformation (else diagonal balancing only)
+BALANCE_MAX_COND = 1e8
+#: Gramian eigenvalues below this fraction of the largest are raised to it (keeps T invertible)
+GRAMIAN_FLOOR = 1e-14
+
+
+def _diagonal_balance(A):
+    """Diagonal ``t`` (powers of 2) balancing ``A`` (``scipy.linalg.matrix_balance``, no permutation)."""
+    if A.shape[0] == 0:
+        return np.ones(0)
+    _, (t, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return np.asarray(t, float)
+
+
+def _balancing_transform(A, B, C):
+    """State transformation ``x = T xs`` to a balanced realization of the shifted plant.
+
+    Balanced realization (Moore, "Principal component analysis in linear systems:
+    controllability, observability, and model reduction", IEEE TAC 26(1) (1981)
+    17-32), by the square-root method of Laub, Heath, Paige & Ward,
+    "Computation of system balancing transformations and other applications of
+    simultaneous diagonalization algorithms", IEEE TAC 32(2) (1987) 115-122,
+    applied to ``(A - alpha I, B, C)`` with ``alpha`` chosen so that the shifted
+    matrix is stable (the plant itself may be unstable; the shift only selects
+    a coordinate system, the plant is transformed unshifted).  In these
+    coordinates the controllability and observability Gramians of the shifted
+    plant are equal and diagonal, so the entries of ``B`` and ``C`` reflect the
+    input-output gains rather than the arbitrary internal scales of the
+    interconnected blocks (companion forms, physical units).
+
+    Returns ``(T, Tinv)``, or ``None`` when the Gramians cannot be computed or
+    ``T`` would be worse conditioned than ``BALANCE_MAX_COND``.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return None
+    ev = np.linalg.eigvals(A)
+    rho = float(np.max(np.abs(ev)))
+    if not rho > 0:
+        return None
+    alpha = 2.0 * max(float(ev.real.max()), 0.0) + 1e-2 * rho
+    As = A - alpha * np.eye(n)
+    try:
+        Wc = sla.solve_continuous_lyapunov(As, -B @ B.T)
+        Wo = sla.solve_continuous_lyapunov(As.T, -C.T @ C)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    roots = []
+    for W in (Wc, Wo):
+        w, V = np.linalg.eigh((W + W.T) / 2)
+        if not (np.all(np.isfinite(w)) and w.max() > 0):
+            return None
+        roots.append(V * np.sqrt(np.maximum(w, GRAMIAN_FLOOR * w.max())))
+    Lc, Lo = roots
+    U, s, Vt = np.linalg.svd(Lo.T @ Lc)
+    T = (Lc @ Vt.T) / np.sqrt(s)[None, :]
+    if not np.all(np.isfinite(T)) or np.linalg.cond(T) > BALANCE_MAX_COND:
+        return None
+    Tinv = np.linalg.inv(T)
+    return T, Tinv
 
 
 def _scale(b: PlantBlocks, common: _Scaling | None = None) -> tuple[PlantBlocks, _Scaling]:
-    """State (diagonal balancing), time, input and output scaling that leaves the problem equivalent.
+    """State, time, input and output scaling that leaves the problem equivalent.
 
-    u and y may be scaled channel by channel (the controller absorbs it); w and
-    z only by one scalar each (gamma scales by ``sz / sw``); time scaling keeps
-    the H-infinity norm.  With ``common`` (multi-model design) the time, u, y,
-    w and z scalings are taken from it, so that one controller serves every
-    member; only the state balancing is per plant.
+    State coordinates: a diagonal balancing of ``A``, then the balanced
+    realization of the (shifted) plant with all inputs and outputs
+    (:func:`_balancing_transform`); if that transformation is unavailable or
+    ill-conditioned, the diagonal balancing alone.  Then u and y are scaled
+    channel by channel (the controller absorbs it); w and z only by one scalar
+    each (gamma scales by ``sz / sw``); time scaling keeps the H-infinity norm.
+    With ``common`` (multi-model design) the time, u, y, w and z scalings are
+    taken from it, so that one controller serves every member; only the state
+    transformation is per plant.
     """
     n = b.A.shape[0]
-    _, (t, _) = sla.matrix_balance(b.A, permute=False, separate=True)
-    t = np.asarray(t, float)
+    t = _diagonal_balance(b.A)
     A = b.A * (1.0 / t)[:, None] * t[None, :]
     B1, B2 = b.B1 / t[:, None], b.B2 / t[:, None]
     C1, C2 = b.C1 * t[None, :], b.C2 * t[None, :]
+    T, how = np.diag(t), "diagonal"
+    bal = _balancing_transform(A, np.hstack([B1, B2]), np.vstack([C1, C2]))
+    if bal is not None:
+        Tb, Tbi = bal
+        A, B1, B2, C1, C2 = Tbi @ A @ Tb, Tbi @ B1, Tbi @ B2, C1 @ Tb, C2 @ Tb
+        T, how = T @ Tb, "balanced"
     if common is None:
         # time scale: the spectral radius, or a fraction of |A| when A is (nearly) nilpotent
         rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if n else 0.0
@@ -230,7 +324,7 @@ def _scale(b: PlantBlocks, common: _Scaling | None = None) -> tuple[PlantBlocks,
     else:
         sz = common.sz
     C1, D11, D12 = C1 / sz, D11 / sz, D12 / sz
-    return PlantBlocks(A, B1, B2, C1, C2, D11, D12, D21), _Scaling(t, w0, su, sy, sw, sz)
+    return PlantBlocks(A, B1, B2, C1, C2, D11, D12, D21), _Scaling(T, w0, su, sy, sw, sz, how)
 
 
 def _scale_controller(Ak, Bk, Ck, Dk, sc: _Scaling):
@@ -397,7 +491,7 @@ def hinfsyn_lmi(
     if scale:
         bs, sc = _scale(b0)
     else:
-        bs, sc = b0, _Scaling(np.ones(gp.nx), 1.0, np.ones(gp.nu), np.ones(gp.ny), 1.0, 1.0)
+        bs, sc = b0, _Scaling(np.eye(gp.nx), 1.0, np.ones(gp.nu), np.ones(gp.ny), 1.0, 1.0)
     if gamma_max is not None and not (np.isfinite(gamma_max) and gamma_max > 0):
         raise ParameterError(f"{gamma_max=} must be a positive finite number")
     cap = None if gamma_max is None else gamma_max * sc.sw / sc.sz
@@ -857,10 +951,10 @@ def _certificate_unscaled(P, msc, nk, sc):
     """Map a bounded-real certificate of the scaled closed loop back to original coordinates.
 
     With time scaled by w0, w by sw and z by 1/sz, ``P_orig = (sz sw / w0) T^-T P T^-1``
-    where ``x = T x_scaled`` (T = diag(t, I_nk)); a congruence of the scaled inequality.
+    where ``x = T x_scaled`` (T = blkdiag(T_plant, I_nk)); a congruence of the scaled inequality.
     """
-    tinv = 1.0 / np.concatenate([msc.T, np.ones(nk)])
-    P = _sym_np(P) * tinv[:, None] * tinv[None, :]
+    Tinv = sla.block_diag(np.linalg.inv(msc.T), np.eye(nk))
+    P = _sym_np(Tinv.T @ _sym_np(P) @ Tinv)
     return P * (sc.sz * sc.sw / sc.w0)
 
 

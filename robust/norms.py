@@ -32,6 +32,9 @@ from .errors import ModelStructureError, ParameterError
 
 __all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
 
+#: number of local maxima of the Bruinsma-Steinbuch start grid refined before the first Hamiltonian test
+N_REFINE = 5
+
 
 def _abcd(sys):
     try:
@@ -127,11 +130,62 @@ def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: 
 
         val = float(control.norm(sys, "inf"))
         return (val, np.nan) if return_frequency else val
+    # exact (power-of-2) diagonal state scaling: the transfer function is unchanged, and the
+    # Hamiltonian and the resolvents are far better conditioned for interconnections whose
+    # blocks carry state scales over many decades
+    A, B, C = _balance_states(A, B, C)
+    bal = _SS(A, B, C, D)
     if method == "grid":
-        val, w = _grid_norm(A, B, C, D, sys)
+        val, w = _grid_norm(A, B, C, D, bal)
     else:
-        val, w = _bb_norm(A, B, C, D, sys, rtol)
+        val, w = _bb_norm(A, B, C, D, bal, rtol)
     return (val, w) if return_frequency else val
+
+
+class _SS:
+    """Minimal continuous-time state-space container accepted by :func:`sigma_max`."""
+
+    def __init__(self, A, B, C, D):
+        self.A, self.B, self.C, self.D = A, B, C, D
+
+    def isctime(self):
+        return True
+
+
+def _balance_states(A, B, C, *, max_sweeps: int = 50):
+    """Diagonal state scaling by powers of 2 balancing the system matrix ``[[A, B], [C, 0]]``.
+
+    Only the states are scaled (inputs and outputs are not), so the transfer
+    function is unchanged and, the factors being powers of 2, no rounding is
+    introduced.  Osborne's iteration (E.E. Osborne, "On pre-conditioning of
+    matrices", J. ACM 7 (1960) 338-345) on the rows and columns of the system
+    matrix, as in SLICOT TB01ID: state i is scaled so that the norm of
+    column i of ``[A; C]`` and of row i of ``[A, B]`` (off-diagonal parts)
+    become about equal.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return A, B, C
+    A, B, C = A.copy(), B.copy(), C.copy()
+    for _ in range(max_sweeps):
+        changed = False
+        for i in range(n):
+            c = np.hypot(np.linalg.norm(np.delete(A[:, i], i)), np.linalg.norm(C[:, i]))
+            r = np.hypot(np.linalg.norm(np.delete(A[i, :], i)), np.linalg.norm(B[i, :]))
+            if c == 0.0 or r == 0.0:
+                continue
+            e = int(np.round(0.5 * np.log2(r / c)))
+            if e == 0:
+                continue
+            f = 2.0**e
+            A[:, i] *= f
+            C[:, i] *= f
+            A[i, :] /= f
+            B[i, :] /= f
+            changed = True
+        if not changed:
+            break
+    return A, B, C
 
 
 def _candidate_frequencies(A):
@@ -166,9 +220,29 @@ def _bb_iteration(A, B, C, D, sys, rtol, start=None):
     lam = lam[lam > 0]
     coarse = np.geomspace(1e-2 * lam.min(), 1e2 * lam.max(), 200) if lam.size else np.zeros(0)
     wc = np.concatenate([_candidate_frequencies(A), coarse])
+    order = np.argsort(wc)
+    wc = wc[order]
     vals = sigma_max(sys, wc)
     i = int(np.argmax(vals))
     glb, wpk = float(vals[i]), float(wc[i])
+    # refine the highest local maxima of the start grid: an estimate close to the peak makes
+    # the first Hamiltonian test decisive, where its imaginary-axis eigenvalues are least accurate
+    peaks = [
+        k
+        for k in range(len(wc))
+        if (k == 0 or vals[k] >= vals[k - 1]) and (k == len(wc) - 1 or vals[k] >= vals[k + 1])
+    ]
+    for k in sorted(peaks, key=lambda k: -vals[k])[:N_REFINE]:
+        a, b = wc[max(k - 1, 0)], wc[min(k + 1, len(wc) - 1)]
+        if b > a:
+            res = sopt.minimize_scalar(
+                lambda x: -sigma_max(sys, [x])[0],
+                bounds=(a, b),
+                method="bounded",
+                options={"xatol": 1e-10 * max(b, 1e-12)},
+            )
+            if -res.fun > glb:
+                glb, wpk = -float(res.fun), float(res.x)
     if start is not None and start[0] > glb:
         glb, wpk = start
     sd = float(np.linalg.norm(D, 2))
