@@ -32,7 +32,6 @@ import dataclasses
 import math
 
 import control as ct
-import numpy as np
 
 from ._checks import POSITIVE, Spec, validate_fields
 from .device import DeviceLimits
