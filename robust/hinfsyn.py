@@ -418,7 +418,8 @@ def hinfsyn_lmi(
     solvers : sequence of str
         cvxpy solvers in order of preference (default Clarabel, then SCS).
     scale : bool
-        Scale states (diagonal balancing), time, inputs and outputs before solving.
+        Transform states (balanced realization, see :func:`_scale`), and scale
+        time, inputs and outputs before solving.
     verbose : bool
         Solver output.
 
@@ -452,9 +453,14 @@ def hinfsyn_lmi(
        regularisation is visible in the design.  A nonzero D22 is removed by
        designing for ``y0 = y - D22 u`` and transforming the controller back,
        ``K = K0 (I + D22 K0)^-1``.
-    2. scaling (``scale=True``): diagonal balancing of A, time scaling by the
-       spectral radius, unit-norm columns of [B2; D12] and rows of [C2 D21],
-       and one scalar each for w and z (gamma rescales exactly).
+    2. scaling (``scale=True``): state coordinates of a balanced realization
+       of the plant shifted to stability (Moore 1981, square-root method of
+       Laub et al. 1987; after a diagonal balancing of A), so that B and C
+       reflect input-output gains rather than the internal scales of the
+       interconnected blocks; time scaling by the spectral radius, unit-norm
+       columns of [B2; D12] and rows of [C2 D21], and one scalar each for w
+       and z (gamma rescales exactly).  The controller does not depend on the
+       plant's state coordinates, so only the time, u and y scalings are undone.
     3. one SDP (:class:`LMISynthesisProblem`): minimise gamma subject to the
        [GA94] Thm 4.3 LMIs, strict inequalities enforced with a margin of
        ``MARGIN_FACTOR`` times the solver's feasibility tolerance; Clarabel

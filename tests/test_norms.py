@@ -90,3 +90,26 @@ def test_bad_inputs():
         hinf_norm(control.c2d(sys, 0.01))
     with pytest.raises(ModelStructureError, match="control.StateSpace"):
         hinf_norm(np.eye(2))
+
+
+def test_badly_scaled_realization_gives_the_same_norm():
+    # The closed loop of the force-feedback plant with an LMI H-infinity controller: an
+    # interconnection whose states span many decades.  The transfer function, hence the norm,
+    # does not depend on the realization; the Hamiltonian test must not lose the
+    # imaginary-axis crossings (it used to return a value below the grid's lower bound).
+    from robust import BDFTLoop, human_variant
+    from robust.forcefb import force_feedback_plant
+    from robust.hinfsyn import hinfsyn_lmi
+
+    gp = force_feedback_plant(BDFTLoop(human=human_variant("physical")))
+    cl = gp.closed_loop(hinfsyn_lmi(gp).K)
+    assert np.linalg.norm(cl.A) > 1e7  # badly scaled indeed
+    bb = hinf_norm(cl)
+    grid = hinf_norm(cl, method="grid")
+    assert grid <= bb * (1 + 1e-9)  # grid is a lower bound, bb an upper bound
+    assert bb == pytest.approx(grid, rel=1e-6)
+    assert bb == pytest.approx(hinf_norm(cl, method="slicot"), rel=1e-5)
+    # and in diagonally rescaled coordinates (scales 1e-3 .. 1e3) the same value
+    d = 10.0 ** np.random.default_rng(1).uniform(-3.0, 3.0, cl.nstates)
+    cl2 = control.ss(cl.A / d[:, None] * d[None, :], cl.B / d[:, None], cl.C * d[None, :], cl.D)
+    assert hinf_norm(cl2) == pytest.approx(bb, rel=1e-6)
