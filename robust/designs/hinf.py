@@ -71,41 +71,57 @@ def design_hinf_nominal(family, *, weights: ForceFeedbackWeights | None = None, 
     return HinfDesign(K, res.gamma, res.gamma_bound, (res.gamma,), solver, w, 1)
 
 
-def design_members(family, samples, controller, n: int):
-    """The nominal member plus the ``n - 1`` members where ``controller`` does worst (largest real part)."""
+def design_members(family, samples, controller, n: int, *, stable_only: bool = False):
+    """The nominal member plus ``n - 1`` members where ``controller`` does worst (largest real part).
+
+    With ``stable_only`` the members are taken among those ``controller`` stabilises
+    (the ones closest to instability), so that ``controller`` can start a
+    multi-model iteration on them.
+    """
     from uncertainty.batched import validate_family
 
     v = validate_family(family, samples, controller=controller)
-    order = np.argsort(v.max_real)[::-1][: max(0, n - 1)]
+    idx = np.arange(len(v.max_real))
+    if stable_only:
+        idx = idx[v.max_real < v.stability_threshold]
+    order = idx[np.argsort(v.max_real[idx])[::-1][: max(0, n - 1)]]
     rows = [family.nominal_values()] + [samples.values[i] for i in order]
     return [family.member(r) for r in rows], rows
 
 
-def design_hinf_robust(family, samples, *, n_members: int = 8, rounds: int = 2, weights=None, limits=None, K0=None):
-    """Robust H-infinity force feedback by multi-model synthesis.
+def design_hinf_robust(family, samples, *, n_members: int = 6, rounds: int = 3, weights=None, limits=None, K0=None,
+                       max_iter: int = 8, progress=None):
+    """Robust H-infinity force feedback by multi-model synthesis with progressive enlargement.
 
-    Members are chosen adaptively: the nominal member plus the members where the
-    current controller does worst (largest closed-loop real part) among ``samples``;
-    ``hinfsyn_multi`` designs one controller with a certificate for each member;
-    this repeats ``rounds`` times with the new worst members added.
+    Each round takes the nominal member and the ``n_members - 1`` members that the
+    current controller stabilises with the least margin (largest closed-loop real
+    part), and runs :func:`robust.hinfsyn.hinfsyn_multi` from the current controller
+    (a sequential convex P-K iteration with a Lyapunov certificate for every design
+    member). Members the current controller does not stabilise cannot start that
+    iteration; as the margin grows round by round, the stabilised set grows with it.
+    The first controller is ``K0`` (e.g. the nominal design).
     """
     from ..hinfsyn import hinfsyn_multi
 
     w = weights or ForceFeedbackWeights()
     K = K0
-    members, rows = design_members(family, samples, K, n_members)
     res = None
-    for _ in range(rounds):
+    used = 0
+    history = []
+    for r in range(rounds):
+        members, _ = design_members(family, samples, K, n_members, stable_only=K is not None)
         plants = [force_feedback_plant(m, w, limits) for m in members]
-        res = hinfsyn_multi(plants, K0=None if K is None else _as_plant_controller(K))
+        res = hinfsyn_multi(plants, K0=None if K is None else _as_plant_controller(K), max_iter=max_iter)
         K = as_loop_controller(res.K, name="hinf_robust")
-        new, new_rows = design_members(family, samples, K, n_members)
-        members = members + new[1:]
-        rows = rows + new_rows[1:]
-    solver = {"method": "multi-model P-K iteration (El Ghaoui & Balakrishnan 1994), Clarabel/SCS",
-              "gamma_bound": res.gamma_bound, "iterations": res.iterations, "member_gammas": list(res.gammas)}
+        used = len(plants)
+        history.append(float(np.max(res.gammas)))
+        if progress:
+            progress(r, res)
+    solver = {"method": "multi-model P-K iteration (El Ghaoui & Balakrishnan 1994) with progressive enlargement, "
+              "Clarabel/SCS", "gamma_bound": res.gamma_bound, "iterations": res.iterations,
+              "member_gammas": list(res.gammas), "worst_member_gamma_per_round": history}
     return HinfDesign(K, float(np.max(res.gammas)), res.gamma_bound, tuple(float(g) for g in res.gammas), solver, w,
-                      len(res.gammas))
+                      used)
 
 
 def _as_plant_controller(K):
