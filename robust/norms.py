@@ -220,6 +220,38 @@ def _bb_norm(A, B, C, D, sys, rtol):
     return val, w
 
 
+def _refined_peak(sys, w, s, *, limit: int | None = None):
+    """Largest ``sigma_max`` over the local maxima of a frequency grid, each refined.
+
+    Every local maximum ``i`` of ``s`` on the grid ``w`` (the ``limit`` highest if
+    given) is refined by a bounded scalar search between its neighbours; the
+    refined value is kept only where it beats the grid value. Returns
+    ``(value, frequency)``, ``(-inf, nan)`` for an empty grid.
+    """
+    peaks = [
+        i
+        for i in range(len(w))
+        if (i == 0 or s[i] >= s[i - 1]) and (i == len(w) - 1 or s[i] >= s[i + 1])
+    ]
+    peaks = sorted(peaks, key=lambda i: -s[i])[:limit]
+    best, wbest = -np.inf, np.nan
+    for i in peaks:
+        cand, wc = float(s[i]), float(w[i])
+        a, b = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
+        if b > a:
+            res = sopt.minimize_scalar(
+                lambda x: -sigma_max(sys, [x])[0],
+                bounds=(a, b),
+                method="bounded",
+                options={"xatol": 1e-10 * max(b, 1e-12)},
+            )
+            if -res.fun > cand:
+                cand, wc = -float(res.fun), float(res.x)
+        if cand > best:
+            best, wbest = cand, wc
+    return best, wbest
+
+
 def _bb_iteration(A, B, C, D, sys, rtol, start=None):
     """Bruinsma-Steinbuch (1990) two-step iteration; returns (upper bound, peak frequency)."""
     lam = np.abs(np.linalg.eigvals(A))
@@ -233,22 +265,9 @@ def _bb_iteration(A, B, C, D, sys, rtol, start=None):
     glb, wpk = float(vals[i]), float(wc[i])
     # refine the highest local maxima of the start grid: an estimate close to the peak makes
     # the first Hamiltonian test decisive, where its imaginary-axis eigenvalues are least accurate
-    peaks = [
-        k
-        for k in range(len(wc))
-        if (k == 0 or vals[k] >= vals[k - 1]) and (k == len(wc) - 1 or vals[k] >= vals[k + 1])
-    ]
-    for k in sorted(peaks, key=lambda k: -vals[k])[:N_REFINE]:
-        a, b = wc[max(k - 1, 0)], wc[min(k + 1, len(wc) - 1)]
-        if b > a:
-            res = sopt.minimize_scalar(
-                lambda x: -sigma_max(sys, [x])[0],
-                bounds=(a, b),
-                method="bounded",
-                options={"xatol": 1e-10 * max(b, 1e-12)},
-            )
-            if -res.fun > glb:
-                glb, wpk = -float(res.fun), float(res.x)
+    pk, wk = _refined_peak(sys, wc, vals, limit=N_REFINE)
+    if pk > glb:
+        glb, wpk = pk, wk
     if start is not None and start[0] > glb:
         glb, wpk = start
     sd = float(np.linalg.norm(D, 2))
@@ -319,25 +338,7 @@ def _grid_norm(A, B, C, D, sys, n_points: int = 2000):
     w = np.concatenate([[0.0], np.geomspace(lo, hi, n_points)])
     s = sigma_max(sys, w)
     best, wbest = float(np.linalg.norm(D, 2)), np.inf
-    peaks = [
-        i
-        for i in range(len(w))
-        if (i == 0 or s[i] >= s[i - 1]) and (i == len(w) - 1 or s[i] >= s[i + 1])
-    ]
-    for i in peaks:
-        a, b = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
-        if b > a:
-            res = sopt.minimize_scalar(
-                lambda x: -sigma_max(sys, [x])[0],
-                bounds=(a, b),
-                method="bounded",
-                options={"xatol": 1e-10 * max(b, 1e-12)},
-            )
-            cand, wc = -float(res.fun), float(res.x)
-        else:
-            cand, wc = float(s[i]), float(w[i])
-        if s[i] > cand:
-            cand, wc = float(s[i]), float(w[i])
-        if cand > best:
-            best, wbest = cand, wc
+    pk, wk = _refined_peak(sys, w, s)
+    if pk > best:
+        best, wbest = pk, wk
     return best, wbest

@@ -8,28 +8,25 @@ import time
 _METHODS = ("mc", "lhs", "grid", "vertices")
 
 
-def _positive_int(text: str) -> int:
-    import argparse
+def _int_at_least(minimum: int, what: str):
+    """An argparse ``type`` accepting integers >= ``minimum``; the message says ``what`` was expected."""
 
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer; got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer; got {n}")
-    return n
+    def parse(text: str) -> int:
+        import argparse
+
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a {what} integer; got {text!r}") from None
+        if n < minimum:
+            raise argparse.ArgumentTypeError(f"expected a {what} integer; got {n}")
+        return n
+
+    return parse
 
 
-def _nonneg_int(text: str) -> int:
-    import argparse
-
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer; got {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer; got {n}")
-    return n
+_positive_int = _int_at_least(1, "positive")
+_nonneg_int = _int_at_least(0, "non-negative")
 
 
 def add_family_arguments(p, *, samples: int) -> None:
