@@ -38,6 +38,7 @@ __all__ = [
     "nullspace",
     "projection_lmis",
     "reconstruct_controller",
+    "structured_nullspace",
 ]
 
 
@@ -99,6 +100,31 @@ def nullspace(M: np.ndarray, *, rtol: float = 1e-10) -> np.ndarray:
     return sla.null_space(np.atleast_2d(M), rcond=rtol)
 
 
+def structured_nullspace(X: np.ndarray, D: np.ndarray, *, rtol: float = 1e-10) -> np.ndarray:
+    """A sparse basis of ``ker [X D]`` when ``D`` has full row rank (columns, unit-norm).
+
+    ``[X D] [v; u] = 0`` holds for every ``v`` with ``u = -D^+ X v`` plus any
+    ``u`` in ``ker D``, so ``[[I, 0], [-D^+ X, N_D]]`` (``N_D`` an orthonormal
+    basis of ``ker D``) spans the null space.  Its top block is the identity,
+    so a congruence ``N' M(R) N`` keeps the sparsity of ``M`` in the state
+    block: with an orthonormal (dense) basis every entry of the projected LMI
+    depends on every entry of ``R`` and the solver's KKT system fills in
+    (about nine times the nonzeros at order 32).  The projected inequality
+    only depends on the span, so any basis gives the same feasible set.
+    Falls back to :func:`nullspace` when ``D`` is rank deficient.
+    """
+    X, D = np.atleast_2d(X), np.atleast_2d(D)
+    n = X.shape[1]
+    if D.shape[0] == 0:
+        return np.eye(n + D.shape[1])
+    s = np.linalg.svd(D, compute_uv=False)
+    if s.size < D.shape[0] or s.min() <= rtol * max(1.0, s.max()):
+        return nullspace(np.hstack([X, D]), rtol=rtol)
+    ND = sla.null_space(D, rcond=rtol)
+    N = np.block([[np.eye(n), np.zeros((n, ND.shape[1]))], [-np.linalg.pinv(D) @ X, ND]])
+    return N / np.linalg.norm(N, axis=0)
+
+
 def _sym(E):
     return (E + E.T) / 2
 
@@ -122,6 +148,8 @@ def projection_lmis(
         [R  I]
         [I  S]  >=  0
 
+    ``N12`` and ``N21`` are the sparse bases of :func:`structured_nullspace`.
+
     Parameters
     ----------
     blocks : PlantBlocks
@@ -140,8 +168,8 @@ def projection_lmis(
         getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
     )
     n, nw, _nu, nz, _ny = blocks.sizes
-    N12 = nullspace(np.hstack([B2.T, D12.T]))
-    N21 = nullspace(np.hstack([C2, D21]))
+    N12 = structured_nullspace(B2.T, D12.T)
+    N21 = structured_nullspace(C2, D21)
     R = cp.Variable((n, n), symmetric=True, name="R")
     S = cp.Variable((n, n), symmetric=True, name="S")
     g = cp.Variable(name="gamma")

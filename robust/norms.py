@@ -18,7 +18,7 @@
   SLICOT ``ab13dd`` when slycot is installed.
 
 Every method first checks stability: an unstable system has norm ``inf``.
-``"bb"`` and ``"grid"`` then rescale the states by powers of 2 so that the
+Every method then rescales the states by powers of 2 so that the
 system matrix ``[[A, B], [C, 0]]`` is balanced (exact, the transfer function is
 unchanged): interconnections of blocks whose states carry scales over many
 decades otherwise make the Hamiltonian's imaginary-axis eigenvalues too
@@ -131,15 +131,15 @@ def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: 
     if A.shape[0] == 0 or B.shape[1] == 0 or C.shape[0] == 0:
         val = float(np.linalg.norm(D, 2)) if D.size else 0.0
         return (val, np.inf) if return_frequency else val
-    if method == "slicot":
-        import control
-
-        val = float(control.norm(sys, "inf"))
-        return (val, np.nan) if return_frequency else val
     # exact (power-of-2) diagonal state scaling: the transfer function is unchanged, and the
     # Hamiltonian and the resolvents are far better conditioned for interconnections whose
     # blocks carry state scales over many decades
     A, B, C = _balance_states(A, B, C)
+    if method == "slicot":
+        import control
+
+        val = float(control.norm(control.ss(A, B, C, D), "inf"))
+        return (val, np.nan) if return_frequency else val
     bal = _SS(A, B, C, D)
     if method == "grid":
         val, w = _grid_norm(A, B, C, D, bal)

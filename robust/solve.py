@@ -30,6 +30,7 @@ _SOLVER_OPTS = {
         "tol_gap_rel": tol,
         "max_iter": 200,
         "direct_solve_method": "faer",
+        "iterative_refinement_enable": False,
     },
     "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 50000},
 }
