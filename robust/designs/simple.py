@@ -36,13 +36,14 @@ class WorkspaceResult:
 def design_workspace(family, samples, *, factors=None, refine: int = 12) -> WorkspaceResult:
     """Smallest workspace factor (``K_PSF = 0.1097 / factor``) that stabilises every sampled member.
 
-    Scans ``factors`` (default 1, 1.5, ..., 10), then bisects between the last
+    Scans ``factors`` (default 1, 1.5, ..., 10, then 12 ... 200), then bisects between the last
     failing and the first passing factor ``refine`` times. If no factor passes, the
     one with the largest fraction stable is returned with ``stabilises_family=False``.
     """
     from uncertainty.batched import validate_family
 
-    grid = list(factors) if factors is not None else list(np.arange(1.0, 10.01, 0.5))
+    default = list(np.arange(1.0, 10.01, 0.5)) + [12.0, 15.0, 20.0, 30.0, 50.0, 70.0, 100.0, 150.0, 200.0]
+    grid = list(factors) if factors is not None else default
     fr, mr = [], []
 
     def run(f):

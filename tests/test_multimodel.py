@@ -1,0 +1,82 @@
+"""Multi-model tuning pieces: exact eigenvalue and force-response gradients, the sampled-data check."""
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from robust.designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
+from robust.designs.sampled import sampled_data_check
+from robust.designs.simple import virtual_damping_controller
+from robust.errors import ModelStructureError
+from robust.export import discretize
+from uncertainty import default_family, sample
+
+
+@pytest.fixture(scope="module")
+def setup():
+    fam = default_family()
+    rows = [fam.nominal_values()] + list(sample(fam.parameters, 3, method="lhs", seed=3).values)
+    members = [fam.member(r) for r in rows]
+    nominal = members[0]
+    K = ct.ss(virtual_damping_controller(nominal, 5.0, 50.0, rolloff_hz=20.0))
+    K = ct.ss(K.A, K.B, K.C, K.D, inputs=["x"], outputs=["f"], name="k")
+    return fam, members, K
+
+
+def test_closed_loop_eigenvalues_match_the_interconnected_loop(setup):
+    fam, members, K = setup
+    data = open_loop_data(members, K)
+    w, _ = _eigen_gradients(data, _omega(K), K.nstates)
+    for i, m in enumerate(members):
+        ref = np.linalg.eigvals(m.system(bdft=True, controller=K).A)
+        assert np.sort(w[i].real)[-1] == pytest.approx(np.sort(ref.real)[-1], abs=1e-8)
+
+
+def test_eigenvalue_gradient_against_finite_differences(setup):
+    _, members, K = setup
+    data = open_loop_data(members, K)
+    Om = _omega(K)
+    w, g = _eigen_gradients(data, Om, K.nstates)
+    D = np.random.default_rng(0).standard_normal(Om.shape) * np.abs(Om)
+    h = 1e-7
+    w2, _ = _eigen_gradients(data, Om + h * D, K.nstates)
+    k = np.argmax(w.real, axis=1)
+    idx = np.arange(len(k))
+    fd = (w2.real.max(axis=1) - w.real.max(axis=1)) / h
+    an = np.einsum("nij,ij->n", g[idx, k], D)
+    np.testing.assert_allclose(an, fd, rtol=1e-3, atol=1e-6 * np.abs(an).max())
+
+
+def test_force_response_and_its_gradient(setup):
+    _, members, K = setup
+    data = open_loop_data(members[:2], K)
+    Om = _omega(K)
+    w = 2 * np.pi * np.array([0.3, 2.0, 7.0])
+    T, g = force_response(data, Om, K.nstates, w, grad=True)
+    cl = members[0].system(bdft=True, controller=K, outputs=["f"])
+    ref = ct.frequency_response(cl[0, list(cl.input_labels).index("u")], w).complex.ravel()
+    np.testing.assert_allclose(T[0], ref, rtol=1e-8)
+    D = np.random.default_rng(1).standard_normal(Om.shape) * np.abs(Om)
+    h = 1e-7
+    T2, _ = force_response(data, Om + h * D, K.nstates, w)
+    fd = (np.abs(T2) ** 2 - np.abs(T) ** 2) / h
+    np.testing.assert_allclose(np.einsum("nwij,ij->nw", g, D), fd, rtol=1e-4)
+
+
+def test_sampled_data_check_converges_with_the_sample_rate(setup):
+    fam, members, K = setup
+    pw = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
+    fast = sampled_data_check(members[0], K, discretize(K, 1e-3, prewarp_hz=pw))
+    slow = sampled_data_check(members[0], K, discretize(K, 2e-2, prewarp_hz=pw))
+    assert fast.stable_continuous and fast.stable_discrete and fast.agree
+    assert fast.max_response_deviation_db < 0.5
+    assert slow.max_response_deviation_db > 2 * fast.max_response_deviation_db
+    assert abs(fast.max_real_discrete - fast.max_real_continuous) < 0.05
+
+
+def test_sampled_data_check_refuses_a_continuous_kd(setup):
+    _, members, K = setup
+    with pytest.raises(ModelStructureError, match="Kd must be a discrete-time controller"):
+        sampled_data_check(members[0], K, K)
