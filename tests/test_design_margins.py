@@ -70,7 +70,8 @@ def test_workspace_factor_stabilises_the_sample(runs):
     assert r.details["stabilises_family"]
     assert ev.fraction_stable == 1.0
     assert ev.min_damping > 0.0
-    assert 10.0 < r.details["factor"] < 50.0
+    assert ev.max_real_pole < -0.01  # the search margin
+    assert 10.0 < r.details["factor"] < 200.0
     assert ev.peak_force_n == 0.0 and ev.force_within_limits
 
 
