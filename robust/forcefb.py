@@ -94,6 +94,10 @@ class ForceFeedbackWeights:
     bdft_weight : float
         Weight of the BDFT channel ``z_h`` relative to the intended motion (default 0:
         channel off).
+    correction_weight : float
+        Weight of the cylinder-reference correction ``z_r = correction_weight * r_corr /
+        (K_PSF * amplitude)`` (relative to the intended cylinder motion), used when the
+        plant has the ``r_corr`` control input (default 1).
     """
 
     intent_bandwidth_hz: float = 2.0
@@ -104,6 +108,7 @@ class ForceFeedbackWeights:
     accel_noise: float = 0.05
     encoder_resolution_mm: float = 0.055
     bdft_weight: float = 0.0
+    correction_weight: float = 1.0
 
     def __post_init__(self):
         specs = {f.name: POSITIVE for f in dataclasses.fields(self)}
@@ -127,14 +132,17 @@ def force_feedback_plant(
     loop: BDFTLoop,
     weights: ForceFeedbackWeights | None = None,
     limits: DeviceLimits | None = None,
+    *,
+    reference_correction: bool = False,
 ):
     """Generalized plant ``P`` for handle-force feedback on ``loop`` (physical human).
 
     Returns
     -------
     robust.genplant.GeneralizedPlant
-        ``w = [w_u, n_x, n_c]``, ``u = [f]``, ``z = [z_e, z_f]`` (+ ``z_h`` when
-        ``bdft_weight > 0``), ``y = [x_m, c_m]``. A controller synthesised on it takes
+        ``w = [w_u, n_x, n_c]``, ``u = [f]`` (+ ``r_corr`` with ``reference_correction``),
+        ``z = [z_e, z_f]`` (+ ``z_h`` when ``bdft_weight > 0``, + ``z_r`` with
+        ``reference_correction``), ``y = [x_m, c_m]``. A controller synthesised on it takes
         ``[x_m, c_m]`` and gives ``f``; :func:`as_loop_controller` renames it to the
         loop's ``x, c -> f``.
     """
@@ -152,7 +160,8 @@ def force_feedback_plant(
     blocks = [
         intent_filter(wts.intent_bandwidth_hz, amp),
         position_scale(loop.k_psf),
-        ct.summing_junction(inputs=["r", "-y"], output="err", name="cyl_err"),
+        ct.summing_junction(inputs=["r", "r_corr", "-y"] if reference_correction else ["r", "-y"], output="err",
+                            name="cyl_err"),
         pi_controller(cal.pi),
         valve_cylinder(loop.valve),
         structure(loop.struct),
@@ -178,7 +187,12 @@ def force_feedback_plant(
     if wts.bdft_weight > 0:
         blocks.append(_static(wts.bdft_weight / amp, "h_cmd", "z_h", "W_h"))
         z.append("z_h")
-    w, u, y = ["w_u", "n_x", "n_c"], ["f"], ["x_m", "c_m"]
+    u = ["f"]
+    if reference_correction:
+        blocks.append(_static(wts.correction_weight / y_scale, "r_corr", "z_r", "W_r"))
+        z.append("z_r")
+        u.append("r_corr")
+    w, y = ["w_u", "n_x", "n_c"], ["x_m", "c_m"]
     sys = _balanced(ct.interconnect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant"))
     return GeneralizedPlant.from_system(sys, w=w, u=u, z=z, y=y)
 
@@ -199,9 +213,13 @@ def _balanced(sys: ct.StateSpace) -> ct.StateSpace:
 
 
 def as_loop_controller(K: ct.StateSpace, *, name: str = "K") -> ct.StateSpace:
-    """Rename a controller synthesised on :func:`force_feedback_plant` (``x_m, c_m -> f``) to ``x, c -> f``."""
+    """Rename a controller synthesised on :func:`force_feedback_plant` (``x_m, c_m -> f[, r_corr]``) to ``x, c -> ...``."""
     rename = {"x_m": "x", "c_m": "c", "y_m": "y"}
     ins = [rename.get(s, s) for s in K.input_labels]
-    if len(ins) != K.ninputs or K.noutputs != 1:
-        raise ModelStructureError(f"expected a controller x_m, c_m -> f; got {K.input_labels} -> {K.output_labels}")
-    return ct.ss(K.A, K.B, K.C, K.D, inputs=ins, outputs=["f"], name=name)
+    outs = list(K.output_labels)
+    if K.noutputs == 1:
+        outs = ["f"]
+    if len(ins) != K.ninputs or outs not in (["f"], ["f", "r_corr"]):
+        raise ModelStructureError(
+            f"expected a controller x_m, c_m -> f (or f, r_corr); got {K.input_labels} -> {K.output_labels}")
+    return ct.ss(K.A, K.B, K.C, K.D, inputs=ins, outputs=outs, name=name)

@@ -90,3 +90,15 @@ def test_virtual_damping_margins(runs):
     assert ev.fraction_stable >= 0.75
     assert ev.fraction_stable < 1.0
     _force_flag_consistent(ev)
+
+
+def test_hinf_robust_with_reference_correction_trades_tracking_for_force(runs):
+    r = _run(runs, "hinf-robust-corr")
+    ev = r.evaluation
+    assert ev.fraction_stable >= 0.99
+    assert ev.tracking_error < 0.6  # the tracking budget is 0.5 on the nominal member
+    assert ev.peak_force_n < 25.0  # far below the force-only robust design, still above the limit
+    _force_flag_consistent(ev)
+    robust = _run(runs, "hinf-robust").evaluation
+    assert ev.peak_force_n < 0.2 * robust.peak_force_n
+    assert ev.tracking_error < robust.tracking_error

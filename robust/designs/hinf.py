@@ -72,8 +72,9 @@ def design_hinf_nominal(family, *, weights: ForceFeedbackWeights | None = None, 
     return HinfDesign(K, res.gamma, res.gamma_bound, (res.gamma,), solver, w, 1)
 
 
-def design_hinf_robust(family, samples, *, weights=None, limits=None, K0=None, margin: float = 0.3,
-                       rounds: int = 10, add_per_round: int = 12, force_margin: float = 0.8, progress=None):
+def design_hinf_robust(family, samples, *, weights=None, limits=None, K0=None, margin: float = 0.15,
+                       rounds: int = 10, add_per_round: int = 12, force_margin: float = 0.8,
+                       reference_correction: bool = True, tracking_error: float = 0.5, progress=None):
     """Robust H-infinity force feedback: the nominal LMI design made to hold over the family's members.
 
     1. ``K0`` (default: :func:`design_hinf_nominal`, reduced by balanced truncation
@@ -89,36 +90,58 @@ def design_hinf_robust(family, samples, *, weights=None, limits=None, K0=None, m
        (:func:`robust.forcefb.force_feedback_plant`) is computed independently on every
        design member and reported (worst member, nominal, and all of them).
 
+    With ``reference_correction`` the controller gets a second output, a correction of
+    the cylinder reference (signal level, no force), starting from zero; the tuning
+    then also keeps the nominal tracking error ``|Y/Y_ref - 1|`` over 0.05-2 Hz below
+    ``tracking_error`` (:class:`robust.designs.multimodel.TrackingBudget`), since a
+    reference correction can stabilise simply by cancelling the operator's command.
+
     The guarantee is per sampled member (closed-loop eigenvalues); nothing is claimed
     between samples, so callers validate on a held-out sample too.
     """
     from ..genplant import as_generalized_plant
     from ..norms import hinf_norm
     from ..forcefb import handle_units_per_m
-    from .multimodel import ForceBudget, tune_spectral_abscissa
+    import control as ct
+
+    from ..analysis import frequency_response
+    from .evaluate import TRACKING_BAND_HZ
+    from .multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
 
     w = weights or ForceFeedbackWeights()
     nominal = family.member(family.nominal_values())
     if K0 is None:
         K0, _ = reduce_controller(design_hinf_nominal(family, weights=w, limits=limits).controller, [nominal])
     lim = limits or DeviceLimits()
+    tracking = None
+    scales = None
+    if reference_correction:
+        K0 = ct.ss(K0.A, K0.B, np.vstack([K0.C, np.zeros((1, K0.nstates))]), np.vstack([K0.D, np.zeros((1, K0.ninputs))]),
+                   inputs=K0.input_labels, outputs=[*K0.output_labels, "r_corr"], name=K0.name)
+        scales = {"r_corr": family.k_psf}
+        ft = np.geomspace(*TRACKING_BAND_HZ, 30)
+        tracking = TrackingBudget(y_ref=frequency_response(nominal.system(bdft=False), ft), max_error=tracking_error,
+                                  f_hz=ft)
     budget = ForceBudget(
         amplitude=w.intent_fraction * (lim.workspace_mm / 2) * 1e-3 * handle_units_per_m(nominal),
         peak_n=force_margin * lim.peak_force_n, rms_n=force_margin * lim.continuous_force_n,
         f_hz=np.geomspace(0.1, 8.0, 30), output=list(K0.output_labels).index("f"))
     tuned = tune_spectral_abscissa(family, samples, K0, margin=margin, rounds=rounds, add_per_round=add_per_round,
-                                   force=budget, progress=progress)
+                                   force=budget, tracking=tracking, output_scales=scales,
+                                   force_while_stabilising=reference_correction, progress=progress)
     K = as_loop_controller(tuned.controller, name="hinf_robust")
     Kp = _as_plant_controller(K)
     gammas = []
     for row in tuned.design_rows:
-        gp = as_generalized_plant(force_feedback_plant(family.member(row), w, limits))
+        gp = as_generalized_plant(force_feedback_plant(family.member(row), w, limits,
+                                                       reference_correction=reference_correction))
         gammas.append(hinf_norm(gp.closed_loop(Kp)))
     gammas = np.array(gammas)
     solver = {"method": "nominal LMI H-infinity design (Gahinet & Apkarian 1994), balanced truncation, then "
               "multi-model spectral-abscissa tuning over sampled members with scenario enlargement "
               "(HIFOO stabilisation phase: Burke, Henrion, Lewis & Overton 2006; BFGS, Lewis & Overton 2013)",
               "margin_rad_s": margin, "converged": tuned.converged, "force_margin": force_margin,
+              "reference_correction": reference_correction, "tracking_error_budget": tracking_error,
               "rounds": [dict(zip(("design_members", "worst_sampled_max_real", "fraction_stable"), h))
                          for h in tuned.history],
               "design_member_alpha_max": float(tuned.alpha_design.max()), "force_phase": tuned.force_phase,
@@ -131,4 +154,5 @@ def _as_plant_controller(K):
     import control as ct
 
     rename = {"x": "x_m", "c": "c_m", "y": "y_m"}
-    return ct.ss(K.A, K.B, K.C, K.D, inputs=[rename[s] for s in K.input_labels], outputs=["f"], name=K.name)
+    return ct.ss(K.A, K.B, K.C, K.D, inputs=[rename[s] for s in K.input_labels], outputs=list(K.output_labels),
+                 name=K.name)

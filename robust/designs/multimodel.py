@@ -39,7 +39,8 @@ import scipy.optimize as so
 
 from ..errors import ModelStructureError, ParameterError
 
-__all__ = ["OpenLoopData", "open_loop_data", "ForceBudget", "force_response", "RobustTuning", "tune_spectral_abscissa"]
+__all__ = ["OpenLoopData", "open_loop_data", "ForceBudget", "TrackingBudget", "closed_loop_response", "force_response",
+           "RobustTuning", "tune_spectral_abscissa"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,26 +52,28 @@ class OpenLoopData:
     C: np.ndarray  # (N, nm, n): outputs = the controller's inputs
     Bu: np.ndarray  # (N, n): intended motion u
     Du: np.ndarray  # (N, nm): feedthrough of u to the measurements
+    Cy: np.ndarray  # (N, n): cylinder position y (no feedthrough)
 
 
 def open_loop_data(members, K) -> OpenLoopData:
     """Cut each member's Figure 5 loop open at ``K``'s signals (inputs: K's outputs; outputs: K's inputs)."""
-    As, Bs, Cs, Bus, Dus = [], [], [], [], []
+    As, Bs, Cs, Bus, Dus, Cys = [], [], [], [], [], []
     for loop in members:
         blocks = [b for b in loop.blocks(bdft=True, controller=K) if b is not K]
-        G = ct.interconnect(blocks, inputs=["u", *K.output_labels], outputs=list(K.input_labels))
-        D = np.asarray(G.D, float)
-        if np.any(D[:, 1:] != 0):
+        G = ct.interconnect(blocks, inputs=["u", *K.output_labels], outputs=[*K.input_labels, "y"])
+        D = np.asarray(G.D, float)[:-1]
+        if np.any(D[:, 1:] != 0) or np.any(np.asarray(G.D, float)[-1] != 0):
             raise ModelStructureError("the plant seen from the controller has a direct feedthrough; "
                                       "the affine closed-loop form needs D = 0")
         As.append(np.asarray(G.A, float))
         Bs.append(np.asarray(G.B, float)[:, 1:])
-        Cs.append(np.asarray(G.C, float))
+        Cs.append(np.asarray(G.C, float)[:-1])
         Bus.append(np.asarray(G.B, float)[:, 0])
         Dus.append(D[:, 0])
+        Cys.append(np.asarray(G.C, float)[-1])
     if len({a.shape for a in As}) != 1:
         raise ModelStructureError("members must have the same number of states to be stacked")
-    return OpenLoopData(*(np.array(x) for x in (As, Bs, Cs, Bus, Dus)))
+    return OpenLoopData(*(np.array(x) for x in (As, Bs, Cs, Bus, Dus, Cys)))
 
 
 def _omega(K):
@@ -108,13 +111,19 @@ def _eigen_gradients(data: OpenLoopData, Om, nk):
     return w, g
 
 
-def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = False):
-    """Closed-loop ``u -> v_out`` (a controller output, e.g. the handle force) at ``w`` rad/s, per member.
+def closed_loop_response(data: OpenLoopData, Om, nk, w, out="y", *, grad: bool = False):
+    """Closed-loop response from the intended motion ``u`` at ``w`` rad/s, per member.
 
-    ``T = E Om (Cb R Bcl + Du)`` with ``R = (jw - Acl)^-1``, ``Bcl = Bu + Bb Om Du``; its
-    differential is ``dT = p dOm M`` with ``p = E + E Om Cb R Bb`` and ``M = Cb R Bcl + Du``,
-    so ``d|T|^2 / dOm = 2 Re(conj(T) p M')``. Returns ``T`` (N, n_w) and, with ``grad``,
-    the gradient of ``|T|^2`` (N, n_w, *Om.shape).
+    ``out`` is ``"y"`` (cylinder position) or the index of a controller output (e.g. the
+    handle force). With ``R = (jw - Acl)^-1``, ``Bcl = Bu + Bb Om Du`` and
+    ``M = Cb R Bcl + Du`` (the controller's input signals):
+
+    * controller output ``e``: ``T = e' Om M``, ``dT = p dOm M`` with ``p = e' + e' Om Cb R Bb``;
+    * cylinder position: ``T = cy' R Bcl``, ``dT = p dOm M`` with ``p = cy' R Bb``;
+
+    so ``d|T - r|^2 / dOm = 2 Re(conj(T - r) p M')`` for any fixed ``r``. Returns ``T``
+    (N, n_w) and, with ``grad``, the complex factors ``p`` (N, n_w, nk+nv) and ``M``
+    (N, n_w, nk+nm).
     """
     Acl, Bb, Cb = _closed_loop(data, Om, nk)
     N, n = Acl.shape[:2]
@@ -122,21 +131,34 @@ def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = 
     Du = np.concatenate([np.zeros((N, nk)), data.Du], axis=1)  # (N, nk+nm)
     Bu = np.concatenate([data.Bu, np.zeros((N, nk))], axis=1)  # (N, n_cl)
     Bcl = Bu + np.einsum("nij,jk,nk->ni", Bb, Om, Du)
-    E = np.zeros(nk + nv)
-    E[nk + out] = 1.0
     lhs = 1j * w[None, :, None, None] * np.eye(n) - Acl[:, None]
     RB = np.linalg.solve(lhs, np.broadcast_to(Bcl[:, None, :, None], (N, w.size, n, 1)))[..., 0]  # (N, nw, n)
     M = np.einsum("nij,nwj->nwi", Cb, RB) + Du[:, None, :]
-    EOm = E @ Om
-    T = np.einsum("i,nwi->nw", EOm, M)
+    if out == "y":
+        cy = np.concatenate([data.Cy, np.zeros((N, nk))], axis=1)  # (N, n_cl)
+        T = np.einsum("ni,nwi->nw", cy, RB)
+        q, E = cy, np.zeros(nk + nv)
+    else:
+        E = np.zeros(nk + nv)
+        E[nk + int(out)] = 1.0
+        T = np.einsum("i,nwi->nw", E @ Om, M)
+        q = np.einsum("i,nij->nj", E @ Om, Cb)  # (N, n_cl)
     if not grad:
-        return T, None
-    # p = E + (E Om Cb) R Bb: solve with the transposed resolvent
-    q = np.einsum("i,nij->nj", EOm, Cb)  # (N, n)
+        return T, None, None
     qR = np.linalg.solve(np.swapaxes(lhs, -1, -2), np.broadcast_to(q[:, None, :, None], (N, w.size, n, 1)))[..., 0]
     p = E[None, None, :] + np.einsum("nwj,njk->nwk", qR, Bb)
-    g = 2 * np.real(np.conj(T)[..., None, None] * p[..., :, None] * M[..., None, :])
-    return T, g
+    return T, p, M
+
+
+def _sq_gradient(err, p, M):
+    """Gradient of ``|err|^2`` for ``d err = p dOm M``: (N, n_w, *Om.shape)."""
+    return 2 * np.real(np.conj(err)[..., None, None] * p[..., :, None] * M[..., None, :])
+
+
+def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = False):
+    """Closed-loop ``u -> v_out`` (a controller output) and, with ``grad``, the gradient of ``|T|^2``."""
+    T, p, M = closed_loop_response(data, Om, nk, w, out, grad=grad)
+    return T, (_sq_gradient(T, p, M) if grad else None)
 
 
 def _minimise(fun, K, unit, nk, K0, max_iter):
@@ -144,6 +166,34 @@ def _minimise(fun, K, unit, nk, K0, max_iter):
     Om = res.x.reshape(unit.shape) * unit
     return ct.ss(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:], inputs=K0.input_labels,
                  outputs=K0.output_labels, name=K0.name)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackingBudget:
+    """Keep ``|Y/Y_ref - 1| <= max_error`` over ``f_hz`` (the intent band) on every design member.
+
+    ``y_ref`` is the cylinder response without BDFT and without compensation (the same
+    for every member: the human is not in that path). Penalty ``weight * sum over
+    members of mean over the grid of relu(|Y/Y_ref - 1| / max_error - 1)^2``.
+    """
+
+    y_ref: np.ndarray  # complex, at f_hz
+    max_error: float
+    f_hz: np.ndarray
+    weight: float = 10.0
+
+    def penalty(self, data, Om, nk):
+        w = 2 * np.pi * np.asarray(self.f_hz, float)
+        T, p, M = closed_loop_response(data, Om, nk, w, "y", grad=True)
+        err = T - self.y_ref[None, :]
+        rel = np.abs(err) / np.abs(self.y_ref)[None, :]
+        ex = np.maximum(rel / self.max_error - 1.0, 0.0)
+        val = np.sum(np.mean(ex**2, axis=1))
+        # d rel / d|err|^2 = 1 / (2 |err| |y_ref|)
+        coef = np.where(ex > 0, 2 * ex / self.max_error / (2 * np.maximum(np.abs(err), 1e-300)
+                                                           * np.abs(self.y_ref)[None, :]), 0.0) / w.size
+        grad = np.einsum("nw,nwij->ij", coef, _sq_gradient(err, p, M))
+        return self.weight * val, self.weight * grad
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,6 +246,7 @@ class RobustTuning:
 
 def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: float = 0.05, prox: float = 1e-3,
                            rounds: int = 6, add_per_round: int = 12, max_iter: int = 300, force=None,
+                           tracking=None, force_while_stabilising: bool = True, output_scales=None,
                            progress=None) -> RobustTuning:
     """Tune ``K0``'s entries so that every sampled member's closed loop has real parts below ``-margin``.
 
@@ -215,9 +266,18 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
         Weight of the proximal term: mean squared relative change of the controller's entries.
     rounds, add_per_round, max_iter : int
         Enlargement rounds, members added per round, BFGS iterations per round.
+    output_scales : dict, optional
+        Typical size of the entries of an output's row (e.g. ``{"r_corr": k_psf}``), for
+        outputs that ``K0`` leaves at zero; other entries are scaled by ``K0``'s own.
     force : ForceBudget, optional
-        Keep the closed-loop intended-motion-to-force response of every design member
-        within the budget (a quadratic penalty on the excess).
+        Keep the closed-loop intended-motion-to-force response within the budget (a
+        quadratic penalty on the excess): on the nominal member while stabilising, on
+        every design member in a second phase, once every sampled member is stable
+        with the margin. ``force_while_stabilising=False`` leaves the nominal member's force
+        free while stabilising (the force budget then acts only in the second phase).
+    tracking : TrackingBudget, optional
+        Keep the intended-motion tracking within the budget: on the nominal member while
+        stabilising, on every design member in the second phase.
     """
     from uncertainty.batched import validate_family
 
@@ -228,12 +288,16 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
     Om0 = _omega(K0)
     # entrywise units of the parameters (diagonal preconditioning): the controller's entries span decades
     unit = np.maximum(np.abs(Om0), 1e-3 * np.abs(Om0).max() + 1e-300)
+    for name, scale in (output_scales or {}).items():
+        row = nk + list(K0.output_labels).index(name)
+        unit[row] = np.where(Om0[row] == 0, scale, unit[row])
     rows = [family.nominal_values()]
     K = K0
     history = []
     converged = False
-    use_force = False
+    second_phase = False
     data = None
+    nominal_data = open_loop_data([family.member(rows[0])], K0) if (force or tracking) is not None else None
 
     def fun(theta):
         Om = theta.reshape(Om0.shape) * unit
@@ -248,8 +312,11 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
         d = (Om - Om0) / unit
         val = f + prox * np.sum(d * d) / d.size
         gr = np.einsum("nk,nkij->ij", wts, g) + 2 * prox * d / d.size / unit
-        if use_force:
-            pv, pg = force.penalty(data, Om, nk)
+        if force is not None and (second_phase or force_while_stabilising):
+            pv, pg = force.penalty(data if second_phase else nominal_data, Om, nk)
+            val, gr = val + pv, gr + pg
+        if tracking is not None:
+            pv, pg = tracking.penalty(data if second_phase else nominal_data, Om, nk)
             val, gr = val + pv, gr + pg
         return val, (gr * unit).ravel()
 
@@ -272,10 +339,10 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
         history.append((len(rows), float(v.max_real.max()), float(v.fraction_stable)))
         converged = bool(v.max_real.max() < -margin)
     force_phase = None
-    if force is not None and converged:
+    if (force is not None or tracking is not None) and converged:
         # second phase: the force budget on the design members, the margin kept by the same term
         data = open_loop_data([family.member(x) for x in rows], K0)
-        use_force = True
+        second_phase = True
         K_f = _minimise(fun, K, unit, nk, K0, max_iter)
         v = validate_family(family, samples, controller=K_f)
         force_phase = {"accepted": bool(v.max_real.max() < -margin), "worst_sampled_max_real": float(v.max_real.max()),

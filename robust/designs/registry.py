@@ -9,6 +9,7 @@ prewarped at the structure mode) and writes the artifact (JSON + ``.mat``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -102,13 +103,13 @@ def _hinf_nominal(family, samples, limits):
     return family, K, details, []
 
 
-def _hinf_robust(family, samples, limits):
+def _hinf_robust(family, samples, limits, **options):
     from .hinf import design_hinf_nominal, design_hinf_robust, reduce_controller
 
     nominal = family.member(family.nominal_values())
     nominal_design = design_hinf_nominal(family, limits=limits)
     K0, bound = reduce_controller(nominal_design.controller, [nominal])
-    d = design_hinf_robust(family, samples, K0=K0, limits=limits)
+    d = design_hinf_robust(family, samples, K0=K0, limits=limits, **options)
     details = {"gamma_worst_design_member": d.gamma, "gamma_nominal": d.solver["gamma_nominal"],
                "gamma_nominal_design": nominal_design.gamma, "design_members": d.design_members,
                "solver": d.solver, "weights": dataclasses.asdict(d.weights),
@@ -131,7 +132,11 @@ DESIGNS: dict[str, tuple[str, Callable]] = {
     "virtual-damping": ("virtual damping and stiffness rendered by the handle, tuned over the family", _virtual_damping),
     "cancellation": ("model-based cancellation of the hand's motion from the measured cab acceleration", _cancellation),
     "hinf-nominal": ("H-infinity handle-force feedback, LMI synthesis on the nominal member", _hinf_nominal),
-    "hinf-robust": ("robust H-infinity handle-force feedback: nominal LMI design tuned over family members", _hinf_robust),
+    "hinf-robust": ("robust H-infinity handle-force feedback: nominal LMI design tuned over family members",
+                    functools.partial(_hinf_robust, reference_correction=False, margin=0.3)),
+    "hinf-robust-corr": ("robust H-infinity handle force plus cylinder-reference correction, tuned over family "
+                         "members with a tracking budget", functools.partial(_hinf_robust, reference_correction=True,
+                                                                             margin=0.15, tracking_error=0.5)),
 }
 
 

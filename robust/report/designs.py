@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..components import StructureParams
 from ..errors import BDFTError
 from .html import HtmlPage, write_report_dir
 
@@ -105,6 +106,63 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
         page.figure(fig, "forces", "Handle force on the nominal member (dashed: the 3.3 N peak limit).")
 
 
+def verdict(runs: dict) -> list[str]:
+    """Plain sentences: which design (if any) stabilises every member within the force limits, and what each costs."""
+    ok = {n: r for n, r in runs.items() if not isinstance(r, Exception)}
+    valid = [n for n, r in ok.items() if r.evaluation.fraction_stable == 1.0 and r.evaluation.force_within_limits]
+    robust = [n for n, r in ok.items() if r.evaluation.fraction_stable == 1.0]
+    force_designs = [n for n, r in ok.items() if r.controller is not None and "f" in r.controller.output_labels]
+    valid_force = [n for n in valid if n in force_designs]
+    out = []
+    if valid:
+        out.append("Designs that stabilise every sampled member within the force limits: " + ", ".join(valid) + ".")
+    else:
+        out.append("No design stabilises every sampled member while keeping the handle force within the device limits.")
+    if force_designs and not valid_force:
+        out.append("No handle-force design (" + ", ".join(force_designs) + ") stabilises every sampled member within "
+                   "the device's force limits.")
+    for n in robust:
+        e, d = ok[n].evaluation, ok[n].details
+        cost = f"peak force {e.peak_force_n:.3g} N, RMS {e.rms_force_n:.3g} N, tracking error {e.tracking_error:.3g}"
+        if n == "workspace":
+            cost = f"workspace factor x{d.get('factor', float('nan')):.3g} (the handle's travel covers 1/{d.get('factor', float('nan')):.3g} of the stick's)" \
+                   f", tracking error {e.tracking_error:.3g}, no force"
+        out.append(f"{n} stabilises all of them (worst real part {e.max_real_pole:.3g} rad/s) at the cost of: {cost}.")
+    partial = [n for n in ok if n not in robust]
+    if partial:
+        out.append("The others leave members unstable: " + ", ".join(
+            f"{n} {ok[n].evaluation.fraction_stable:.3g} stable (peak force {ok[n].evaluation.peak_force_n:.3g} N)"
+            for n in partial) + ".")
+    hard = _hardest_member(ok)
+    if force_designs and not valid_force and hard:
+        out.append(f"Why: the member the nominal H-infinity design does worst on ({hard['which']}) has an arm of "
+                   f"stiffness {hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode at "
+                   f"{hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a structure whose first mode "
+                   f"is at {hard['f1']:.3g} Hz. That mode lies in the 0-2 Hz band people command in, so handle force "
+                   "that damps it also resists the operator's intended motion; a cylinder-reference correction avoids "
+                   "the force but costs tracking; workspace scaling works only by shrinking the stick's motion per "
+                   "handle millimetre.")
+    return out
+
+
+def _hardest_member(ok: dict) -> dict | None:
+    """Arm and structure figures of the nominal H-infinity design's worst member (if that design ran)."""
+    import math
+
+    from uncertainty import default_family
+
+    run = ok.get("hinf-nominal")
+    if run is None or not run.evaluation.worst:
+        return None
+    fam = default_family()
+    worst = run.evaluation.worst
+    loop = fam.member([worst[n] for n in fam.names])
+    p = loop.human.params
+    return {"which": "hinf-nominal's worst", "k_arm": p.k_arm, "c_arm": p.c_arm,
+            "f_arm": math.sqrt(p.k_arm / p.m_arm) / (2 * math.pi), "zeta_arm": p.c_arm / (2 * math.sqrt(p.k_arm * p.m_arm)),
+            "f1": loop.struct.f1_hz}
+
+
 def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
     """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories."""
     import json
@@ -135,6 +193,9 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
     page.p("A design is valid only if every sampled member is stable and its force stays within the device limits. "
            "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member (0 dB: no effect). "
            "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member.", cls="note")
+    page.h2("Verdict")
+    for text in verdict(runs):
+        page.p(text)
     _figures(page, runs, samples, seed)
     page.attach("designs.json", json.dumps(to_jsonable({k: (str(r) if isinstance(r, Exception) else r.to_json())
                                                          for k, r in runs.items()}), indent=2, allow_nan=False))
