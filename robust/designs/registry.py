@@ -121,8 +121,8 @@ def _hinf_robust(family, samples, limits, **options):
     if fp is not None and not fp["accepted"]:
         notes.append("the force-budget phase met the budget on the design members only by losing stability "
                      f"(fraction stable {fp['fraction_stable']:.4f}, worst real part {fp['worst_sampled_max_real']:.3g} "
-                     "rad/s); it was rejected: stabilising the stiff, lightly damped arms needs handle-position gain "
-                     "in the intended-motion band, where it also resists the operator")
+                     "rad/s); it was rejected: the stabilising handle-position gain acts in the intended-motion band, "
+                     "where it also resists the operator")
     return family, d.controller, details, notes
 
 

@@ -135,13 +135,15 @@ def verdict(runs: dict) -> list[str]:
             for n in partial) + ".")
     hard = _hardest_member(ok)
     if force_designs and not valid_force and hard:
+        band = ("That mode lies in the 0-2 Hz band people command in, so handle force that damps it also resists "
+                "the operator's intended motion; " if hard["f_arm"] <= 2.0 else
+                "The feedthrough loop closes through that structure mode; ")
         out.append(f"Why: the member the nominal H-infinity design does worst on ({hard['which']}) has an arm of "
                    f"stiffness {hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode at "
                    f"{hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a structure whose first mode "
-                   f"is at {hard['f1']:.3g} Hz. That mode lies in the 0-2 Hz band people command in, so handle force "
-                   "that damps it also resists the operator's intended motion; a cylinder-reference correction avoids "
-                   "the force but costs tracking; workspace scaling works only by shrinking the stick's motion per "
-                   "handle millimetre.")
+                   f"is at {hard['f1']:.3g} Hz (nominal {StructureParams().f1_hz:.3g} Hz). " + band
+                   + "a cylinder-reference correction avoids the force but costs tracking; workspace scaling works "
+                   "only by shrinking the stick's motion per handle millimetre.")
     return out
 
 
