@@ -38,7 +38,8 @@ def run(args) -> int:
                 print(f"{k:16s} FAILED: {str(r)[:400]}")
             else:
                 e = r.evaluation
-                print(f"{k:16s} stable {e.fraction_stable:.4f}  worst Re {e.max_real_pole:+.3f}  "
+                ho = r.details.get("held_out", {}).get("fraction_stable", float("nan"))
+                print(f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  worst Re {e.max_real_pole:+.3f}  "
                       f"peak force {e.peak_force_n:.3g} N  rms {e.rms_force_n:.3g} N  order {r.order_reduced}")
         print(f"report: {path}")
     return 0
