@@ -57,20 +57,21 @@ class OpenLoopData:
 
 def open_loop_data(members, K) -> OpenLoopData:
     """Cut each member's Figure 5 loop open at ``K``'s signals (inputs: K's outputs; outputs: K's inputs)."""
+    from .sampled import open_plant
+
     As, Bs, Cs, Bus, Dus, Cys = [], [], [], [], [], []
     for loop in members:
-        blocks = [b for b in loop.blocks(bdft=True, controller=K) if b is not K]
-        G = ct.interconnect(blocks, inputs=["u", *K.output_labels], outputs=[*K.input_labels, "y"])
-        D = np.asarray(G.D, float)[:-1]
-        if np.any(D[:, 1:] != 0) or np.any(np.asarray(G.D, float)[-1] != 0):
+        G = open_plant(loop, K)  # inputs u, K's outputs; outputs y, K's inputs
+        A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
+        if np.any(D[:, 1:] != 0) or D[0, 0] != 0:
             raise ModelStructureError("the plant seen from the controller has a direct feedthrough; "
                                       "the affine closed-loop form needs D = 0")
-        As.append(np.asarray(G.A, float))
-        Bs.append(np.asarray(G.B, float)[:, 1:])
-        Cs.append(np.asarray(G.C, float)[:-1])
-        Bus.append(np.asarray(G.B, float)[:, 0])
-        Dus.append(D[:, 0])
-        Cys.append(np.asarray(G.C, float)[-1])
+        As.append(A)
+        Bs.append(B[:, 1:])
+        Cs.append(C[1:])
+        Bus.append(B[:, 0])
+        Dus.append(D[1:, 0])
+        Cys.append(C[0])
     if len({a.shape for a in As}) != 1:
         raise ModelStructureError("members must have the same number of states to be stacked")
     return OpenLoopData(*(np.array(x) for x in (As, Bs, Cs, Bus, Dus, Cys)))

@@ -28,7 +28,7 @@ import numpy as np
 from ..analysis import loop_poles
 from ..errors import ModelStructureError
 
-__all__ = ["SampledDataCheck", "sampled_data_check", "CHECK_BAND_HZ"]
+__all__ = ["SampledDataCheck", "sampled_data_check", "open_plant", "CHECK_BAND_HZ"]
 
 CHECK_BAND_HZ = (0.05, 10.0)
 
@@ -52,7 +52,7 @@ class SampledDataCheck:
         return dict(dataclasses.asdict(self), agree=self.agree)
 
 
-def _open_plant(loop, K):
+def open_plant(loop, K):
     """The member's loop with the controller removed: inputs ``u`` and K's outputs, outputs ``y`` and K's inputs."""
     blocks = [b for b in loop.blocks(bdft=True, controller=K) if b is not K]
     return ct.interconnect(blocks, inputs=["u", *K.output_labels], outputs=["y", *K.input_labels], name="open_plant")
@@ -79,7 +79,7 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
         )
     T = float(Kd.dt)
     poles_c = loop_poles(loop, controller=K)
-    G = _open_plant(loop, K)
+    G = open_plant(loop, K)
     Gd = ct.sample_system(G, T, method="zoh")
     Gd = ct.ss(Gd.A, Gd.B, Gd.C, Gd.D, T, inputs=G.input_labels, outputs=G.output_labels, name="open_plant_d")
     cl_d = ct.interconnect([Gd, Kd], inputs="u", outputs="y", name="sampled_loop")
