@@ -1,6 +1,6 @@
 """Benchmark: LMI H-infinity synthesis against python-control's hinfsyn (SLICOT) and dkpy.
 
-For seeded random generalized plants (``robust.testing.random_generalized_plant``,
+For seeded random generalized plants (``robust.synthesis.testing.random_generalized_plant``,
 4 exogenous inputs, 4 performance outputs, 2 controls, 2 measurements, 2 unstable
 poles) of each order, runs in one process, side by side:
 
@@ -9,7 +9,7 @@ poles) of each order, runs in one process, side by side:
 * ``dkpy.HinfSynLmi`` (if installed; it is not a project dependency),
 
 and prints, per plant, wall time and the H-infinity norm each controller
-*achieves* in closed loop (recomputed here with ``robust.norms.hinf_norm``;
+*achieves* in closed loop (recomputed here with ``robust.analysis.norms.hinf_norm``;
 ``unstable`` if the loop is unstable), then per order: failure counts (no
 controller, an exception, or an unstable loop), the ratio of our achieved norm
 to SLICOT's achieved norm where SLICOT's loop is stable, and time ratios.
@@ -36,9 +36,9 @@ import control
 import numpy as np
 
 import robust
-from robust.genplant import as_generalized_plant
-from robust.norms import hinf_norm, spectral_abscissa
-from robust.testing import random_generalized_plant
+from robust.synthesis.genplant import as_generalized_plant
+from robust.analysis.norms import hinf_norm, spectral_abscissa
+from robust.synthesis.testing import random_generalized_plant
 
 NMEAS, NCON = 2, 2
 
@@ -127,7 +127,7 @@ def main(argv=None):
         f"dkpy {dk_version if dk_version else 'not installed'}, machine {platform.machine()}"
     )
     print(
-        f"plants: robust.testing.random_generalized_plant(n, seed=s), nw=nz=4, nu=ny=2, 2 unstable poles; "
+        f"plants: robust.synthesis.testing.random_generalized_plant(n, seed=s), nw=nz=4, nu=ny=2, 2 unstable poles; "
         f"seeds 0..{args.seeds - 1}"
     )
     names = list(methods)

@@ -10,36 +10,47 @@ Public API, by area (import from here; module layout may change):
   norms, the force-feedback plant;
 * implementation: device limits, order reduction, discretisation and export.
 
-System identification lives in :mod:`robust.sysid`, designs in :mod:`robust.designs`,
-reports in :mod:`robust.report`; families and batched validation in the
-``uncertainty`` package.
+Subpackages: :mod:`robust.model` (components, humans, loop, device),
+:mod:`robust.analysis` (poles, claims, calibration, norms, reduction, simulation),
+:mod:`robust.synthesis` (generalized plants, LMI synthesis), :mod:`robust.sysid`
+(system identification); :mod:`robust.export` writes controller artifacts. This
+package is the bottom layer: families live in ``uncertainty``, designs in
+``designs``, reports in ``reports`` and the command line in ``bdft``, each
+importing only the layers below it.
 """
 
-from .analysis import (
+from robust.analysis import (
+    CLAIM_TEXT,
+    K_PSF_STABLE,
     STABILITY_RTOL,
+    CalibrationCandidate,
+    CalibrationResult,
+    ClaimResult,
+    MinimalRealization,
     PoleSet,
+    ReducedModel,
+    SweptSine,
+    TimeResponse,
+    balanced_truncation,
     bdft_loop_gain,
     bdft_ratio,
+    calibrate,
     closed_loop_poles,
     critical_k_psf,
+    evaluate_claims,
     frequency_response,
+    hankel_singular_values,
+    hinf_norm,
+    is_stable,
     is_unstable,
     loop_poles,
+    minimal_realization,
+    ratio_study,
+    simulate,
+    simulate_swept_sine,
+    spectral_abscissa,
 )
-from .calibration import K_PSF_STABLE, CalibrationCandidate, CalibrationResult, calibrate
-from .claims import CLAIM_TEXT, ClaimResult, evaluate_claims, ratio_study
-from .components import (
-    K_PSF_NOMINAL,
-    PIParams,
-    StructureParams,
-    ValveCylinderParams,
-    pi_controller,
-    position_scale,
-    structure,
-    valve_cylinder,
-)
-from .device import DeviceLimits, ForceCheck, check_force
-from .errors import (
+from robust.errors import (
     ArtifactError,
     AssumptionError,
     BDFTError,
@@ -50,24 +61,45 @@ from .errors import (
     SolverError,
     VerificationError,
 )
-from .export import ControllerArtifact, discretize, load_artifact, write_artifact
-from .forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant, handle_units_per_m
-from .genplant import GeneralizedPlant, as_generalized_plant
-from .hinfsyn import (
+from robust.export import ControllerArtifact, discretize, load_artifact, write_artifact
+from robust.model import (
+    DEFAULT_CALIBRATION,
+    K_PSF_NOMINAL,
+    BDFTLoop,
+    DeviceLimits,
+    ForceCheck,
+    HumanModel,
+    LiteralHuman,
+    LiteralHumanParams,
+    LoopCalibration,
+    PhysicalHuman,
+    PhysicalHumanParams,
+    PIParams,
+    StructureParams,
+    ValveCylinderParams,
+    check_force,
+    human_variant,
+    pi_controller,
+    position_scale,
+    structure,
+    valve_cylinder,
+)
+from robust.synthesis import (
+    ForceFeedbackWeights,
+    GeneralizedPlant,
     HinfResult,
     LMISynthesisProblem,
     MultiHinfResult,
+    SolveResult,
+    as_generalized_plant,
+    as_loop_controller,
     check_hinf_assumptions,
+    force_feedback_plant,
     hinfsyn_lmi,
     hinfsyn_multi,
+    solve_problem,
 )
-from .human import HumanModel, LiteralHuman, LiteralHumanParams, human_variant
-from .loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
-from .norms import hinf_norm, is_stable, spectral_abscissa
-from .realization import MinimalRealization, minimal_realization
-from .reduction import ReducedModel, balanced_truncation, hankel_singular_values
-from .simulation import SweptSine, TimeResponse, simulate, simulate_swept_sine
-from .solve import SolveResult, solve_problem
+from robust.synthesis.forcefb import handle_units_per_m
 
 __version__ = "0.1.0"
 
@@ -75,7 +107,8 @@ __all__ = [
     # the paper's model
     "K_PSF_NOMINAL", "K_PSF_STABLE", "ValveCylinderParams", "StructureParams", "PIParams",
     "valve_cylinder", "structure", "pi_controller", "position_scale",
-    "HumanModel", "LiteralHuman", "LiteralHumanParams", "human_variant",
+    "HumanModel", "LiteralHuman", "LiteralHumanParams", "PhysicalHuman", "PhysicalHumanParams",
+    "human_variant",
     "BDFTLoop", "LoopCalibration", "DEFAULT_CALIBRATION",
     "calibrate", "CalibrationCandidate", "CalibrationResult",
     # analysis

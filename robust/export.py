@@ -20,8 +20,8 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from ._jsonutil import atomic_write, atomic_write_json, to_jsonable
-from .errors import ArtifactError, ModelStructureError
+from robust.jsonio import atomic_write, atomic_write_json, to_jsonable
+from robust.errors import ArtifactError, ModelStructureError
 
 __all__ = ["ControllerArtifact", "discretize", "write_artifact", "load_artifact", "FORMAT_VERSION", "SIGNAL_UNITS"]
 
@@ -100,7 +100,7 @@ def _versions() -> dict:
     import cvxpy
     import scipy
 
-    from . import __version__
+    from robust import __version__
 
     return {"bdft-workbench": __version__, "python": platform.python_version(), "control": ct.__version__,
             "numpy": np.__version__, "scipy": scipy.__version__, "cvxpy": cvxpy.__version__}
@@ -174,7 +174,7 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
         non-finite matrices, inconsistent shapes, a non-positive sample time, or
         discrete matrices that are not the Tustin transform of the continuous ones.
     """
-    from .loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+    from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 
     path = Path(path)
     try:

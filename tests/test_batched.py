@@ -71,7 +71,7 @@ def test_literal_batched_poles_equal_python_control_poles_without_the_hidden_mod
 
 
 def test_literal_nominal_matches_the_minimal_realisation():
-    from robust.realization import minimal_realization
+    from robust.analysis.realization import minimal_realization
 
     fam = default_family("literal")
     sys = fam.member(fam.nominal_values()).system()

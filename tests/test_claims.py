@@ -17,7 +17,7 @@ from robust import (
     evaluate_claims,
     loop_poles,
 )
-from robust.analysis import is_unstable
+from robust.analysis.loops import is_unstable
 
 CAL = DEFAULT_CALIBRATION
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from robust.cli import main
+from bdft import main
 from robust.export import load_artifact
 
 

@@ -2,7 +2,7 @@ import json
 
 import pytest
 
-from robust.cli import main
+from bdft import main
 
 
 
@@ -33,7 +33,7 @@ def test_reproduce_json_end_to_end(tmp_path, capsys):
 
 
 def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch):
-    import robust.plots as plots
+    import reports.figures as plots
 
     def boom(*a, **k):
         raise RuntimeError("figure failed")

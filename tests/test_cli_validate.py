@@ -6,7 +6,7 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust.cli import main
+from bdft import main
 from uncertainty import default_family, sample, validate_family
 from uncertainty.files import load_component_fit, load_controller
 

@@ -8,8 +8,8 @@ the force accounting makes these fail.
 
 import pytest
 
-from robust.designs.registry import run_design
-from robust.device import DeviceLimits
+from designs.registry import run_design
+from robust.model.device import DeviceLimits
 
 SAMPLES, SEED = 500, 0
 LIM = DeviceLimits()

@@ -1,14 +1,14 @@
 import numpy as np
 import pytest
 
-from robust.designs.evaluate import evaluate_design, frequency_metrics, intended_motion
-from robust.designs.simple import (
+from designs.evaluate import evaluate_design, frequency_metrics, intended_motion
+from designs.simple import (
     cancellation_controller,
     design_workspace,
     signed_handle_units_per_m,
     virtual_damping_controller,
 )
-from robust.analysis import loop_poles
+from robust.analysis.loops import loop_poles
 from uncertainty import default_family, sample
 
 

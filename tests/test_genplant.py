@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from robust.errors import ModelStructureError
-from robust.genplant import GeneralizedPlant, as_generalized_plant
-from robust.testing import random_generalized_plant
+from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
+from robust.synthesis.testing import random_generalized_plant
 
 
 def _fr(sys, w):

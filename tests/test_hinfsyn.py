@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from robust.errors import AssumptionError, InfeasibleError, ModelStructureError
-from robust.genplant import GeneralizedPlant, as_generalized_plant
-from robust.hinfsyn import LMISynthesisProblem, hinfsyn_lmi, hinfsyn_multi
-from robust.lmi import PlantBlocks
-from robust.norms import hinf_norm
-from robust.testing import dgkf_scalar_gamma_opt, dgkf_scalar_plant, random_generalized_plant
+from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
+from robust.synthesis.hinfsyn import LMISynthesisProblem, hinfsyn_lmi, hinfsyn_multi
+from robust.synthesis.lmi import PlantBlocks
+from robust.analysis.norms import hinf_norm
+from robust.synthesis.testing import dgkf_scalar_gamma_opt, dgkf_scalar_plant, random_generalized_plant
 
 
 def _check_certificate(gp, res):
@@ -34,7 +34,7 @@ def _check_certificate(gp, res):
 @pytest.mark.parametrize("a", [0.0, 1.0, 2.0], ids=["a0", "a1", "a2"])
 def test_dgkf_scalar_problem_optimal_gamma(a):
     # Doyle, Glover, Khargonekar & Francis (1989), Theorem 3 applied to the first-order
-    # normalised problem (robust.testing.dgkf_scalar_plant): gamma_opt solves X(g) = g;
+    # normalised problem (robust.synthesis.testing.dgkf_scalar_plant): gamma_opt solves X(g) = g;
     # for a = 0 it is sqrt(2) exactly.
     expected = np.sqrt(2.0) if a == 0.0 else dgkf_scalar_gamma_opt(a)
     P = dgkf_scalar_plant(a)
@@ -284,7 +284,7 @@ def test_scherer_gahinet_chilali_example_against_slicot():
 def test_unverified_controller_is_never_returned(monkeypatch):
     # replace the reconstruction by one that returns a zero controller: on this open-loop
     # unstable plant its loop is unstable, so every attempt must fail verification
-    import robust.hinfsyn as hs
+    import robust.synthesis.hinfsyn as hs
     from robust.errors import VerificationError
 
     def zero_controller(blocks, R, S, gamma, **kw):

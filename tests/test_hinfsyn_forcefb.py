@@ -1,11 +1,11 @@
 """LMI H-infinity synthesis on the workbench's force-feedback generalized plant.
 
-The plant (:func:`robust.forcefb.force_feedback_plant`, 22 states) interconnects
+The plant (:func:`robust.synthesis.forcefb.force_feedback_plant`, 22 states) interconnects
 companion-form blocks whose state scales span many decades, is open-loop
 unstable, and has performance and measurement channels of very different
 sizes.  References are what python-control's Riccati ``hinfsyn`` (SLICOT
 ``sb10ad``) *achieves* in closed loop, recomputed with
-:func:`robust.norms.hinf_norm`; on this plant SLICOT's gamma iteration stops far
+:func:`robust.analysis.norms.hinf_norm`; on this plant SLICOT's gamma iteration stops far
 above the optimum, so the LMI design must be at least as good.
 """
 
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from robust import BDFTLoop, human_variant
-from robust.forcefb import force_feedback_plant
-from robust.genplant import GeneralizedPlant
+from robust.synthesis.forcefb import force_feedback_plant
+from robust.synthesis.genplant import GeneralizedPlant
 from robust.errors import AssumptionError
-from robust.hinfsyn import check_hinf_assumptions, hinfsyn_lmi
-from robust.norms import hinf_norm
+from robust.synthesis.hinfsyn import check_hinf_assumptions, hinfsyn_lmi
+from robust.analysis.norms import hinf_norm
 
 
 def _plant(**loop_kw):

@@ -6,9 +6,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust.designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
-from robust.designs.sampled import sampled_data_check
-from robust.designs.simple import virtual_damping_controller
+from designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
+from robust.analysis.sampled import sampled_data_check
+from designs.simple import virtual_damping_controller
 from robust.errors import ModelStructureError
 from robust.export import discretize
 from uncertainty import default_family, sample

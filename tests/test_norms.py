@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from robust.errors import ModelStructureError, ParameterError
-from robust.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
+from robust.analysis.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
 
 
 def _fr(sys, w):
@@ -98,8 +98,8 @@ def test_badly_scaled_realization_gives_the_same_norm():
     # does not depend on the realization; the Hamiltonian test must not lose the
     # imaginary-axis crossings (it used to return a value below the grid's lower bound).
     from robust import BDFTLoop, human_variant
-    from robust.forcefb import force_feedback_plant
-    from robust.hinfsyn import hinfsyn_lmi
+    from robust.synthesis.forcefb import force_feedback_plant
+    from robust.synthesis.hinfsyn import hinfsyn_lmi
 
     gp = force_feedback_plant(BDFTLoop(human=human_variant("physical")))
     cl = gp.closed_loop(hinfsyn_lmi(gp).K)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from robust.errors import ParameterError
-from robust.human import HumanModel, human_variant
-from uncertainty._human_fit_data import FIT_RESULT
-from uncertainty.fit_human import FIT_BAND_HZ, chain_response, eqn5_response, fit_chain, fit_frequencies
-from uncertainty.human import PhysicalHuman, PhysicalHumanParams, fit_summary, segment_masses
+from robust.model.human import HumanModel, human_variant
+from robust.model._human_fit_data import FIT_RESULT
+from robust.model.human_fit import FIT_BAND_HZ, chain_response, eqn5_response, fit_chain, fit_frequencies
+from robust.model.physical import PhysicalHuman, PhysicalHumanParams, fit_summary, segment_masses
 
 
 def test_variant_is_a_human_model_with_force_port():
@@ -84,7 +84,7 @@ def test_fit_reproduces_stored_result():
 
 
 def test_handle_offset_scales_only_the_arm_by_the_arm_geometry():
-    from uncertainty.arm import ArmGeometry
+    from robust.model.arm import ArmGeometry
 
     h = PhysicalHuman()
     g = ArmGeometry()

@@ -2,7 +2,7 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust.reduction import balanced_truncation, hankel_singular_values, stable_unstable_split
+from robust.analysis.reduction import balanced_truncation, hankel_singular_values, stable_unstable_split
 
 
 def sigma_max(sys, w):

@@ -1,6 +1,6 @@
 """The design comparison page: table, verdict and figures from real design runs."""
 
-from robust.report.designs import run_all_designs, verdict, write_design_report
+from reports.designs import run_all_designs, verdict, write_design_report
 
 
 def test_comparison_page_with_verdict(tmp_path):

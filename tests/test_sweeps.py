@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from robust.cli import main
+from bdft import main
 from robust.errors import ParameterError
 from uncertainty import default_family, validate_family
 from uncertainty.sampling import SampleSet, sample

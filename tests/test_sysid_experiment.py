@@ -145,7 +145,7 @@ def test_path_of_the_closed_loop_is_identified_as_its_transfer_function():
 def test_valve_experiment_runs_the_loop_with_the_true_valve():
     # y must be the closed loop's output with the true valve, and e its valve command
     from robust import ValveCylinderParams, pi_controller, valve_cylinder
-    from robust.loop import DEFAULT_CALIBRATION
+    from robust.model.loop import DEFAULT_CALIBRATION
 
     truth = ValveCylinderParams(k_vc=20.0, p1=150.0, wn_hz=3.0, zeta=0.3)
     p = ChirpProtocol(n_records=1, duration=6.0, f0_hz=0.5)

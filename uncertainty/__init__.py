@@ -1,11 +1,10 @@
-"""Uncertain parameters, the physical human model and parametric families.
+"""Uncertain parameters, sampling, parametric families and their batched validation.
+
+Built on :mod:`robust` (the models); the designs, reports and the command line build on it.
 
 Public API (import from here; module layout may change):
 
 * uncertain parameters: :class:`UncertainParameter`, :data:`DISTRIBUTIONS`;
-* physical human: :class:`PhysicalHuman`, :class:`PhysicalHumanParams`,
-  :func:`physical_human_matrices`, :func:`fit_summary`, :func:`segment_masses`,
-  :class:`ArmGeometry` (handle position, claim C5);
 * families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`;
 * sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`;
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
@@ -16,9 +15,7 @@ Public API (import from here; module layout may change):
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
-from .arm import ArmGeometry
-from .anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
-from .batched import (
+from uncertainty.batched import (
     BDFT_BAND_HZ,
     DEFAULT_CHUNK,
     STABILITY_THRESHOLD,
@@ -28,22 +25,13 @@ from .batched import (
     member_metrics,
     validate_family,
 )
-from .files import family_nominals, load_component_fit, load_controller
-from .family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
-from .human import PhysicalHuman, PhysicalHumanParams, fit_summary, physical_human_matrices
-from .parameters import DISTRIBUTIONS, UncertainParameter
-from .sampling import METHODS, SampleSet, sample
-from .sweeps import SWEEPS, SweepResult, stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
+from uncertainty.files import family_nominals, load_component_fit, load_controller
+from uncertainty.family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
+from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
+from uncertainty.sampling import METHODS, SampleSet, sample
+from uncertainty.sweeps import SWEEPS, SweepResult, stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
 
 __all__ = [
-    "ArmGeometry",
-    "NOMINAL_BODY_MASS",
-    "SEGMENT_MASS_FRACTIONS",
-    "segment_masses",
-    "PhysicalHuman",
-    "PhysicalHumanParams",
-    "physical_human_matrices",
-    "fit_summary",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "HUMAN_VARIANTS",

@@ -26,12 +26,12 @@ Realisations (fixed, as functions of the parameters):
   ``v`` through ``K_H (s + z1)^2 / (s + p1)^2`` (2 states). This is the minimal
   loop: python-control's series connection keeps the two cancelled modes at
   ``s = 0`` (uncontrollable and unobservable), which
-  :func:`robust.realization.minimal_realization` removes; the batched poles equal
+  :func:`robust.analysis.realization.minimal_realization` removes; the batched poles equal
   the poles of that minimal realisation;
-* physical human: :func:`uncertainty.human.physical_human_matrices`;
+* physical human: :func:`robust.model.physical.physical_human_matrices`;
 * controller: the given continuous state-space compensator, inputs among
   ``x, c, y`` and outputs among ``f, r_corr`` (the convention of
-  :mod:`robust.loop`).
+  :mod:`robust.model.loop`).
 
 Static relations (intended motion ``u = 0`` and external hand force ``f_ext = 0``,
 which do not affect poles): ``x = sigma kappa h``, ``err = K_PSF x + r_corr - y``,
@@ -47,13 +47,13 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from robust.components import valve_cylinder
+from robust.model.components import valve_cylinder
 from robust.errors import ModelStructureError, ParameterError
-from robust.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 
-from .family import Family
-from .human import physical_human_matrices
-from .sampling import SampleSet
+from uncertainty.family import Family
+from robust.model.physical import physical_human_matrices
+from uncertainty.sampling import SampleSet
 
 __all__ = [
     "BDFT_BAND_HZ",

@@ -23,15 +23,15 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from robust._checks import POSITIVE, check_scalar
-from robust.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
+from robust.checks import POSITIVE, check_scalar
+from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
 from robust.errors import ParameterError
-from robust.human import LiteralHuman, LiteralHumanParams
-from robust.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
+from robust.model.human import LiteralHuman, LiteralHumanParams
+from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
 
-from .anthropometry import NOMINAL_BODY_MASS
-from .human import PhysicalHuman, PhysicalHumanParams
-from .parameters import UncertainParameter
+from robust.model.anthropometry import NOMINAL_BODY_MASS
+from robust.model.physical import PhysicalHuman, PhysicalHumanParams
+from uncertainty.parameters import UncertainParameter
 
 __all__ = ["HUMAN_VARIANTS", "Family", "default_family", "MODEL_PARAMETERS"]
 
@@ -140,7 +140,7 @@ class Family:
         -------
         dict
             ``"struct.<field>"`` and ``"human.<field>"`` (fields of
-            :class:`~robust.components.StructureParams` and of the variant's human
+            :class:`~robust.model.components.StructureParams` and of the variant's human
             parameters) -> array of shape (N,).
         """
         v = np.asarray(values, float)
@@ -294,7 +294,7 @@ def default_family(
     body_mass : float
         Body mass (kg) the physical nominal masses belong to.
     calibration : LoopCalibration
-        Loop calibration (default :data:`robust.loop.DEFAULT_CALIBRATION`).
+        Loop calibration (default :data:`robust.model.loop.DEFAULT_CALIBRATION`).
     """
     struct = struct or StructureParams()
     literal = literal or LiteralHumanParams()

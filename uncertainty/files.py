@@ -156,7 +156,7 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
         At most one per form.
     human : {"physical", "literal"}
         The family's human variant. A ``human`` fit is of the paper's Eqn 5
-        (:class:`~robust.human.LiteralHumanParams`) and so applies to the literal
+        (:class:`~robust.model.human.LiteralHumanParams`) and so applies to the literal
         variant only.
 
     Returns

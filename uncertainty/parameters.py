@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from robust._checks import POSITIVE, check_scalar
+from robust.checks import POSITIVE, check_scalar
 from robust.errors import ParameterError
 
 __all__ = ["DISTRIBUTIONS", "UncertainParameter"]

@@ -20,7 +20,7 @@ from scipy.stats import qmc
 
 from robust.errors import ParameterError
 
-from .parameters import UncertainParameter
+from uncertainty.parameters import UncertainParameter
 
 __all__ = ["METHODS", "SampleSet", "sample", "MAX_VERTEX_DIM"]
 

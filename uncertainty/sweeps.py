@@ -17,9 +17,9 @@ import numpy as np
 
 from robust.errors import ParameterError
 
-from .batched import BDFT_BAND_HZ, DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
-from .family import Family
-from .sampling import sample
+from uncertainty.batched import BDFT_BAND_HZ, DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
+from uncertainty.family import Family
+from uncertainty.sampling import sample
 
 __all__ = [
     "SWEEPS",

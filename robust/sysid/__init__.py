@@ -12,8 +12,8 @@ machine or operator:
 * figures (:mod:`.plots`), returned and never saved here.
 """
 
-from .datafile import ChannelData, load_channels, save_experiment, select_channels
-from .experiment import (
+from robust.sysid.datafile import ChannelData, load_channels, save_experiment, select_channels
+from robust.sysid.experiment import (
     ENGINE_TONES_HZ,
     PAPER_COMPONENTS,
     ChirpProtocol,
@@ -25,7 +25,7 @@ from .experiment import (
     simulate_experiment,
     simulate_response,
 )
-from .fit import (
+from robust.sysid.fit import (
     FORMS,
     BandError,
     FitResult,
@@ -36,10 +36,10 @@ from .fit import (
     levy_sk,
     parse_form,
 )
-from .identify import Identification, identify_file, identify_records
-from .model_file import ComponentFit, load_component_fit, read_component_fit, save_component_fit
-from .plots import bode_figure, coherence_figure
-from .spectral import (
+from robust.sysid.identify import Identification, identify_file, identify_records
+from robust.sysid.model_file import ComponentFit, load_component_fit, read_component_fit, save_component_fit
+from robust.sysid.plots import bode_figure, coherence_figure
+from robust.sysid.spectral import (
     FrequencyResponseEstimate,
     check_band,
     default_nperseg,

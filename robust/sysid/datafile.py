@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._checks import POSITIVE, check_scalar
-from .._jsonutil import atomic_write
-from ..errors import DataError, ParameterError
+from robust.checks import POSITIVE, check_scalar
+from robust.jsonio import atomic_write
+from robust.errors import DataError, ParameterError
 
 __all__ = ["ChannelData", "load_channels", "save_experiment", "select_channels"]
 

@@ -27,8 +27,8 @@ import control as ct
 import numpy as np
 import scipy.signal as sps
 
-from .._checks import NONNEGATIVE, POSITIVE, check_scalar, validate_fields
-from ..errors import ModelStructureError, ParameterError
+from robust.checks import NONNEGATIVE, POSITIVE, check_scalar, validate_fields
+from robust.errors import ModelStructureError, ParameterError
 
 __all__ = [
     "ENGINE_TONES_HZ",
@@ -408,7 +408,7 @@ def _dlsim_rows(ad, bd, cd, dd, u2):
 
 
 def _minimal_series(first, second) -> ct.StateSpace:
-    from ..realization import minimal_realization
+    from robust.analysis.realization import minimal_realization
 
     g = ct.series(ct.ss(first), ct.ss(second))
     m = minimal_realization(g.A, g.B, g.C, g.D)
@@ -461,7 +461,7 @@ def simulate_experiment(
         (Eqn 4's double zero at 0 against Eqn 5's double pole at 0) do not drift.
     input, output : str, optional
         Signal names selecting one path of a MIMO ``system`` (e.g. ``"u"``, ``"c"``
-        of :meth:`robust.loop.BDFTLoop.system`).
+        of :meth:`robust.model.loop.BDFTLoop.system`).
 
     Returns
     -------
@@ -529,8 +529,8 @@ def simulate_experiment(
 
 
 def _pi_loop(valve_params=None):
-    from ..components import pi_controller, valve_cylinder
-    from ..loop import DEFAULT_CALIBRATION
+    from robust.model.components import pi_controller, valve_cylinder
+    from robust.model.loop import DEFAULT_CALIBRATION
 
     pi = pi_controller(DEFAULT_CALIBRATION.pi)
     valve = valve_cylinder(valve_params)
@@ -551,7 +551,7 @@ def paper_experiment(
     """Simulate the paper's identification experiment for one component.
 
     The chirp is the cylinder position reference of the PI loop (the paper's
-    gains: :data:`robust.loop.DEFAULT_CALIBRATION`), as on the rig:
+    gains: :data:`robust.model.loop.DEFAULT_CALIBRATION`), as on the rig:
 
     * ``"valve"``: measured valve command ``e`` (inside the closed loop) and
       cylinder position ``y``; the true system is Eqn 3;
@@ -585,8 +585,8 @@ def paper_experiment(
         With ``system`` the true component and channel names ``e``/``y``,
         ``y``/``c`` or ``c``/``h``.
     """
-    from ..components import StructureParams, ValveCylinderParams, structure, valve_cylinder
-    from ..human import LiteralHuman, LiteralHumanParams
+    from robust.model.components import StructureParams, ValveCylinderParams, structure, valve_cylinder
+    from robust.model.human import LiteralHuman, LiteralHumanParams
 
     if component not in PAPER_COMPONENTS:
         raise ParameterError(f"component must be one of {PAPER_COMPONENTS}; got {component!r}")

@@ -3,12 +3,12 @@
 Forms (the paper's fixed structures, and general rational models):
 
 * ``"valve"``, Eqn 3: ``K p1 wn^2 / (s (s + p1) (s^2 + 2 zeta wn s + wn^2))``;
-  returns :class:`robust.components.ValveCylinderParams`;
+  returns :class:`robust.model.components.ValveCylinderParams`;
 * ``"structure"``, Eqn 4: ``K s^2 prod_i (2 z_i w_i s + w_i^2) / (s^2 + 2 z_i w_i s + w_i^2)``
   with the double zero at ``s = 0`` fixed and ``f1 <= f2`` enforced; returns
-  :class:`robust.components.StructureParams`;
+  :class:`robust.model.components.StructureParams`;
 * ``"human"``, Eqn 5: ``K (s + z)^2 / (s^2 (s + p)^2)`` with the double pole at
-  ``s = 0`` fixed; returns :class:`robust.human.LiteralHumanParams`;
+  ``s = 0`` fixed; returns :class:`robust.model.human.LiteralHumanParams`;
 * ``"M/N"`` (e.g. ``"2/4"``): a rational model with numerator order ``M`` and
   denominator order ``N`` (``M <= N``, monic denominator); returns
   :class:`RationalParams` and a :class:`control.TransferFunction`.
@@ -51,8 +51,8 @@ import control as ct
 import numpy as np
 import scipy.optimize
 
-from ..errors import InfeasibleError, ParameterError, SolverError
-from .forms import (
+from robust.errors import InfeasibleError, ParameterError, SolverError
+from robust.sysid.forms import (
     FORM_SPECS,
     FORMS,
     ZETA_BOUNDS,
@@ -62,8 +62,8 @@ from .forms import (
     form_system,
     parse_form,
 )
-from .linear import levy_sk
-from .spectral import FrequencyResponseEstimate, check_band
+from robust.sysid.linear import levy_sk
+from robust.sysid.spectral import FrequencyResponseEstimate, check_band
 
 __all__ = [
     "FORMS",

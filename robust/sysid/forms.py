@@ -17,9 +17,9 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from ..components import StructureParams, ValveCylinderParams
-from ..errors import ParameterError
-from ..human import LiteralHumanParams
+from robust.model.components import StructureParams, ValveCylinderParams
+from robust.errors import ParameterError
+from robust.model.human import LiteralHumanParams
 
 __all__ = ["FORMS", "FORM_SPECS", "ZETA_BOUNDS", "RationalParams", "form_system", "parse_form"]
 

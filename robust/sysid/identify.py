@@ -9,9 +9,9 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from .datafile import load_channels, select_channels
-from .fit import FitResult, fit_frequency_response
-from .spectral import FrequencyResponseEstimate, check_band, estimate_frequency_response
+from robust.sysid.datafile import load_channels, select_channels
+from robust.sysid.fit import FitResult, fit_frequency_response
+from robust.sysid.spectral import FrequencyResponseEstimate, check_band, estimate_frequency_response
 
 __all__ = ["MIN_PERIODS", "Identification", "identify_file", "identify_records"]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InfeasibleError, SolverError
+from robust.errors import InfeasibleError, SolverError
 
 __all__ = ["levy_sk"]
 

@@ -27,10 +27,10 @@ import math
 import os
 from pathlib import Path
 
-from .._jsonutil import atomic_write_json
-from ..components import StructureParams, ValveCylinderParams
-from ..errors import ArtifactError, ParameterError
-from ..human import LiteralHumanParams
+from robust.jsonio import atomic_write_json
+from robust.model.components import StructureParams, ValveCylinderParams
+from robust.errors import ArtifactError, ParameterError
+from robust.model.human import LiteralHumanParams
 
 __all__ = ["KIND", "ComponentFit", "load_component_fit", "read_component_fit", "save_component_fit"]
 
@@ -246,8 +246,8 @@ def load_component_fit(path: str | os.PathLike):
     Returns
     -------
     ValveCylinderParams, StructureParams or LiteralHumanParams
-        Ready for :class:`robust.loop.BDFTLoop` (``valve=``, ``struct=``) or
-        ``robust.human.LiteralHuman(params)``.
+        Ready for :class:`robust.model.loop.BDFTLoop` (``valve=``, ``struct=``) or
+        ``robust.model.human.LiteralHuman(params)``.
 
     Raises
     ------

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .fit import FitResult
-from .spectral import FrequencyResponseEstimate
+from robust.sysid.fit import FitResult
+from robust.sysid.spectral import FrequencyResponseEstimate
 
 __all__ = ["bode_figure", "coherence_figure"]
 

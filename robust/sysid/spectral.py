@@ -46,8 +46,8 @@ import numpy as np
 import scipy.signal as sps
 import scipy.stats
 
-from .._checks import POSITIVE, Spec, check_scalar
-from ..errors import DataError, ParameterError
+from robust.checks import POSITIVE, Spec, check_scalar
+from robust.errors import DataError, ParameterError
 
 __all__ = [
     "FrequencyResponseEstimate",

@@ -1,0 +1,46 @@
+"""``bdft reproduce``: check the paper's claims C1-C5 and write the reproduction report."""
+
+from __future__ import annotations
+
+import sys
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "reproduce",
+        help="check the paper's claims C1-C5 and write the reproduction report (HTML)",
+        description="Build the paper's loop, run the calibration search, check claims C1-C5 for each "
+        "human variant and write one HTML page with its figures.",
+    )
+    p.add_argument("--out", default="reports/out/reproduce", help="output folder (default: %(default)s)")
+    p.add_argument("--human", choices=["literal", "physical", "both"], default="both",
+                   help="human variant(s) to evaluate (default: %(default)s)")
+    p.add_argument("--json", action="store_true", help="print one JSON object with the claims and calibration")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from reports.reproduce import reproduce, result_to_json, write_reproduction_report
+    from bdft import print_json
+
+    variants = ("literal", "physical") if args.human == "both" else (args.human,)
+
+    def progress(msg: str) -> None:
+        print(f"[bdft reproduce] {msg} ...", file=sys.stderr, flush=True)
+
+    res = reproduce(variants=variants, progress=progress)
+    path = write_reproduction_report(res, args.out)
+    progress(f"report written to {path}")
+    if args.json:
+        obj = result_to_json(res)
+        obj["report"] = str(path)
+        print_json(obj)
+    else:
+        for v in res.variants:
+            print(v.label)
+            for key, c in v.claims.items():
+                print(f"  {key}: {c.status:12s} {c.detail}")
+        for name, why in res.unavailable.items():
+            print(f"{name}: not evaluated ({why})")
+        print(f"report: {path}")
+    return 0

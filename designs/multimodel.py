@@ -1,0 +1,355 @@
+"""Multi-model robust stabilisation of a fixed-order controller over family members.
+
+The LMI multi-model iteration (:func:`robust.synthesis.hinfsyn.hinfsyn_multi`) needs a
+controller that already stabilises every design member, and on the default
+family the nominal H-infinity design leaves most members unstable. This module
+supplies the missing step, the first phase of the nonsmooth multi-model
+approach of HIFOO (Burke, Henrion, Lewis & Overton, "HIFOO - a MATLAB package
+for fixed-order controller design and H-infinity optimization", IFAC ROCOND
+2006; Gumussoy, Henrion, Millstone & Overton, "Multiobjective robust control
+with HIFOO 2.0", IFAC ROCOND 2009): the controller's state-space entries are
+tuned to minimise the largest closed-loop spectral abscissa over a set of
+members, by BFGS on its (nonsmooth) objective, which Lewis & Overton ("Nonsmooth
+optimization via quasi-Newton methods", Math. Programming 141 (2013) 135-163)
+show to work well on such functions. Here the maximum is smoothed by a
+log-sum-exp of temperature ``tau`` (rad/s) and a proximal term keeps the
+controller near the synthesised one (its performance and force), so the
+tuning trades as little of the H-infinity design as stability needs.
+
+The design set grows progressively (scenario enlargement): each round adds the
+sampled members on which the current controller does worst, until every sampled
+member is stable with the required margin or the rounds run out. Nothing is
+claimed between samples; callers validate on a held-out sample as well.
+
+The closed loop of each member is affine in the controller data
+``Omega = [[Ak, Bk], [Ck, Dk]]``: ``Acl = A0 + Bb Omega Cb`` with the member's
+plant seen from the controller's signals (the Figure 5 loop cut open at the
+controller, :func:`open_loop_data`), so eigenvalue gradients are exact:
+``d Re(lambda) / d Omega = Re(Bb' conj(l) (Cb r)')`` for the left and right
+eigenvectors ``l, r`` of each eigenvalue (``l^H r = 1``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control as ct
+import numpy as np
+import scipy.optimize as so
+
+from robust.errors import ModelStructureError, ParameterError
+
+__all__ = ["OpenLoopData", "open_loop_data", "ForceBudget", "TrackingBudget", "closed_loop_response", "force_response",
+           "RobustTuning", "tune_spectral_abscissa"]
+
+
+@dataclasses.dataclass(frozen=True)
+class OpenLoopData:
+    """Members' plants seen from the controller: ``x' = A x + B v``, ``m = C x`` (stacked over members)."""
+
+    A: np.ndarray  # (N, n, n)
+    B: np.ndarray  # (N, n, nv): inputs = the controller's outputs
+    C: np.ndarray  # (N, nm, n): outputs = the controller's inputs
+    Bu: np.ndarray  # (N, n): intended motion u
+    Du: np.ndarray  # (N, nm): feedthrough of u to the measurements
+    Cy: np.ndarray  # (N, n): cylinder position y (no feedthrough)
+
+
+def open_loop_data(members, K) -> OpenLoopData:
+    """Cut each member's Figure 5 loop open at ``K``'s signals (inputs: K's outputs; outputs: K's inputs)."""
+    from robust.analysis.sampled import open_plant
+
+    As, Bs, Cs, Bus, Dus, Cys = [], [], [], [], [], []
+    for loop in members:
+        G = open_plant(loop, K)  # inputs u, K's outputs; outputs y, K's inputs
+        A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
+        if np.any(D[:, 1:] != 0) or D[0, 0] != 0:
+            raise ModelStructureError("the plant seen from the controller has a direct feedthrough; "
+                                      "the affine closed-loop form needs D = 0")
+        As.append(A)
+        Bs.append(B[:, 1:])
+        Cs.append(C[1:])
+        Bus.append(B[:, 0])
+        Dus.append(D[1:, 0])
+        Cys.append(C[0])
+    if len({a.shape for a in As}) != 1:
+        raise ModelStructureError("members must have the same number of states to be stacked")
+    return OpenLoopData(*(np.array(x) for x in (As, Bs, Cs, Bus, Dus, Cys)))
+
+
+def _omega(K):
+    return np.block([[np.asarray(K.A, float), np.asarray(K.B, float)], [np.asarray(K.C, float), np.asarray(K.D, float)]])
+
+
+def _closed_loop(data: OpenLoopData, Om, nk):
+    N, n, _ = data.A.shape
+    nv, nm = data.B.shape[2], data.C.shape[1]
+    Bb = np.zeros((N, n + nk, nk + nv))
+    Bb[:, n:, :nk] = np.eye(nk)
+    Bb[:, :n, nk:] = data.B
+    Cb = np.zeros((N, nk + nm, n + nk))
+    Cb[:, :nk, n:] = np.eye(nk)
+    Cb[:, nk:, :n] = data.C
+    A0 = np.zeros((N, n + nk, n + nk))
+    A0[:, :n, :n] = data.A
+    return A0 + Bb @ Om @ Cb, Bb, Cb
+
+
+def spectral_abscissas(data: OpenLoopData, Om, nk) -> np.ndarray:
+    """Largest closed-loop real part per member, rad/s."""
+    Acl, _, _ = _closed_loop(data, Om, nk)
+    return np.linalg.eigvals(Acl).real.max(axis=1)
+
+
+def _eigen_gradients(data: OpenLoopData, Om, nk):
+    """All closed-loop eigenvalues (N, n) and the gradients of their real parts w.r.t. ``Om`` (N, n, *Om.shape)."""
+    Acl, Bb, Cb = _closed_loop(data, Om, nk)
+    w, V = np.linalg.eig(Acl)
+    L = np.conj(np.linalg.inv(V)).transpose(0, 2, 1)  # columns: left eigenvectors, l_k^H r_k = 1
+    left = np.einsum("nji,njk->nki", Bb, np.conj(L))  # (N, n_eig, nk+nv): Bb' conj(l)
+    right = np.einsum("nij,njk->nki", Cb, V)  # (N, n_eig, nk+nm): Cb r
+    g = np.real(left[..., :, None] * right[..., None, :])
+    return w, g
+
+
+def closed_loop_response(data: OpenLoopData, Om, nk, w, out="y", *, grad: bool = False):
+    """Closed-loop response from the intended motion ``u`` at ``w`` rad/s, per member.
+
+    ``out`` is ``"y"`` (cylinder position) or the index of a controller output (e.g. the
+    handle force). With ``R = (jw - Acl)^-1``, ``Bcl = Bu + Bb Om Du`` and
+    ``M = Cb R Bcl + Du`` (the controller's input signals):
+
+    * controller output ``e``: ``T = e' Om M``, ``dT = p dOm M`` with ``p = e' + e' Om Cb R Bb``;
+    * cylinder position: ``T = cy' R Bcl``, ``dT = p dOm M`` with ``p = cy' R Bb``;
+
+    so ``d|T - r|^2 / dOm = 2 Re(conj(T - r) p M')`` for any fixed ``r``. Returns ``T``
+    (N, n_w) and, with ``grad``, the complex factors ``p`` (N, n_w, nk+nv) and ``M``
+    (N, n_w, nk+nm).
+    """
+    Acl, Bb, Cb = _closed_loop(data, Om, nk)
+    N, n = Acl.shape[:2]
+    nv = data.B.shape[2]
+    Du = np.concatenate([np.zeros((N, nk)), data.Du], axis=1)  # (N, nk+nm)
+    Bu = np.concatenate([data.Bu, np.zeros((N, nk))], axis=1)  # (N, n_cl)
+    Bcl = Bu + np.einsum("nij,jk,nk->ni", Bb, Om, Du)
+    lhs = 1j * w[None, :, None, None] * np.eye(n) - Acl[:, None]
+    RB = np.linalg.solve(lhs, np.broadcast_to(Bcl[:, None, :, None], (N, w.size, n, 1)))[..., 0]  # (N, nw, n)
+    M = np.einsum("nij,nwj->nwi", Cb, RB) + Du[:, None, :]
+    if out == "y":
+        cy = np.concatenate([data.Cy, np.zeros((N, nk))], axis=1)  # (N, n_cl)
+        T = np.einsum("ni,nwi->nw", cy, RB)
+        q, E = cy, np.zeros(nk + nv)
+    else:
+        E = np.zeros(nk + nv)
+        E[nk + int(out)] = 1.0
+        T = np.einsum("i,nwi->nw", E @ Om, M)
+        q = np.einsum("i,nij->nj", E @ Om, Cb)  # (N, n_cl)
+    if not grad:
+        return T, None, None
+    qR = np.linalg.solve(np.swapaxes(lhs, -1, -2), np.broadcast_to(q[:, None, :, None], (N, w.size, n, 1)))[..., 0]
+    p = E[None, None, :] + np.einsum("nwj,njk->nwk", qR, Bb)
+    return T, p, M
+
+
+def _sq_gradient(err, p, M):
+    """Gradient of ``|err|^2`` for ``d err = p dOm M``: (N, n_w, *Om.shape)."""
+    return 2 * np.real(np.conj(err)[..., None, None] * p[..., :, None] * M[..., None, :])
+
+
+def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = False):
+    """Closed-loop ``u -> v_out`` (a controller output) and, with ``grad``, the gradient of ``|T|^2``."""
+    T, p, M = closed_loop_response(data, Om, nk, w, out, grad=grad)
+    return T, (_sq_gradient(T, p, M) if grad else None)
+
+
+def _minimise(fun, K, unit, nk, K0, max_iter):
+    res = so.minimize(fun, (_omega(K) / unit).ravel(), jac=True, method="BFGS", options={"maxiter": max_iter, "gtol": 1e-9})
+    Om = res.x.reshape(unit.shape) * unit
+    return ct.ss(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:], inputs=K0.input_labels,
+                 outputs=K0.output_labels, name=K0.name)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackingBudget:
+    """Keep ``|Y/Y_ref - 1| <= max_error`` over ``f_hz`` (the intent band) on every design member.
+
+    ``y_ref`` is the cylinder response without BDFT and without compensation (the same
+    for every member: the human is not in that path). Penalty ``weight * sum over
+    members of mean over the grid of relu(|Y/Y_ref - 1| / max_error - 1)^2``.
+    """
+
+    y_ref: np.ndarray  # complex, at f_hz
+    max_error: float
+    f_hz: np.ndarray
+    weight: float = 10.0
+
+    def penalty(self, data, Om, nk):
+        w = 2 * np.pi * np.asarray(self.f_hz, float)
+        T, p, M = closed_loop_response(data, Om, nk, w, "y", grad=True)
+        err = T - self.y_ref[None, :]
+        rel = np.abs(err) / np.abs(self.y_ref)[None, :]
+        ex = np.maximum(rel / self.max_error - 1.0, 0.0)
+        val = np.sum(np.mean(ex**2, axis=1))
+        # d rel / d|err|^2 = 1 / (2 |err| |y_ref|)
+        coef = np.where(ex > 0, 2 * ex / self.max_error / (2 * np.maximum(np.abs(err), 1e-300)
+                                                           * np.abs(self.y_ref)[None, :]), 0.0) / w.size
+        grad = np.einsum("nw,nwij->ij", coef, _sq_gradient(err, p, M))
+        return self.weight * val, self.weight * grad
+
+
+@dataclasses.dataclass(frozen=True)
+class ForceBudget:
+    """Handle-force budget for an intended motion of amplitude ``amplitude`` swept over ``f_hz``.
+
+    A sine of amplitude ``A`` at ``w`` gives force amplitude ``A |T(jw)|``; a sweep
+    spending equal time per decade has RMS ``A sqrt(mean |T|^2 / 2)`` over a log grid.
+    The penalty is ``weight * sum over members of (relu(peak/peak_n - 1)^2 mean over
+    the grid + relu(rms/rms_n - 1)^2)``.
+    """
+
+    amplitude: float  # intended-motion amplitude, handle units
+    peak_n: float
+    rms_n: float
+    f_hz: np.ndarray
+    weight: float = 10.0
+    output: int = 0  # index of the force among the controller's outputs
+
+    def penalty(self, data, Om, nk):
+        w = 2 * np.pi * np.asarray(self.f_hz, float)
+        T, g = force_response(data, Om, nk, w, self.output, grad=True)
+        a2 = self.amplitude**2
+        mag2 = a2 * np.abs(T) ** 2
+        ex = np.maximum(np.sqrt(mag2) / self.peak_n - 1.0, 0.0)  # (N, nw)
+        val = np.sum(np.mean(ex**2, axis=1))
+        # d ex / d|T|^2 = a2 / (2 peak_n sqrt(mag2)) where active
+        dex = np.where(ex > 0, a2 / (2 * self.peak_n * np.sqrt(np.maximum(mag2, 1e-300))), 0.0)
+        grad = np.einsum("nw,nwij->ij", 2 * ex * dex / w.size, g)
+        ms = mag2.mean(axis=1) / 2  # (N,)
+        rex = np.maximum(np.sqrt(ms) / self.rms_n - 1.0, 0.0)
+        val += np.sum(rex**2)
+        drex = np.where(rex > 0, 1.0 / (2 * self.rms_n * np.sqrt(np.maximum(ms, 1e-300))), 0.0)
+        grad += np.einsum("n,nwij->ij", 2 * rex * drex * a2 / (2 * w.size), g)
+        return self.weight * val, self.weight * grad
+
+
+@dataclasses.dataclass(frozen=True)
+class RobustTuning:
+    """Result of :func:`tune_spectral_abscissa`."""
+
+    controller: ct.StateSpace
+    design_rows: np.ndarray  # parameter rows of the final design set
+    alpha_design: np.ndarray  # spectral abscissa per design member, rad/s
+    history: tuple  # per round: (design members, worst sampled alpha, fraction stable)
+    rounds: int
+    converged: bool  # every sampled member stable with the margin
+    force_phase: dict | None = None  # outcome of the force-budget phase (None if not run)
+
+
+def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: float = 0.05, prox: float = 1e-3,
+                           rounds: int = 6, add_per_round: int = 12, max_iter: int = 300, force=None,
+                           tracking=None, force_while_stabilising: bool = True, output_scales=None,
+                           progress=None) -> RobustTuning:
+    """Tune ``K0``'s entries so that every sampled member's closed loop has real parts below ``-margin``.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+    samples : uncertainty.SampleSet
+        The scenario set; each round validates on all of it (batched) and adds the
+        ``add_per_round`` worst members to the design set (which starts with the nominal).
+    K0 : control.StateSpace
+        Starting controller (loop convention), e.g. a reduced nominal H-infinity design.
+    margin : float
+        Required decay rate, rad/s: the objective stops improving below ``-margin``.
+    tau : float
+        Temperature of the log-sum-exp smoothing of the worst member's abscissa, rad/s.
+    prox : float
+        Weight of the proximal term: mean squared relative change of the controller's entries.
+    rounds, add_per_round, max_iter : int
+        Enlargement rounds, members added per round, BFGS iterations per round.
+    output_scales : dict, optional
+        Typical size of the entries of an output's row (e.g. ``{"r_corr": k_psf}``), for
+        outputs that ``K0`` leaves at zero; other entries are scaled by ``K0``'s own.
+    force : ForceBudget, optional
+        Keep the closed-loop intended-motion-to-force response within the budget (a
+        quadratic penalty on the excess): on the nominal member while stabilising, on
+        every design member in a second phase, once every sampled member is stable
+        with the margin. ``force_while_stabilising=False`` leaves the nominal member's force
+        free while stabilising (the force budget then acts only in the second phase).
+    tracking : TrackingBudget, optional
+        Keep the intended-motion tracking within the budget: on the nominal member while
+        stabilising, on every design member in the second phase.
+    """
+    from uncertainty.batched import validate_family
+
+    for name, val in (("margin", margin), ("tau", tau)):
+        if not (np.isfinite(val) and val > 0):
+            raise ParameterError(f"{name} must be positive; got {val!r}")
+    nk = K0.nstates
+    Om0 = _omega(K0)
+    # entrywise units of the parameters (diagonal preconditioning): the controller's entries span decades
+    unit = np.maximum(np.abs(Om0), 1e-3 * np.abs(Om0).max() + 1e-300)
+    for name, scale in (output_scales or {}).items():
+        row = nk + list(K0.output_labels).index(name)
+        unit[row] = np.where(Om0[row] == 0, scale, unit[row])
+    rows = [family.nominal_values()]
+    K = K0
+    history = []
+    converged = False
+    second_phase = False
+    data = None
+    nominal_data = open_loop_data([family.member(rows[0])], K0) if (force or tracking) is not None else None
+
+    def fun(theta):
+        Om = theta.reshape(Om0.shape) * unit
+        w, g = _eigen_gradients(data, Om, nk)
+        # log-sum-exp over every eigenvalue of every design member above the margin: smooth where
+        # the rightmost mode changes (between members, or between modes of one member)
+        z = (np.maximum(w.real, -margin) + margin) / tau
+        zmax = z.max()
+        e = np.exp(z - zmax)
+        f = tau * (zmax + np.log(e.sum()))
+        wts = e / e.sum() * (w.real > -margin)
+        d = (Om - Om0) / unit
+        val = f + prox * np.sum(d * d) / d.size
+        gr = np.einsum("nk,nkij->ij", wts, g) + 2 * prox * d / d.size / unit
+        if force is not None and (second_phase or force_while_stabilising):
+            pv, pg = force.penalty(data if second_phase else nominal_data, Om, nk)
+            val, gr = val + pv, gr + pg
+        if tracking is not None:
+            pv, pg = tracking.penalty(data if second_phase else nominal_data, Om, nk)
+            val, gr = val + pv, gr + pg
+        return val, (gr * unit).ravel()
+
+    for r in range(rounds):
+        v = validate_family(family, samples, controller=K)
+        worst = np.argsort(v.max_real)[::-1]
+        history.append((len(rows), float(v.max_real.max()), float(v.fraction_stable)))
+        if progress:
+            progress(r, history[-1])
+        if v.max_real.max() < -margin:
+            converged = True
+            break
+        new = [samples.values[i] for i in worst[:add_per_round] if v.max_real[i] >= -margin]
+        rows += new
+        data = open_loop_data([family.member(x) for x in rows], K0)
+
+        K = _minimise(fun, K, unit, nk, K0, max_iter)
+    else:
+        v = validate_family(family, samples, controller=K)
+        history.append((len(rows), float(v.max_real.max()), float(v.fraction_stable)))
+        converged = bool(v.max_real.max() < -margin)
+    force_phase = None
+    if (force is not None or tracking is not None) and converged:
+        # second phase: the force budget on the design members, the margin kept by the same term
+        data = open_loop_data([family.member(x) for x in rows], K0)
+        second_phase = True
+        K_f = _minimise(fun, K, unit, nk, K0, max_iter)
+        v = validate_family(family, samples, controller=K_f)
+        force_phase = {"accepted": bool(v.max_real.max() < -margin), "worst_sampled_max_real": float(v.max_real.max()),
+                       "fraction_stable": float(v.fraction_stable)}
+        if force_phase["accepted"]:
+            K = K_f
+    data = open_loop_data([family.member(x) for x in rows], K)
+    alpha = spectral_abscissas(data, _omega(K), nk)
+    return RobustTuning(K, np.array(rows), alpha, tuple(history), len(history), converged, force_phase)

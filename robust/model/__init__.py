@@ -1,0 +1,49 @@
+"""The paper's model: components (Eqns 3-4), the human variants, the Figure 5 loop and the device.
+
+Public API (import from here or from :mod:`robust`):
+
+* components: :class:`ValveCylinderParams`, :class:`StructureParams`, :class:`PIParams`,
+  :func:`valve_cylinder`, :func:`structure`, :func:`pi_controller`, :func:`position_scale`;
+* humans: :class:`HumanModel`, :class:`LiteralHuman` (Eqn 5 as printed),
+  :class:`PhysicalHuman` (a seated mass-spring-damper chain with a force port),
+  :func:`human_variant`, anthropometry and :class:`ArmGeometry`;
+* the loop: :class:`BDFTLoop`, :class:`LoopCalibration`, the signal table of
+  :mod:`robust.model.wiring`;
+* the device: :class:`DeviceLimits`, :func:`check_force`, the handle units and the
+  intended-motion amplitude.
+"""
+
+from robust.model.anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
+from robust.model.arm import ArmGeometry
+from robust.model.components import (
+    K_PSF_NOMINAL,
+    PIParams,
+    StructureParams,
+    ValveCylinderParams,
+    pi_controller,
+    position_scale,
+    structure,
+    valve_cylinder,
+)
+from robust.model.device import DeviceLimits, ForceCheck, check_force
+from robust.model.human import HumanModel, LiteralHuman, LiteralHumanParams, human_variant
+from robust.model.loop import (
+    CONTROLLER_INPUTS,
+    CONTROLLER_OUTPUTS,
+    DEFAULT_CALIBRATION,
+    LOOP_OUTPUTS,
+    BDFTLoop,
+    LoopCalibration,
+)
+from robust.model.physical import PhysicalHuman, PhysicalHumanParams, fit_summary, physical_human_matrices
+
+__all__ = [
+    "K_PSF_NOMINAL", "PIParams", "StructureParams", "ValveCylinderParams", "pi_controller",
+    "position_scale", "structure", "valve_cylinder",
+    "HumanModel", "LiteralHuman", "LiteralHumanParams", "human_variant",
+    "PhysicalHuman", "PhysicalHumanParams", "fit_summary", "physical_human_matrices",
+    "NOMINAL_BODY_MASS", "SEGMENT_MASS_FRACTIONS", "segment_masses", "ArmGeometry",
+    "BDFTLoop", "LoopCalibration", "DEFAULT_CALIBRATION", "LOOP_OUTPUTS",
+    "CONTROLLER_INPUTS", "CONTROLLER_OUTPUTS",
+    "DeviceLimits", "ForceCheck", "check_force",
+]

@@ -1,0 +1,171 @@
+"""The paper's components as named-signal python-control systems.
+
+Humphreys, Book & Huggins, "Modeling of biodynamic feedthrough in backhoe
+operation" (the source paper, referred to as *the paper* below) identifies three
+blocks from chirp data and closes two loops around them (its Figure 5):
+
+* valve/cylinder, valve command ``e`` -> cylinder position ``y`` (Eqn 3);
+* structure, cylinder position ``y`` -> cab acceleration ``c`` (Eqn 4);
+* human, cab (seat) acceleration ``c`` -> hand motion relative to the seat ``h``
+  (Eqn 5; a pluggable variant, see :mod:`robust.model.human`);
+* a PI controller closing the cylinder position loop, and the position scale
+  factor ``K_PSF`` from handle position to cylinder reference.
+
+Frequencies the paper gives in Hz are stored in Hz and converted with 2*pi when a
+system is built; zeros and poles given as plain numbers are rad/s. Signal units
+are the paper's own, which it does not state (see :class:`robust.model.loop.LoopCalibration`
+for the declared loop-scale factor that absorbs them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import control as ct
+import numpy as np
+
+from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
+
+__all__ = [
+    "ValveCylinderParams",
+    "StructureParams",
+    "PIParams",
+    "valve_cylinder",
+    "structure",
+    "pi_controller",
+    "position_scale",
+    "K_PSF_NOMINAL",
+]
+
+TWO_PI = 2.0 * math.pi
+
+#: Nominal position scale factor: Omni fore-aft workspace (71 mm) over cylinder travel.
+K_PSF_NOMINAL = 0.1097
+
+_DAMPING = Spec(low=0.0, high=1.0, low_open=True, high_open=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class ValveCylinderParams:
+    """Valve/cylinder parameters of the paper's Eqn 3.
+
+    Parameters
+    ----------
+    k_vc : float
+        Gain ``K_VC`` (cylinder position per unit valve command per second), default 36.
+    p1 : float
+        Real pole ``p_1VC`` in rad/s, default 314.
+    wn_hz : float
+        Natural frequency ``omega_nVC`` of the valve in Hz, default 5.
+    zeta : float
+        Damping ratio ``zeta_VC`` in (0, 1), default 0.45.
+    """
+
+    k_vc: float = 36.0
+    p1: float = 314.0
+    wn_hz: float = 5.0
+    zeta: float = 0.45
+
+    def __post_init__(self):
+        validate_fields(self, {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING})
+
+
+@dataclasses.dataclass(frozen=True)
+class StructureParams:
+    """Tractor/backhoe structure parameters of the paper's Eqn 4 (steel-stilts values).
+
+    Parameters
+    ----------
+    k_s : float
+        Gain ``K_s``, default 200.
+    zeta1, zeta2 : float
+        Damping ratios of the two modes, defaults 0.126 and 0.223.
+    f1_hz, f2_hz : float
+        Natural frequencies of the two modes in Hz, defaults 6.3 and 6.5.
+    """
+
+    k_s: float = 200.0
+    zeta1: float = 0.126
+    zeta2: float = 0.223
+    f1_hz: float = 6.3
+    f2_hz: float = 6.5
+
+    def __post_init__(self):
+        validate_fields(
+            self,
+            {"k_s": POSITIVE, "zeta1": _DAMPING, "zeta2": _DAMPING, "f1_hz": POSITIVE, "f2_hz": POSITIVE},
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class PIParams:
+    """Gains of the PI controller closing the cylinder position loop.
+
+    The valve command is ``e = kp * err + ki * integral(err)``, with ``err`` the
+    cylinder reference minus the cylinder position. The paper does not print the
+    gains; the defaults used by the loop come from :func:`robust.analysis.calibration.calibrate`.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain (valve command per unit position error), > 0.
+    ki : float
+        Integral gain (per second), >= 0; 0 gives a pure proportional controller.
+    """
+
+    kp: float
+    ki: float
+
+    def __post_init__(self):
+        validate_fields(self, {"kp": POSITIVE, "ki": Spec(low=0.0)})
+
+
+def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFunction:
+    return ct.tf(num, [1.0, 2.0 * zeta * wn, wn * wn])
+
+
+def valve_cylinder(params: ValveCylinderParams | None = None, *, name: str = "valve_cylinder") -> ct.StateSpace:
+    """Valve/cylinder, Eqn 3: ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)``.
+
+    Input ``e``: valve command (paper's units). Output ``y``: cylinder position
+    (paper's units). Order 4, with a free integrator.
+    """
+    p = params or ValveCylinderParams()
+    wn = TWO_PI * p.wn_hz
+    g = ct.tf([p.k_vc * p.p1], [1.0, p.p1, 0.0]) * _second_order(wn, p.zeta, [wn * wn])
+    return ct.ss(g, inputs="e", outputs="y", name=name)
+
+
+def structure(params: StructureParams | None = None, *, name: str = "structure") -> ct.StateSpace:
+    """Structure, Eqn 4: cylinder position ``y`` -> cab acceleration ``c``.
+
+    ``C/Y = K_s s^2 * prod_i (2 z_i w_i s + w_i^2) / (s^2 + 2 z_i w_i s + w_i^2)``.
+    Two derivative terms turn the input position into the output acceleration,
+    so the block has a double zero at the origin. Order 4, biproper.
+    """
+    p = params or StructureParams()
+    w1, w2 = TWO_PI * p.f1_hz, TWO_PI * p.f2_hz
+    m1 = _second_order(w1, p.zeta1, [2.0 * p.zeta1 * w1, w1 * w1])
+    m2 = _second_order(w2, p.zeta2, [2.0 * p.zeta2 * w2, w2 * w2])
+    g = ct.tf([p.k_s, 0.0, 0.0], [1.0]) * m1 * m2
+    return ct.ss(g, inputs="y", outputs="c", name=name)
+
+
+def pi_controller(params: PIParams, *, name: str = "pi") -> ct.StateSpace:
+    """PI controller of the cylinder loop: input ``err`` (reference minus position), output ``e``."""
+    if params.ki > 0.0:
+        g = ct.tf([params.kp, params.ki], [1.0, 0.0])
+    else:
+        g = ct.tf([params.kp], [1.0])
+    return ct.ss(g, inputs="err", outputs="e", name=name)
+
+
+def position_scale(k_psf: float, *, name: str = "k_psf") -> ct.StateSpace:
+    """Position scale factor: handle position ``x`` -> cylinder reference ``r = K_PSF x``.
+
+    ``K_PSF`` is the ratio of the Omni's fore-aft workspace to the cylinder travel
+    (nominal 0.1097 for 71 mm); halving it doubles the workspace.
+    """
+    k = check_scalar("k_psf", k_psf, POSITIVE)
+    return ct.ss([], [], [], np.array([[k]]), inputs="x", outputs="r", name=name)

@@ -1,0 +1,84 @@
+"""The haptic device (Phantom Omni) and its limits, as named parameters.
+
+Defaults are the commonly published figures for the SensAble Phantom Omni
+(BRIEF section 6): fore-aft workspace about 70 mm (the paper's 71 mm), peak force
+3.3 N, continuous force 0.88 N, position resolution 0.055 mm, servo rate 1 kHz. A
+compensator whose force exceeds these limits on the family's worst member is not a
+valid design.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from robust.checks import POSITIVE, validate_fields
+
+__all__ = ["DeviceLimits", "ForceCheck", "check_force"]
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceLimits:
+    """Limits of the haptic handle.
+
+    Parameters
+    ----------
+    peak_force_n : float
+        Largest force the device can render, N (default 3.3).
+    continuous_force_n : float
+        Force it can hold continuously, N; compared with the RMS force (default 0.88).
+    workspace_mm : float
+        Fore-aft workspace, mm (default 71, the paper's value).
+    resolution_mm : float
+        Encoder position resolution, mm (default 0.055).
+    servo_rate_hz : float
+        Servo (sample) rate, Hz (default 1000).
+    """
+
+    peak_force_n: float = 3.3
+    continuous_force_n: float = 0.88
+    workspace_mm: float = 71.0
+    resolution_mm: float = 0.055
+    servo_rate_hz: float = 1000.0
+
+    def __post_init__(self):
+        validate_fields(self, {f.name: POSITIVE for f in dataclasses.fields(self)})
+
+    @property
+    def sample_time_s(self) -> float:
+        return 1.0 / self.servo_rate_hz
+
+
+@dataclasses.dataclass(frozen=True)
+class ForceCheck:
+    """Peak and RMS force of a force history against the device limits."""
+
+    peak_force_n: float
+    rms_force_n: float
+    peak_limit_n: float
+    continuous_limit_n: float
+
+    @property
+    def within_limits(self) -> bool:
+        return self.peak_force_n <= self.peak_limit_n and self.rms_force_n <= self.continuous_limit_n
+
+    def describe(self) -> str:
+        verdict = "within limits" if self.within_limits else "OVER the device limits"
+        return (
+            f"peak {self.peak_force_n:.3g} N (limit {self.peak_limit_n:g}), RMS {self.rms_force_n:.3g} N "
+            f"(continuous limit {self.continuous_limit_n:g}): {verdict}"
+        )
+
+
+def check_force(force_n: np.ndarray, limits: DeviceLimits | None = None) -> ForceCheck:
+    """Peak and RMS of a force history ``force_n`` (N) against ``limits``."""
+    limits = limits or DeviceLimits()
+    f = np.asarray(force_n, float)
+    if f.size == 0:
+        peak = rms = 0.0
+    elif not np.all(np.isfinite(f)):
+        peak = rms = float("inf")
+    else:
+        peak, rms = float(np.max(np.abs(f))), float(np.sqrt(np.mean(f**2)))
+    return ForceCheck(peak, rms, limits.peak_force_n, limits.continuous_force_n)
