@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robust.jsonio import atomic_write, atomic_write_json, atomic_write_text
 from robust.errors import ParameterError
+from robust.jsonio import atomic_write, atomic_write_json, atomic_write_text
 
 __all__ = ["register", "run"]
 

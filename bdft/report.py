@@ -6,21 +6,30 @@ import sys
 
 
 def register(sub) -> None:
-    p = sub.add_parser("report", help="run every design on the default family and write the comparison report",
-                       description="Run every shipped design on the same seeded sample of the default family, "
-                       "write their artifacts and one HTML page comparing them.")
-    p.add_argument("--samples", type=int, default=2000, help="family members (default: %(default)s)")
+    p = sub.add_parser(
+        "report",
+        help="run every design on the default family and write the comparison report",
+        description="Run every shipped design on the same seeded sample of the default family, "
+        "write their artifacts and one HTML page comparing them.",
+    )
+    p.add_argument(
+        "--samples", type=int, default=2000, help="family members (default: %(default)s)"
+    )
     p.add_argument("--seed", type=int, default=0, help="sampling seed (default: %(default)s)")
-    p.add_argument("--out", default="reports/out/designs", help="output folder (default: %(default)s)")
-    p.add_argument("--json", action="store_true", help="print one JSON object with every design's summary")
+    p.add_argument(
+        "--out", default="reports/out/designs", help="output folder (default: %(default)s)"
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print one JSON object with every design's summary"
+    )
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from pathlib import Path
 
-    from reports.designs import run_all_designs, write_design_report
     from bdft import print_json
+    from reports.designs import run_all_designs, write_design_report
 
     def progress(name):
         print(f"[bdft report] design {name} ...", file=sys.stderr, flush=True)
@@ -30,8 +39,15 @@ def run(args) -> int:
     path = write_design_report(runs, args.out, samples=args.samples, seed=args.seed)
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
-        print_json({"report": str(path), "designs": {k: (str(r) if isinstance(r, Exception) else r.to_json())
-                                                     for k, r in runs.items()}})
+        print_json(
+            {
+                "report": str(path),
+                "designs": {
+                    k: (str(r) if isinstance(r, Exception) else r.to_json())
+                    for k, r in runs.items()
+                },
+            }
+        )
     else:
         for k, r in runs.items():
             if isinstance(r, Exception):
@@ -39,7 +55,9 @@ def run(args) -> int:
             else:
                 e = r.evaluation
                 ho = r.details.get("held_out", {}).get("fraction_stable", float("nan"))
-                print(f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  worst Re {e.max_real_pole:+.3f}  "
-                      f"peak force {e.peak_force_n:.3g} N  rms {e.rms_force_n:.3g} N  order {r.order_reduced}")
+                print(
+                    f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  worst Re {e.max_real_pole:+.3f}  "
+                    f"peak force {e.peak_force_n:.3g} N  rms {e.rms_force_n:.3g} N  order {r.order_reduced}"
+                )
         print(f"report: {path}")
     return 0

@@ -12,16 +12,24 @@ def register(sub) -> None:
         description="Build the paper's loop, run the calibration search, check claims C1-C5 for each "
         "human variant and write one HTML page with its figures.",
     )
-    p.add_argument("--out", default="reports/out/reproduce", help="output folder (default: %(default)s)")
-    p.add_argument("--human", choices=["literal", "physical", "both"], default="both",
-                   help="human variant(s) to evaluate (default: %(default)s)")
-    p.add_argument("--json", action="store_true", help="print one JSON object with the claims and calibration")
+    p.add_argument(
+        "--out", default="reports/out/reproduce", help="output folder (default: %(default)s)"
+    )
+    p.add_argument(
+        "--human",
+        choices=["literal", "physical", "both"],
+        default="both",
+        help="human variant(s) to evaluate (default: %(default)s)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print one JSON object with the claims and calibration"
+    )
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from reports.reproduce import reproduce, result_to_json, write_reproduction_report
     from bdft import print_json
+    from reports.reproduce import reproduce, result_to_json, write_reproduction_report
 
     variants = ("literal", "physical") if args.human == "both" else (args.human,)
 

@@ -31,15 +31,35 @@ _nonneg_int = _int_at_least(0, "non-negative")
 
 def add_family_arguments(p, *, samples: int) -> None:
     """Options shared by ``validate`` and ``sweep``: family, sampling, plant files."""
-    p.add_argument("--samples", type=_positive_int, default=samples, help="number of members (default: %(default)s)")
-    p.add_argument("--seed", type=_nonneg_int, default=0, help="sampling seed, written into the output "
-                   "(default: %(default)s)")
-    p.add_argument("--human", choices=["literal", "physical"], default="physical",
-                   help="human variant of every member (default: %(default)s)")
-    p.add_argument("--plant-file", action="append", default=[], metavar="FILE",
-                   help="component fit (kind 'bdft-component-fit') whose parameters replace that component's "
-                        "nominal values; may be repeated, one per component")
-    p.add_argument("--chunk", type=_positive_int, default=None, help="members per batch (default: 20000)")
+    p.add_argument(
+        "--samples",
+        type=_positive_int,
+        default=samples,
+        help="number of members (default: %(default)s)",
+    )
+    p.add_argument(
+        "--seed",
+        type=_nonneg_int,
+        default=0,
+        help="sampling seed, written into the output (default: %(default)s)",
+    )
+    p.add_argument(
+        "--human",
+        choices=["literal", "physical"],
+        default="physical",
+        help="human variant of every member (default: %(default)s)",
+    )
+    p.add_argument(
+        "--plant-file",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="component fit (kind 'bdft-component-fit') whose parameters replace that component's "
+        "nominal values; may be repeated, one per component",
+    )
+    p.add_argument(
+        "--chunk", type=_positive_int, default=None, help="members per batch (default: 20000)"
+    )
 
 
 def register(sub) -> None:
@@ -51,11 +71,21 @@ def register(sub) -> None:
         "the largest real part of any pole, the minimum damping ratio in the BDFT band and the worst member.",
     )
     add_family_arguments(p, samples=10_000)
-    p.add_argument("--method", choices=_METHODS, default="lhs", help="sampling method (default: %(default)s)")
-    p.add_argument("--controller", metavar="FILE", default=None,
-                   help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact)")
-    p.add_argument("--workspace-factor", type=float, default=1.0,
-                   help="handle workspace multiple: K_PSF = 0.1097 / factor (default: %(default)s)")
+    p.add_argument(
+        "--method", choices=_METHODS, default="lhs", help="sampling method (default: %(default)s)"
+    )
+    p.add_argument(
+        "--controller",
+        metavar="FILE",
+        default=None,
+        help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact)",
+    )
+    p.add_argument(
+        "--workspace-factor",
+        type=float,
+        default=1.0,
+        help="handle workspace multiple: K_PSF = 0.1097 / factor (default: %(default)s)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object with the metrics")
     p.set_defaults(func=run)
 
@@ -73,23 +103,34 @@ def progress_bar(total: int, desc: str):
     """A tqdm progress bar on stderr (shown on terminals for long runs only)."""
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit="member", unit_scale=True, file=sys.stderr,
-                disable=None if total >= 100_000 else True, leave=False)
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit="member",
+        unit_scale=True,
+        file=sys.stderr,
+        disable=None if total >= 100_000 else True,
+        leave=False,
+    )
 
 
 def run(args) -> int:
+    from bdft import print_json
     from uncertainty import DEFAULT_CHUNK, sample, validate_family
     from uncertainty.files import load_controller
-
-    from bdft import print_json
 
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()
     samples = sample(family.parameters, args.samples, method=args.method, seed=args.seed)
     with progress_bar(len(samples), "validate") as bar:
-        res = validate_family(family, samples, controller=controller, chunk=args.chunk or DEFAULT_CHUNK,
-                              progress=bar.update)
+        res = validate_family(
+            family,
+            samples,
+            controller=controller,
+            chunk=args.chunk or DEFAULT_CHUNK,
+            progress=bar.update,
+        )
     elapsed = time.perf_counter() - t0
     obj = res.to_json()
     obj.update(
@@ -104,10 +145,14 @@ def run(args) -> int:
     if args.json:
         print_json(obj)
         return 0
-    print(f"family: {family.name}, {res.samples} members ({res.method}, seed {res.seed}), K_PSF {res.k_psf:.5g}")
+    print(
+        f"family: {family.name}, {res.samples} members ({res.method}, seed {res.seed}), K_PSF {res.k_psf:.5g}"
+    )
     print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")
     print(f"  max real pole     {res.max_real_pole:.6g} 1/s")
-    print(f"  min damping       {res.min_damping:.6g}  (poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)")
+    print(
+        f"  min damping       {res.min_damping:.6g}  (poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
+    )
     print("  worst member:")
     for k, v in res.worst.items():
         print(f"    {k:18s} {v:.6g}")

@@ -48,7 +48,7 @@ def time_bare_eigvals(family, values, chunk: int) -> float:
     """Seconds for numpy.linalg.eigvals alone on the members' pre-built matrices."""
     total = 0.0
     for start in range(0, len(values), chunk):
-        A = closed_loop_matrices(family, values[start:start + chunk])
+        A = closed_loop_matrices(family, values[start : start + chunk])
         t0 = time.perf_counter()
         np.linalg.eigvals(A)
         total += time.perf_counter() - t0
@@ -59,21 +59,29 @@ def time_bare_eigvals(family, values, chunk: int) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
-    parser.add_argument("--subset", type=int, default=100, help="members timed for python-control (a)")
+    parser.add_argument(
+        "--subset", type=int, default=100, help="members timed for python-control (a)"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--chunk", type=int, default=DEFAULT_CHUNK)
     args = parser.parse_args(argv)
 
     family = default_family("physical")
-    print(f"python {platform.python_version()}, numpy {np.__version__}, control {ct.__version__}, "
-          f"{platform.machine()}, chunk {args.chunk}, seed {args.seed}")
+    print(
+        f"python {platform.python_version()}, numpy {np.__version__}, control {ct.__version__}, "
+        f"{platform.machine()}, chunk {args.chunk}, seed {args.seed}"
+    )
     probe = sample(family.parameters, args.subset, method="mc", seed=args.seed)
     per_member_a = time_python_control(family, probe.values, args.subset)
     rate_a = 1.0 / per_member_a
-    print(f"(a) python-control per member (BDFTLoop.system + control.poles), {args.subset} members timed: "
-          f"{per_member_a * 1e3:.2f} ms/member = {rate_a:,.0f} members/s")
-    print(f"{'members':>9} {'sample s':>9} {'validate s':>11} {'members/s':>11} {'(a) est. s':>11} "
-          f"{'x vs (a)':>9} {'(b) eig s':>10} {'(b) m/s':>11} {'vs (b)':>7} {'peak RSS MiB':>13}")
+    print(
+        f"(a) python-control per member (BDFTLoop.system + control.poles), {args.subset} members timed: "
+        f"{per_member_a * 1e3:.2f} ms/member = {rate_a:,.0f} members/s"
+    )
+    print(
+        f"{'members':>9} {'sample s':>9} {'validate s':>11} {'members/s':>11} {'(a) est. s':>11} "
+        f"{'x vs (a)':>9} {'(b) eig s':>10} {'(b) m/s':>11} {'vs (b)':>7} {'peak RSS MiB':>13}"
+    )
     for n in args.sizes:
         t0 = time.perf_counter()
         S = sample(family.parameters, n, method="lhs", seed=args.seed)
@@ -84,9 +92,11 @@ def main(argv=None) -> int:
         rss = peak_rss_mib()
         t_b = time_bare_eigvals(family, S.values, args.chunk)
         rate = n / t_val
-        print(f"{n:>9d} {t_sample:>9.2f} {t_val:>11.2f} {rate:>11,.0f} {n * per_member_a:>11.0f} "
-              f"{rate / rate_a:>9.0f} {t_b:>10.2f} {n / t_b:>11,.0f} {t_val / t_b:>7.2f} {rss:>13.0f}",
-              flush=True)
+        print(
+            f"{n:>9d} {t_sample:>9.2f} {t_val:>11.2f} {rate:>11,.0f} {n * per_member_a:>11.0f} "
+            f"{rate / rate_a:>9.0f} {t_b:>10.2f} {n / t_b:>11,.0f} {t_val / t_b:>7.2f} {rss:>13.0f}",
+            flush=True,
+        )
         del S, res
     print(f"peak resident memory of the run: {peak_rss_mib():.0f} MiB")
     return 0

@@ -36,8 +36,8 @@ import control
 import numpy as np
 
 import robust
-from robust.synthesis.genplant import as_generalized_plant
 from robust.analysis.norms import hinf_norm, spectral_abscissa
+from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.testing import random_generalized_plant
 
 NMEAS, NCON = 2, 2

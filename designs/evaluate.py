@@ -19,14 +19,20 @@ import control as ct
 import numpy as np
 
 from robust.analysis.loops import frequency_response, loop_poles
-from robust.model.components import K_PSF_NOMINAL
-from robust.errors import ModelStructureError
-from robust.model.device import DeviceLimits, check_force
-from robust.synthesis.forcefb import handle_units_per_m, intent_filter
-from robust.model.loop import BDFTLoop
 from robust.analysis.simulation import SweptSine, simulate
+from robust.errors import ModelStructureError
+from robust.model.components import K_PSF_NOMINAL
+from robust.model.device import DeviceLimits, check_force
+from robust.model.loop import BDFTLoop
+from robust.synthesis.forcefb import handle_units_per_m, intent_filter
 
-__all__ = ["DesignEvaluation", "evaluate_design", "SUPPRESSION_BAND_HZ", "TRACKING_BAND_HZ", "intended_motion"]
+__all__ = [
+    "DesignEvaluation",
+    "evaluate_design",
+    "SUPPRESSION_BAND_HZ",
+    "TRACKING_BAND_HZ",
+    "intended_motion",
+]
 
 SUPPRESSION_BAND_HZ = (5.0, 7.5)
 TRACKING_BAND_HZ = (0.05, 2.0)
@@ -58,7 +64,9 @@ class DesignEvaluation:
         return dataclasses.asdict(self)
 
 
-def intended_motion(t: np.ndarray, amplitude: float, bandwidth_hz: float, *, seed: int) -> np.ndarray:
+def intended_motion(
+    t: np.ndarray, amplitude: float, bandwidth_hz: float, *, seed: int
+) -> np.ndarray:
     """Realistic intended handle motion: seeded white noise through the 0-2 Hz intent filter.
 
     Scaled so its RMS is ``amplitude / sqrt(2)`` (that of a sine of that amplitude).
@@ -85,8 +93,16 @@ def frequency_metrics(loop: BDFTLoop, controller) -> tuple[float, float]:
     return sup, trk
 
 
-def force_histories(loop: BDFTLoop, controller, *, amplitude: float, seed: int, duration_s: float = 20.0,
-                    fs_hz: float = 1000.0, intent_bandwidth_hz: float = 2.0) -> list[np.ndarray]:
+def force_histories(
+    loop: BDFTLoop,
+    controller,
+    *,
+    amplitude: float,
+    seed: int,
+    duration_s: float = 20.0,
+    fs_hz: float = 1000.0,
+    intent_bandwidth_hz: float = 2.0,
+) -> list[np.ndarray]:
     """Handle force for a chirp and for a realistic intended motion on one member."""
     if controller is None or "f" not in controller.output_labels:
         return []
@@ -145,7 +161,9 @@ def evaluate_design(
     worst_stable = stable_idx[np.argsort(val.max_real[stable_idx])[::-1][:n_force_members]]
     members = [nominal] + [family.member(samples.values[i]) for i in worst_stable]
     forces = []
-    workspace_factor = K_PSF_NOMINAL / family.k_psf  # the operator uses the workspace the design gives
+    workspace_factor = (
+        K_PSF_NOMINAL / family.k_psf
+    )  # the operator uses the workspace the design gives
     for i, m in enumerate(members):
         if not loop_poles(m, controller=controller).stable:
             continue
@@ -164,11 +182,23 @@ def evaluate_design(
             within = False
             notes.append("no stable member to simulate: force undefined")
     return DesignEvaluation(
-        name=name, samples=val.samples, seed=val.seed, method=val.method, k_psf=family.k_psf,
-        fraction_stable=val.fraction_stable, max_real_pole=val.max_real_pole, min_damping=val.min_damping,
-        worst=val.worst, suppression_db=sup, tracking_error=trk, peak_force_n=peak, rms_force_n=rms,
-        force_within_limits=within, force_members=len(forces) // 2,
-        order=0 if controller is None else int(controller.nstates), notes=tuple(notes),
+        name=name,
+        samples=val.samples,
+        seed=val.seed,
+        method=val.method,
+        k_psf=family.k_psf,
+        fraction_stable=val.fraction_stable,
+        max_real_pole=val.max_real_pole,
+        min_damping=val.min_damping,
+        worst=val.worst,
+        suppression_db=sup,
+        tracking_error=trk,
+        peak_force_n=peak,
+        rms_force_n=rms,
+        force_within_limits=within,
+        force_members=len(forces) // 2,
+        order=0 if controller is None else int(controller.nstates),
+        notes=tuple(notes),
     )
 
 

@@ -14,9 +14,9 @@ import dataclasses
 import numpy as np
 
 from robust.analysis.loops import loop_poles
+from robust.analysis.reduction import balanced_truncation
 from robust.model.device import DeviceLimits
 from robust.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
-from robust.analysis.reduction import balanced_truncation
 
 __all__ = ["HinfDesign", "design_hinf_nominal", "design_hinf_robust", "reduce_controller"]
 
@@ -59,7 +59,9 @@ def reduce_controller(K, members, *, rtol: float = 0.01):
     return best
 
 
-def design_hinf_nominal(family, *, weights: ForceFeedbackWeights | None = None, limits: DeviceLimits | None = None):
+def design_hinf_nominal(
+    family, *, weights: ForceFeedbackWeights | None = None, limits: DeviceLimits | None = None
+):
     """Nominal H-infinity force feedback: LMI synthesis on the family's nominal member."""
     from robust.synthesis.hinfsyn import hinfsyn_lmi
 
@@ -67,14 +69,31 @@ def design_hinf_nominal(family, *, weights: ForceFeedbackWeights | None = None, 
     nominal = family.member(family.nominal_values())
     res = hinfsyn_lmi(force_feedback_plant(nominal, w, limits))
     K = as_loop_controller(res.K, name="hinf_nominal")
-    solver = {"method": "LMI (Gahinet-Apkarian 1994), Clarabel/SCS", "solver": res.solver, "status": res.status,
-              "gamma_bound": res.gamma_bound, "gamma_verified": res.gamma}
+    solver = {
+        "method": "LMI (Gahinet-Apkarian 1994), Clarabel/SCS",
+        "solver": res.solver,
+        "status": res.status,
+        "gamma_bound": res.gamma_bound,
+        "gamma_verified": res.gamma,
+    }
     return HinfDesign(K, res.gamma, res.gamma_bound, (res.gamma,), solver, w, 1)
 
 
-def design_hinf_robust(family, samples, *, weights=None, limits=None, K0=None, margin: float = 0.15,
-                       rounds: int = 10, add_per_round: int = 12, force_margin: float = 0.8,
-                       reference_correction: bool = True, tracking_error: float = 0.5, progress=None):
+def design_hinf_robust(
+    family,
+    samples,
+    *,
+    weights=None,
+    limits=None,
+    K0=None,
+    margin: float = 0.15,
+    rounds: int = 10,
+    add_per_round: int = 12,
+    force_margin: float = 0.8,
+    reference_correction: bool = True,
+    tracking_error: float = 0.5,
+    progress=None,
+):
     """Robust H-infinity force feedback: the nominal LMI design made to hold over the family's members.
 
     1. ``K0`` (default: :func:`design_hinf_nominal`, reduced by balanced truncation
@@ -99,60 +118,111 @@ def design_hinf_robust(family, samples, *, weights=None, limits=None, K0=None, m
     The guarantee is per sampled member (closed-loop eigenvalues); nothing is claimed
     between samples, so callers validate on a held-out sample too.
     """
-    from robust.synthesis.genplant import as_generalized_plant
-    from robust.analysis.norms import hinf_norm
-    from robust.synthesis.forcefb import handle_units_per_m
     import control as ct
 
-    from robust.analysis.loops import frequency_response
     from designs.evaluate import TRACKING_BAND_HZ
     from designs.multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
+    from robust.analysis.loops import frequency_response
+    from robust.analysis.norms import hinf_norm
+    from robust.synthesis.forcefb import handle_units_per_m
+    from robust.synthesis.genplant import as_generalized_plant
 
     w = weights or ForceFeedbackWeights()
     nominal = family.member(family.nominal_values())
     if K0 is None:
-        K0, _ = reduce_controller(design_hinf_nominal(family, weights=w, limits=limits).controller, [nominal])
+        K0, _ = reduce_controller(
+            design_hinf_nominal(family, weights=w, limits=limits).controller, [nominal]
+        )
     lim = limits or DeviceLimits()
     tracking = None
     scales = None
     if reference_correction:
-        K0 = ct.ss(K0.A, K0.B, np.vstack([K0.C, np.zeros((1, K0.nstates))]), np.vstack([K0.D, np.zeros((1, K0.ninputs))]),
-                   inputs=K0.input_labels, outputs=[*K0.output_labels, "r_corr"], name=K0.name)
+        K0 = ct.ss(
+            K0.A,
+            K0.B,
+            np.vstack([K0.C, np.zeros((1, K0.nstates))]),
+            np.vstack([K0.D, np.zeros((1, K0.ninputs))]),
+            inputs=K0.input_labels,
+            outputs=[*K0.output_labels, "r_corr"],
+            name=K0.name,
+        )
         scales = {"r_corr": family.k_psf}
         ft = np.geomspace(*TRACKING_BAND_HZ, 30)
-        tracking = TrackingBudget(y_ref=frequency_response(nominal.system(bdft=False), ft), max_error=tracking_error,
-                                  f_hz=ft)
+        tracking = TrackingBudget(
+            y_ref=frequency_response(nominal.system(bdft=False), ft),
+            max_error=tracking_error,
+            f_hz=ft,
+        )
     budget = ForceBudget(
         amplitude=w.intent_fraction * (lim.workspace_mm / 2) * 1e-3 * handle_units_per_m(nominal),
-        peak_n=force_margin * lim.peak_force_n, rms_n=force_margin * lim.continuous_force_n,
-        f_hz=np.geomspace(0.1, 8.0, 30), output=list(K0.output_labels).index("f"))
-    tuned = tune_spectral_abscissa(family, samples, K0, margin=margin, rounds=rounds, add_per_round=add_per_round,
-                                   force=budget, tracking=tracking, output_scales=scales,
-                                   force_while_stabilising=reference_correction, progress=progress)
+        peak_n=force_margin * lim.peak_force_n,
+        rms_n=force_margin * lim.continuous_force_n,
+        f_hz=np.geomspace(0.1, 8.0, 30),
+        output=list(K0.output_labels).index("f"),
+    )
+    tuned = tune_spectral_abscissa(
+        family,
+        samples,
+        K0,
+        margin=margin,
+        rounds=rounds,
+        add_per_round=add_per_round,
+        force=budget,
+        tracking=tracking,
+        output_scales=scales,
+        force_while_stabilising=reference_correction,
+        progress=progress,
+    )
     K = as_loop_controller(tuned.controller, name="hinf_robust")
     Kp = _as_plant_controller(K)
     gammas = []
     for row in tuned.design_rows:
-        gp = as_generalized_plant(force_feedback_plant(family.member(row), w, limits,
-                                                       reference_correction=reference_correction))
+        gp = as_generalized_plant(
+            force_feedback_plant(
+                family.member(row), w, limits, reference_correction=reference_correction
+            )
+        )
         gammas.append(hinf_norm(gp.closed_loop(Kp)))
     gammas = np.array(gammas)
-    solver = {"method": "nominal LMI H-infinity design (Gahinet & Apkarian 1994), balanced truncation, then "
-              "multi-model spectral-abscissa tuning over sampled members with scenario enlargement "
-              "(HIFOO stabilisation phase: Burke, Henrion, Lewis & Overton 2006; BFGS, Lewis & Overton 2013)",
-              "margin_rad_s": margin, "converged": tuned.converged, "force_margin": force_margin,
-              "reference_correction": reference_correction, "tracking_error_budget": tracking_error,
-              "rounds": [dict(zip(("design_members", "worst_sampled_max_real", "fraction_stable"), h))
-                         for h in tuned.history],
-              "design_member_alpha_max": float(tuned.alpha_design.max()), "force_phase": tuned.force_phase,
-              "member_gammas": gammas.tolist(), "gamma_nominal": float(gammas[0])}
-    return HinfDesign(K, float(gammas.max()), float("nan"), tuple(float(g) for g in gammas), solver, w,
-                      len(tuned.design_rows))
+    solver = {
+        "method": "nominal LMI H-infinity design (Gahinet & Apkarian 1994), balanced truncation, then "
+        "multi-model spectral-abscissa tuning over sampled members with scenario enlargement "
+        "(HIFOO stabilisation phase: Burke, Henrion, Lewis & Overton 2006; BFGS, Lewis & Overton 2013)",
+        "margin_rad_s": margin,
+        "converged": tuned.converged,
+        "force_margin": force_margin,
+        "reference_correction": reference_correction,
+        "tracking_error_budget": tracking_error,
+        "rounds": [
+            dict(zip(("design_members", "worst_sampled_max_real", "fraction_stable"), h))
+            for h in tuned.history
+        ],
+        "design_member_alpha_max": float(tuned.alpha_design.max()),
+        "force_phase": tuned.force_phase,
+        "member_gammas": gammas.tolist(),
+        "gamma_nominal": float(gammas[0]),
+    }
+    return HinfDesign(
+        K,
+        float(gammas.max()),
+        float("nan"),
+        tuple(float(g) for g in gammas),
+        solver,
+        w,
+        len(tuned.design_rows),
+    )
 
 
 def _as_plant_controller(K):
     import control as ct
 
     rename = {"x": "x_m", "c": "c_m", "y": "y_m"}
-    return ct.ss(K.A, K.B, K.C, K.D, inputs=[rename[s] for s in K.input_labels], outputs=list(K.output_labels),
-                 name=K.name)
+    return ct.ss(
+        K.A,
+        K.B,
+        K.C,
+        K.D,
+        inputs=[rename[s] for s in K.input_labels],
+        outputs=list(K.output_labels),
+        name=K.name,
+    )

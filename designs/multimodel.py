@@ -39,8 +39,16 @@ import scipy.optimize as so
 
 from robust.errors import ModelStructureError, ParameterError
 
-__all__ = ["OpenLoopData", "open_loop_data", "ForceBudget", "TrackingBudget", "closed_loop_response", "force_response",
-           "RobustTuning", "tune_spectral_abscissa"]
+__all__ = [
+    "OpenLoopData",
+    "open_loop_data",
+    "ForceBudget",
+    "TrackingBudget",
+    "closed_loop_response",
+    "force_response",
+    "RobustTuning",
+    "tune_spectral_abscissa",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,8 +72,10 @@ def open_loop_data(members, K) -> OpenLoopData:
         G = open_plant(loop, K)  # inputs u, K's outputs; outputs y, K's inputs
         A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
         if np.any(D[:, 1:] != 0) or D[0, 0] != 0:
-            raise ModelStructureError("the plant seen from the controller has a direct feedthrough; "
-                                      "the affine closed-loop form needs D = 0")
+            raise ModelStructureError(
+                "the plant seen from the controller has a direct feedthrough; "
+                "the affine closed-loop form needs D = 0"
+            )
         As.append(A)
         Bs.append(B[:, 1:])
         Cs.append(C[1:])
@@ -78,7 +88,12 @@ def open_loop_data(members, K) -> OpenLoopData:
 
 
 def _omega(K):
-    return np.block([[np.asarray(K.A, float), np.asarray(K.B, float)], [np.asarray(K.C, float), np.asarray(K.D, float)]])
+    return np.block(
+        [
+            [np.asarray(K.A, float), np.asarray(K.B, float)],
+            [np.asarray(K.C, float), np.asarray(K.D, float)],
+        ]
+    )
 
 
 def _closed_loop(data: OpenLoopData, Om, nk):
@@ -133,7 +148,9 @@ def closed_loop_response(data: OpenLoopData, Om, nk, w, out="y", *, grad: bool =
     Bu = np.concatenate([data.Bu, np.zeros((N, nk))], axis=1)  # (N, n_cl)
     Bcl = Bu + np.einsum("nij,jk,nk->ni", Bb, Om, Du)
     lhs = 1j * w[None, :, None, None] * np.eye(n) - Acl[:, None]
-    RB = np.linalg.solve(lhs, np.broadcast_to(Bcl[:, None, :, None], (N, w.size, n, 1)))[..., 0]  # (N, nw, n)
+    RB = np.linalg.solve(lhs, np.broadcast_to(Bcl[:, None, :, None], (N, w.size, n, 1)))[
+        ..., 0
+    ]  # (N, nw, n)
     M = np.einsum("nij,nwj->nwi", Cb, RB) + Du[:, None, :]
     if out == "y":
         cy = np.concatenate([data.Cy, np.zeros((N, nk))], axis=1)  # (N, n_cl)
@@ -146,7 +163,9 @@ def closed_loop_response(data: OpenLoopData, Om, nk, w, out="y", *, grad: bool =
         q = np.einsum("i,nij->nj", E @ Om, Cb)  # (N, n_cl)
     if not grad:
         return T, None, None
-    qR = np.linalg.solve(np.swapaxes(lhs, -1, -2), np.broadcast_to(q[:, None, :, None], (N, w.size, n, 1)))[..., 0]
+    qR = np.linalg.solve(
+        np.swapaxes(lhs, -1, -2), np.broadcast_to(q[:, None, :, None], (N, w.size, n, 1))
+    )[..., 0]
     p = E[None, None, :] + np.einsum("nwj,njk->nwk", qR, Bb)
     return T, p, M
 
@@ -163,10 +182,23 @@ def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = 
 
 
 def _minimise(fun, K, unit, nk, K0, max_iter):
-    res = so.minimize(fun, (_omega(K) / unit).ravel(), jac=True, method="BFGS", options={"maxiter": max_iter, "gtol": 1e-9})
+    res = so.minimize(
+        fun,
+        (_omega(K) / unit).ravel(),
+        jac=True,
+        method="BFGS",
+        options={"maxiter": max_iter, "gtol": 1e-9},
+    )
     Om = res.x.reshape(unit.shape) * unit
-    return ct.ss(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:], inputs=K0.input_labels,
-                 outputs=K0.output_labels, name=K0.name)
+    return ct.ss(
+        Om[:nk, :nk],
+        Om[:nk, nk:],
+        Om[nk:, :nk],
+        Om[nk:, nk:],
+        inputs=K0.input_labels,
+        outputs=K0.output_labels,
+        name=K0.name,
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,8 +223,17 @@ class TrackingBudget:
         ex = np.maximum(rel / self.max_error - 1.0, 0.0)
         val = np.sum(np.mean(ex**2, axis=1))
         # d rel / d|err|^2 = 1 / (2 |err| |y_ref|)
-        coef = np.where(ex > 0, 2 * ex / self.max_error / (2 * np.maximum(np.abs(err), 1e-300)
-                                                           * np.abs(self.y_ref)[None, :]), 0.0) / w.size
+        coef = (
+            np.where(
+                ex > 0,
+                2
+                * ex
+                / self.max_error
+                / (2 * np.maximum(np.abs(err), 1e-300) * np.abs(self.y_ref)[None, :]),
+                0.0,
+            )
+            / w.size
+        )
         grad = np.einsum("nw,nwij->ij", coef, _sq_gradient(err, p, M))
         return self.weight * val, self.weight * grad
 
@@ -245,10 +286,23 @@ class RobustTuning:
     force_phase: dict | None = None  # outcome of the force-budget phase (None if not run)
 
 
-def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: float = 0.05, prox: float = 1e-3,
-                           rounds: int = 6, add_per_round: int = 12, max_iter: int = 300, force=None,
-                           tracking=None, force_while_stabilising: bool = True, output_scales=None,
-                           progress=None) -> RobustTuning:
+def tune_spectral_abscissa(
+    family,
+    samples,
+    K0,
+    *,
+    margin: float = 0.3,
+    tau: float = 0.05,
+    prox: float = 1e-3,
+    rounds: int = 6,
+    add_per_round: int = 12,
+    max_iter: int = 300,
+    force=None,
+    tracking=None,
+    force_while_stabilising: bool = True,
+    output_scales=None,
+    progress=None,
+) -> RobustTuning:
     """Tune ``K0``'s entries so that every sampled member's closed loop has real parts below ``-margin``.
 
     Parameters
@@ -298,7 +352,9 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
     converged = False
     second_phase = False
     data = None
-    nominal_data = open_loop_data([family.member(rows[0])], K0) if (force or tracking) is not None else None
+    nominal_data = (
+        open_loop_data([family.member(rows[0])], K0) if (force or tracking) is not None else None
+    )
 
     def fun(theta):
         Om = theta.reshape(Om0.shape) * unit
@@ -346,10 +402,15 @@ def tune_spectral_abscissa(family, samples, K0, *, margin: float = 0.3, tau: flo
         second_phase = True
         K_f = _minimise(fun, K, unit, nk, K0, max_iter)
         v = validate_family(family, samples, controller=K_f)
-        force_phase = {"accepted": bool(v.max_real.max() < -margin), "worst_sampled_max_real": float(v.max_real.max()),
-                       "fraction_stable": float(v.fraction_stable)}
+        force_phase = {
+            "accepted": bool(v.max_real.max() < -margin),
+            "worst_sampled_max_real": float(v.max_real.max()),
+            "fraction_stable": float(v.fraction_stable),
+        }
         if force_phase["accepted"]:
             K = K_f
     data = open_loop_data([family.member(x) for x in rows], K)
     alpha = spectral_abscissas(data, _omega(K), nk)
-    return RobustTuning(K, np.array(rows), alpha, tuple(history), len(history), converged, force_phase)
+    return RobustTuning(
+        K, np.array(rows), alpha, tuple(history), len(history), converged, force_phase
+    )

@@ -8,8 +8,8 @@ import math
 import control as ct
 import numpy as np
 
-from robust.errors import ModelStructureError
 from robust.analysis.loops import loop_poles
+from robust.errors import ModelStructureError
 from robust.model.loop import BDFTLoop
 
 __all__ = [
@@ -33,7 +33,9 @@ class WorkspaceResult:
     max_real_pole: tuple[float, ...]
 
 
-def design_workspace(family, samples, *, factors=None, refine: int = 12, margin: float = 0.01) -> WorkspaceResult:
+def design_workspace(
+    family, samples, *, factors=None, refine: int = 12, margin: float = 0.01
+) -> WorkspaceResult:
     """Smallest workspace factor (``K_PSF = 0.1097 / factor``) that stabilises every sampled member.
 
     "Stabilises" means every closed-loop pole has real part below ``-margin`` rad/s
@@ -47,7 +49,17 @@ def design_workspace(family, samples, *, factors=None, refine: int = 12, margin:
     """
     from uncertainty.batched import validate_family
 
-    default = list(np.arange(1.0, 10.01, 0.5)) + [12.0, 15.0, 20.0, 30.0, 50.0, 70.0, 100.0, 150.0, 200.0]
+    default = list(np.arange(1.0, 10.01, 0.5)) + [
+        12.0,
+        15.0,
+        20.0,
+        30.0,
+        50.0,
+        70.0,
+        100.0,
+        150.0,
+        200.0,
+    ]
     grid = list(factors) if factors is not None else default
     fr, mr = [], []
 
@@ -83,11 +95,15 @@ def signed_handle_units_per_m(loop: BDFTLoop) -> float:
     """Handle units per metre of hand motion, with the sign of the handle axis: ``sigma*kappa*h_gain``."""
     h_gain = getattr(getattr(loop.human, "params", None), "h_gain", None)
     if h_gain is None:
-        raise ModelStructureError(f"the {loop.human.variant!r} human has no metric unit gain (h_gain)")
+        raise ModelStructureError(
+            f"the {loop.human.variant!r} human has no metric unit gain (h_gain)"
+        )
     return loop.calibration.handle_sign * loop.calibration.loop_scale * h_gain
 
 
-def virtual_damping_controller(loop: BDFTLoop, damping: float, stiffness: float, *, rolloff_hz: float = 50.0) -> ct.StateSpace:
+def virtual_damping_controller(
+    loop: BDFTLoop, damping: float, stiffness: float, *, rolloff_hz: float = 50.0
+) -> ct.StateSpace:
     """Force rendered by the handle: ``f = -(b s + k) / (tau s + 1) * x_m`` (x_m: handle position in m).
 
     Parameters
@@ -110,8 +126,16 @@ def virtual_damping_controller(loop: BDFTLoop, damping: float, stiffness: float,
     return ct.ss(g, inputs="x", outputs="f", name="virtual_damping")
 
 
-def design_virtual_damping(family, samples, *, dampings=(0, 1, 2, 5, 10, 20, 40, 80), stiffnesses=(0, 25, 50, 100, 200, 400),
-                           limits=None, intent_fraction: float = 0.25, seed: int = 0):
+def design_virtual_damping(
+    family,
+    samples,
+    *,
+    dampings=(0, 1, 2, 5, 10, 20, 40, 80),
+    stiffnesses=(0, 25, 50, 100, 200, 400),
+    limits=None,
+    intent_fraction: float = 0.25,
+    seed: int = 0,
+):
     """Grid search of virtual damping and stiffness over the family, within the device's force limits.
 
     Every pair is validated on ``samples``; candidates are ranked by fraction of
@@ -128,10 +152,9 @@ def design_virtual_damping(family, samples, *, dampings=(0, 1, 2, 5, 10, 20, 40,
         ``(damping, stiffness, fraction_stable, max_real_pole)`` for every pair.
     within_limits : bool
     """
-    from uncertainty.batched import validate_family
-
-    from robust.model.device import DeviceLimits, check_force
     from designs.evaluate import force_histories
+    from robust.model.device import DeviceLimits, check_force
+    from uncertainty.batched import validate_family
 
     lim = limits or DeviceLimits()
     nominal = family.member(family.nominal_values())
@@ -148,8 +171,10 @@ def design_virtual_damping(family, samples, *, dampings=(0, 1, 2, 5, 10, 20, 40,
         if not loop_poles(nominal, controller=K).stable:
             continue
         hist = force_histories(nominal, K, amplitude=amp, seed=seed)
-        if hist and check_force(np.concatenate(hist), lim).within_limits and all(
-            np.sqrt(np.mean(np.asarray(h) ** 2)) <= lim.continuous_force_n for h in hist
+        if (
+            hist
+            and check_force(np.concatenate(hist), lim).within_limits
+            and all(np.sqrt(np.mean(np.asarray(h) ** 2)) <= lim.continuous_force_n for h in hist)
         ):
             return b, k, K, table, True
     b, k = ranked[0][:2]
@@ -167,4 +192,12 @@ def cancellation_controller(loop: BDFTLoop) -> ct.StateSpace:
     ic = H.input_labels.index("c")
     cal = loop.calibration
     g = -loop.k_psf * cal.handle_sign * cal.loop_scale
-    return ct.ss(H.A, H.B[:, [ic]], g * H.C, g * H.D[:, [ic]], inputs="c", outputs="r_corr", name="cancellation")
+    return ct.ss(
+        H.A,
+        H.B[:, [ic]],
+        g * H.C,
+        g * H.D[:, [ic]],
+        inputs="c",
+        outputs="r_corr",
+        name="cancellation",
+    )

@@ -3,4 +3,10 @@
 from reports.html import HtmlPage, write_report_dir
 from reports.reproduce import ReproductionResult, reproduce, write_reproduction_report
 
-__all__ = ["HtmlPage", "write_report_dir", "ReproductionResult", "reproduce", "write_reproduction_report"]
+__all__ = [
+    "HtmlPage",
+    "write_report_dir",
+    "ReproductionResult",
+    "reproduce",
+    "write_reproduction_report",
+]

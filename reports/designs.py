@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 
-from robust.model.components import StructureParams
-from robust.errors import BDFTError
 from reports.html import HtmlPage, write_report_dir
+from robust.errors import BDFTError
+from robust.model.components import StructureParams
 
 __all__ = ["run_all_designs", "write_design_report"]
 
@@ -28,8 +27,8 @@ def run_all_designs(*, samples: int = 2000, seed: int = 0, out_dir=None, names=N
 
 
 def _ratio_envelope(family, values, controller, freqs):
-    from robust.analysis.loops import loop_poles
     from designs.evaluate import _ratio
+    from robust.analysis.loops import loop_poles
 
     curves = []
     for row in values:
@@ -42,18 +41,19 @@ def _ratio_envelope(family, values, controller, freqs):
 def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
     import matplotlib.pyplot as plt
 
-    from uncertainty import default_family, sample
-    from uncertainty.batched import batched_poles
-
     from designs.evaluate import force_histories
     from robust.synthesis.forcefb import handle_units_per_m
+    from uncertainty import default_family, sample
+    from uncertainty.batched import batched_poles
 
     ok = {k: r for k, r in runs.items() if not isinstance(r, Exception)}
     n_show = min(samples, 400)
     fig, axes = plt.subplots(1, len(ok), figsize=(3.2 * len(ok), 3.4), sharey=True, squeeze=False)
     for ax, (name, run) in zip(axes[0], ok.items()):
         fam = default_family(k_psf=run.evaluation.k_psf)
-        vals = sample(fam.parameters, samples, method=run.evaluation.method, seed=seed).values[:n_show]
+        vals = sample(fam.parameters, samples, method=run.evaluation.method, seed=seed).values[
+            :n_show
+        ]
         p = batched_poles(fam, vals, controller=run.controller).ravel()
         p = p[np.abs(p.imag) / (2 * np.pi) < 15]
         ax.plot(p.real, p.imag / (2 * np.pi), ".", ms=1.5, alpha=0.4)
@@ -64,7 +64,11 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
         ax.set_xlabel("real part [rad/s]")
     axes[0, 0].set_ylabel("frequency [Hz]")
     fig.tight_layout()
-    page.figure(fig, "pole_clouds", f"Closed-loop poles of {n_show} family members per design (seed {seed}).")
+    page.figure(
+        fig,
+        "pole_clouds",
+        f"Closed-loop poles of {n_show} family members per design (seed {seed}).",
+    )
 
     freqs = np.geomspace(0.1, 15, 200)
     fig, ax = plt.subplots(figsize=(8, 4.2))
@@ -73,8 +77,12 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
         vals = sample(fam.parameters, samples, method=run.evaluation.method, seed=seed).values[:60]
         env = _ratio_envelope(fam, vals, run.controller, freqs)
         if env.size:
-            line = ax.semilogx(freqs, np.median(env, axis=0), label=f"{name} ({len(env)} stable of 60)")[0]
-            ax.fill_between(freqs, env.min(axis=0), env.max(axis=0), color=line.get_color(), alpha=0.15)
+            line = ax.semilogx(
+                freqs, np.median(env, axis=0), label=f"{name} ({len(env)} stable of 60)"
+            )[0]
+            ax.fill_between(
+                freqs, env.min(axis=0), env.max(axis=0), color=line.get_color(), alpha=0.15
+            )
     ax.axhline(0, color="k", lw=0.8)
     ax.set_ylim(-30, 30)
     ax.set_xlabel("frequency [Hz]")
@@ -82,12 +90,22 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    page.figure(fig, "ratio_envelopes", "With/without-BDFT output ratio (the paper's Figure 13 measure): median and "
-                "envelope over the stable members among the first 60 sampled, per design.")
+    page.figure(
+        fig,
+        "ratio_envelopes",
+        "With/without-BDFT output ratio (the paper's Figure 13 measure): median and "
+        "envelope over the stable members among the first 60 sampled, per design.",
+    )
 
-    force_runs = {k: r for k, r in ok.items() if r.controller is not None and "f" in r.controller.output_labels}
+    force_runs = {
+        k: r
+        for k, r in ok.items()
+        if r.controller is not None and "f" in r.controller.output_labels
+    }
     if force_runs:
-        fig, axes = plt.subplots(len(force_runs), 1, figsize=(8, 2.2 * len(force_runs)), sharex=True, squeeze=False)
+        fig, axes = plt.subplots(
+            len(force_runs), 1, figsize=(8, 2.2 * len(force_runs)), sharex=True, squeeze=False
+        )
         for ax, (name, run) in zip(axes[:, 0], force_runs.items()):
             fam = default_family(k_psf=run.evaluation.k_psf)
             nominal = fam.member(fam.nominal_values())
@@ -103,50 +121,83 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
             ax.legend(fontsize=7, loc="upper right")
         axes[-1, 0].set_xlabel("time [s]")
         fig.tight_layout()
-        page.figure(fig, "forces", "Handle force on the nominal member (dashed: the 3.3 N peak limit).")
+        page.figure(
+            fig, "forces", "Handle force on the nominal member (dashed: the 3.3 N peak limit)."
+        )
 
 
 def verdict(runs: dict) -> list[str]:
     """Plain sentences: which design (if any) stabilises every member within the force limits, and what each costs."""
     ok = {n: r for n, r in runs.items() if not isinstance(r, Exception)}
-    valid = [n for n, r in ok.items() if r.evaluation.fraction_stable == 1.0 and r.evaluation.force_within_limits]
+    valid = [
+        n
+        for n, r in ok.items()
+        if r.evaluation.fraction_stable == 1.0 and r.evaluation.force_within_limits
+    ]
     robust = [n for n, r in ok.items() if r.evaluation.fraction_stable == 1.0]
-    force_designs = [n for n, r in ok.items() if r.controller is not None and "f" in r.controller.output_labels]
+    force_designs = [
+        n for n, r in ok.items() if r.controller is not None and "f" in r.controller.output_labels
+    ]
     valid_force = [n for n in valid if n in force_designs]
     out = []
     if valid:
-        out.append("Designs that stabilise every sampled member within the force limits: " + ", ".join(valid) + ".")
+        out.append(
+            "Designs that stabilise every sampled member within the force limits: "
+            + ", ".join(valid)
+            + "."
+        )
     else:
-        out.append("No design stabilises every sampled member while keeping the handle force within the device limits.")
+        out.append(
+            "No design stabilises every sampled member while keeping the handle force within the device limits."
+        )
     if force_designs and not valid_force:
-        out.append("No handle-force design (" + ", ".join(force_designs) + ") stabilises every sampled member within "
-                   "the device's force limits.")
+        out.append(
+            "No handle-force design ("
+            + ", ".join(force_designs)
+            + ") stabilises every sampled member within "
+            "the device's force limits."
+        )
     for n in robust:
         e, d = ok[n].evaluation, ok[n].details
         cost = f"peak force {e.peak_force_n:.3g} N, RMS {e.rms_force_n:.3g} N, tracking error {e.tracking_error:.3g}"
         if n == "workspace":
-            cost = f"workspace factor x{d.get('factor', float('nan')):.3g} (the handle's travel covers 1/{d.get('factor', float('nan')):.3g} of the stick's)" \
-                   f", tracking error {e.tracking_error:.3g}, no force"
+            cost = (
+                f"workspace factor x{d.get('factor', float('nan')):.3g} (the handle's travel covers 1/{d.get('factor', float('nan')):.3g} of the stick's)"
+                f", tracking error {e.tracking_error:.3g}, no force"
+            )
         ho = d.get("held_out", {})
-        held = (f"; {ho['fraction_stable']:.4g} of {ho['samples']} held-out members" if ho else "")
-        out.append(f"{n} stabilises every sampled member (worst real part {e.max_real_pole:.3g} rad/s{held}) "
-                   f"at the cost of: {cost}.")
+        held = f"; {ho['fraction_stable']:.4g} of {ho['samples']} held-out members" if ho else ""
+        out.append(
+            f"{n} stabilises every sampled member (worst real part {e.max_real_pole:.3g} rad/s{held}) "
+            f"at the cost of: {cost}."
+        )
     partial = [n for n in ok if n not in robust]
     if partial:
-        out.append("The others leave members unstable: " + ", ".join(
-            f"{n} {ok[n].evaluation.fraction_stable:.3g} stable (peak force {ok[n].evaluation.peak_force_n:.3g} N)"
-            for n in partial) + ".")
+        out.append(
+            "The others leave members unstable: "
+            + ", ".join(
+                f"{n} {ok[n].evaluation.fraction_stable:.3g} stable (peak force {ok[n].evaluation.peak_force_n:.3g} N)"
+                for n in partial
+            )
+            + "."
+        )
     hard = _hardest_member(ok)
     if force_designs and not valid_force and hard:
-        band = ("That mode lies in the 0-2 Hz band people command in, so handle force that damps it also resists "
-                "the operator's intended motion; " if hard["f_arm"] <= 2.0 else
-                "The feedthrough loop closes through that structure mode; ")
-        out.append(f"Why: the member the nominal H-infinity design does worst on ({hard['which']}) has an arm of "
-                   f"stiffness {hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode at "
-                   f"{hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a structure whose first mode "
-                   f"is at {hard['f1']:.3g} Hz (nominal {StructureParams().f1_hz:.3g} Hz). " + band
-                   + "a cylinder-reference correction avoids the force but costs tracking; workspace scaling works "
-                   "only by shrinking the stick's motion per handle millimetre.")
+        band = (
+            "That mode lies in the 0-2 Hz band people command in, so handle force that damps it also resists "
+            "the operator's intended motion; "
+            if hard["f_arm"] <= 2.0
+            else "The feedthrough loop closes through that structure mode; "
+        )
+        out.append(
+            f"Why: the member the nominal H-infinity design does worst on ({hard['which']}) has an arm of "
+            f"stiffness {hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode at "
+            f"{hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a structure whose first mode "
+            f"is at {hard['f1']:.3g} Hz (nominal {StructureParams().f1_hz:.3g} Hz). "
+            + band
+            + "a cylinder-reference correction avoids the force but costs tracking; workspace scaling works "
+            "only by shrinking the stick's motion per handle millimetre."
+        )
     return out
 
 
@@ -163,9 +214,14 @@ def _hardest_member(ok: dict) -> dict | None:
     worst = run.evaluation.worst
     loop = fam.member([worst[n] for n in fam.names])
     p = loop.human.params
-    return {"which": "hinf-nominal's worst", "k_arm": p.k_arm, "c_arm": p.c_arm,
-            "f_arm": math.sqrt(p.k_arm / p.m_arm) / (2 * math.pi), "zeta_arm": p.c_arm / (2 * math.sqrt(p.k_arm * p.m_arm)),
-            "f1": loop.struct.f1_hz}
+    return {
+        "which": "hinf-nominal's worst",
+        "k_arm": p.k_arm,
+        "c_arm": p.c_arm,
+        "f_arm": math.sqrt(p.k_arm / p.m_arm) / (2 * math.pi),
+        "zeta_arm": p.c_arm / (2 * math.sqrt(p.k_arm * p.m_arm)),
+        "f1": loop.struct.f1_hz,
+    }
 
 
 def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
@@ -175,10 +231,12 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
     from robust.jsonio import to_jsonable
 
     page = HtmlPage("Compensators against biodynamic feedthrough: comparison on the default family")
-    page.p(f"Every design is validated on the same {samples} members of the default family (Latin hypercube, "
-           f"seed {seed}): physical human stiffness, damping and mass, structure frequencies, damping ratios and gain. "
-           "Force is simulated on the nominal member and the three worst stable members with a 0.1-8 Hz chirp and a "
-           "seeded 0-2 Hz intended motion (25 % of the workspace); the Omni's limits are 3.3 N peak, 0.88 N continuous.")
+    page.p(
+        f"Every design is validated on the same {samples} members of the default family (Latin hypercube, "
+        f"seed {seed}): physical human stiffness, damping and mass, structure frequencies, damping ratios and gain. "
+        "Force is simulated on the nominal member and the three worst stable members with a 0.1-8 Hz chirp and a "
+        "seeded 0-2 Hz intended motion (25 % of the workspace); the Omni's limits are 3.3 N peak, 0.88 N continuous."
+    )
     rows, classes = [], []
     for name, run in runs.items():
         if isinstance(run, Exception):
@@ -188,22 +246,61 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
         e = run.evaluation
         valid = e.fraction_stable == 1.0 and e.force_within_limits
         ho = run.details.get("held_out", {})
-        rows.append([name, "valid" if valid else "invalid", "; ".join(e.notes) or run.description,
-                     e.fraction_stable, ho.get("fraction_stable", float("nan")), e.max_real_pole, e.min_damping, e.suppression_db, e.tracking_error,
-                     e.peak_force_n, e.rms_force_n, f"{run.order_full} -> {run.order_reduced}"])
+        rows.append(
+            [
+                name,
+                "valid" if valid else "invalid",
+                "; ".join(e.notes) or run.description,
+                e.fraction_stable,
+                ho.get("fraction_stable", float("nan")),
+                e.max_real_pole,
+                e.min_damping,
+                e.suppression_db,
+                e.tracking_error,
+                e.peak_force_n,
+                e.rms_force_n,
+                f"{run.order_full} -> {run.order_reduced}",
+            ]
+        )
         classes.append("holds" if valid else "fails")
     page.h2("Summary")
-    page.table(["design", "verdict", "notes", "fraction stable", "held-out stable", "worst real part [1/s]", "min damping (2-12 Hz)",
-                "BDFT near 6 Hz [dB]", "tracking error 0-2 Hz", "peak force [N]", "RMS force [N]", "order"],
-               rows, row_classes=classes)
-    page.p("A design is valid only if every sampled member is stable and its force stays within the device limits. "
-           "Held-out: fraction stable on 10000 further members (LHS, seed + 1) that no design saw. "
-           "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member (0 dB: no effect). "
-           "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member.", cls="note")
+    page.table(
+        [
+            "design",
+            "verdict",
+            "notes",
+            "fraction stable",
+            "held-out stable",
+            "worst real part [1/s]",
+            "min damping (2-12 Hz)",
+            "BDFT near 6 Hz [dB]",
+            "tracking error 0-2 Hz",
+            "peak force [N]",
+            "RMS force [N]",
+            "order",
+        ],
+        rows,
+        row_classes=classes,
+    )
+    page.p(
+        "A design is valid only if every sampled member is stable and its force stays within the device limits. "
+        "Held-out: fraction stable on 10000 further members (LHS, seed + 1) that no design saw. "
+        "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member (0 dB: no effect). "
+        "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member.",
+        cls="note",
+    )
     page.h2("Verdict")
     for text in verdict(runs):
         page.p(text)
     _figures(page, runs, samples, seed)
-    page.attach("designs.json", json.dumps(to_jsonable({k: (str(r) if isinstance(r, Exception) else r.to_json())
-                                                         for k, r in runs.items()}), indent=2, allow_nan=False))
+    page.attach(
+        "designs.json",
+        json.dumps(
+            to_jsonable(
+                {k: (str(r) if isinstance(r, Exception) else r.to_json()) for k, r in runs.items()}
+            ),
+            indent=2,
+            allow_nan=False,
+        ),
+    )
     return write_report_dir(page, out_dir)

@@ -8,15 +8,34 @@ matplotlib.use("Agg", force=False)
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-__all__ = ["bode_figure", "pole_map_figure", "time_response_figure", "ratio_figure", "loop_gain_figure"]
+__all__ = [
+    "bode_figure",
+    "pole_map_figure",
+    "time_response_figure",
+    "ratio_figure",
+    "loop_gain_figure",
+]
 
 
-def bode_figure(curves: list[tuple[str, object]], freqs_hz: np.ndarray, *, title: str, inp: str, out: str, phase: bool = True, ylabel: str = "magnitude [dB]"):
+def bode_figure(
+    curves: list[tuple[str, object]],
+    freqs_hz: np.ndarray,
+    *,
+    title: str,
+    inp: str,
+    out: str,
+    phase: bool = True,
+    ylabel: str = "magnitude [dB]",
+):
     """Bode plot of one channel of several systems; ``curves`` are ``(label, system)`` pairs."""
-    fig, axes = plt.subplots(2 if phase else 1, 1, figsize=(7, 5.2 if phase else 3.4), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        2 if phase else 1, 1, figsize=(7, 5.2 if phase else 3.4), sharex=True, squeeze=False
+    )
     w = 2 * np.pi * freqs_hz
     for label, sys in curves:
-        h = np.asarray(sys(1j * w, squeeze=False))[sys.output_labels.index(out), sys.input_labels.index(inp), :]
+        h = np.asarray(sys(1j * w, squeeze=False))[
+            sys.output_labels.index(out), sys.input_labels.index(inp), :
+        ]
         axes[0, 0].semilogx(freqs_hz, 20 * np.log10(np.abs(h)), label=label)
         if phase:
             axes[1, 0].semilogx(freqs_hz, np.degrees(np.unwrap(np.angle(h))), label=label)
@@ -32,13 +51,17 @@ def bode_figure(curves: list[tuple[str, object]], freqs_hz: np.ndarray, *, title
     return fig
 
 
-def pole_map_figure(pole_sets: list[tuple[str, np.ndarray]], *, title: str, xlim=None, ylim_hz=None):
+def pole_map_figure(
+    pole_sets: list[tuple[str, np.ndarray]], *, title: str, xlim=None, ylim_hz=None
+):
     """Closed-loop pole map: real part (rad/s) against frequency (Hz) of each pole set."""
     fig, ax = plt.subplots(figsize=(7, 4.2))
     markers = "xo+sd^v"
     for i, (label, p) in enumerate(pole_sets):
         p = np.asarray(p)
-        ax.plot(p.real, p.imag / (2 * np.pi), markers[i % len(markers)], label=label, mfc="none", ms=7)
+        ax.plot(
+            p.real, p.imag / (2 * np.pi), markers[i % len(markers)], label=label, mfc="none", ms=7
+        )
     ax.axvline(0, color="k", lw=0.8)
     ax.set_xlabel("real part [rad/s]")
     ax.set_ylabel("imaginary part [Hz]")
@@ -64,7 +87,13 @@ def time_response_figure(with_bdft, without_bdft, *, title: str, signal: str = "
     ref = np.max(np.abs(without_bdft[signal]))
     if peak > 20 * ref:
         axes[1].set_yscale("symlog", linthresh=max(ref, 1e-12))
-        axes[1].text(0.01, 0.9, "symlog scale: response grows without bound", transform=axes[1].transAxes, fontsize=8)
+        axes[1].text(
+            0.01,
+            0.9,
+            "symlog scale: response grows without bound",
+            transform=axes[1].transAxes,
+            fontsize=8,
+        )
     axes[1].set_ylabel(f"cylinder {signal}")
     axes[1].set_xlabel("time [s]")
     axes[1].legend(fontsize=8, loc="lower left")
@@ -83,8 +112,13 @@ def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
     for i, fac in enumerate(facs):
         row = study[fac]
         style = "-" if row["stable"] else ":"
-        ax.semilogx(freqs_hz, row["ratio_db"], style, color=cmap(i / max(1, len(facs) - 1)),
-                    label=f"x{fac} ({71 * fac} mm){'' if row['stable'] else ' unstable'}")
+        ax.semilogx(
+            freqs_hz,
+            row["ratio_db"],
+            style,
+            color=cmap(i / max(1, len(facs) - 1)),
+            label=f"x{fac} ({71 * fac} mm){'' if row['stable'] else ' unstable'}",
+        )
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("|Y with / Y without BDFT| [dB]")
@@ -95,7 +129,9 @@ def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
     return fig
 
 
-def loop_gain_figure(freqs_hz: np.ndarray, curves: list[tuple[str, np.ndarray]], *, title: str, mark_hz=()):
+def loop_gain_figure(
+    freqs_hz: np.ndarray, curves: list[tuple[str, np.ndarray]], *, title: str, mark_hz=()
+):
     """Magnitude of the BDFT loop gain (broken at the handle) for several models."""
     fig, ax = plt.subplots(figsize=(7.5, 4.0))
     for label, L in curves:

@@ -54,7 +54,14 @@ class HtmlPage:
         c = f' class="{cls}"' if cls else ""
         self._parts.append(f"<p{c}>{body}</p>")
 
-    def table(self, header: list[str], rows: list[list], *, row_classes: list[str | None] | None = None, raw_cols=()) -> None:
+    def table(
+        self,
+        header: list[str],
+        rows: list[list],
+        *,
+        row_classes: list[str | None] | None = None,
+        raw_cols=(),
+    ) -> None:
         out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>"]
         for i, row in enumerate(rows):
             cells = []

@@ -15,18 +15,30 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
+from reports.html import HtmlPage, fmt, write_report_dir
 from robust import __version__
-from robust.analysis.loops import PoleSet, loop_poles
 from robust.analysis.calibration import K_PSF_STABLE, CalibrationResult, calibrate
-from robust.analysis.claims import CLAIM_TEXT, RATIO_FREQS_HZ, ClaimResult, evaluate_claims, ratio_study
-from robust.model.components import K_PSF_NOMINAL, structure, valve_cylinder
+from robust.analysis.claims import (
+    CLAIM_TEXT,
+    RATIO_FREQS_HZ,
+    ClaimResult,
+    evaluate_claims,
+    ratio_study,
+)
+from robust.analysis.loops import PoleSet, loop_poles
+from robust.analysis.simulation import SweptSine, TimeResponse, simulate_swept_sine
 from robust.errors import InfeasibleError
+from robust.model.components import K_PSF_NOMINAL, structure, valve_cylinder
 from robust.model.human import HumanModel, LiteralHuman, human_variant
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
-from robust.analysis.simulation import SweptSine, TimeResponse, simulate_swept_sine
-from reports.html import HtmlPage, fmt, write_report_dir
 
-__all__ = ["VariantResult", "ReproductionResult", "reproduce", "write_reproduction_report", "result_to_json"]
+__all__ = [
+    "VariantResult",
+    "ReproductionResult",
+    "reproduce",
+    "write_reproduction_report",
+    "result_to_json",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,11 +69,15 @@ class ReproductionResult:
     sweep: SweptSine
 
 
-def _variant(label: str, human: HumanModel, cal: LoopCalibration, sweep: SweptSine) -> VariantResult:
+def _variant(
+    label: str, human: HumanModel, cal: LoopCalibration, sweep: SweptSine
+) -> VariantResult:
     loop = BDFTLoop(human=human, calibration=cal)
     study = ratio_study(loop)
     claims = evaluate_claims(loop, study=study)
-    responses = {k: simulate_swept_sine(loop.replace(k_psf=k), sweep) for k in (K_PSF_NOMINAL, K_PSF_STABLE)}
+    responses = {
+        k: simulate_swept_sine(loop.replace(k_psf=k), sweep) for k in (K_PSF_NOMINAL, K_PSF_STABLE)
+    }
     return VariantResult(
         label=label,
         human=human,
@@ -83,7 +99,9 @@ def _same_calibration(a: LoopCalibration, b: LoopCalibration) -> bool:
     )
 
 
-def reproduce(*, variants=("literal", "physical"), sweep: SweptSine | None = None, progress=None) -> ReproductionResult:
+def reproduce(
+    *, variants=("literal", "physical"), sweep: SweptSine | None = None, progress=None
+) -> ReproductionResult:
     """Run the calibration search and check C1-C5 for each human variant.
 
     The literal variant uses :data:`DEFAULT_CALIBRATION` (the search's result; the
@@ -120,8 +138,12 @@ def reproduce(*, variants=("literal", "physical"), sweep: SweptSine | None = Non
             else:
                 results.append(_variant(f"{name} human, own calibration", human, own, sweep))
     return ReproductionResult(
-        search=search, matches_default=matches, variants=tuple(results), unavailable=unavailable,
-        physical_fit=fit, sweep=sweep,
+        search=search,
+        matches_default=matches,
+        variants=tuple(results),
+        unavailable=unavailable,
+        physical_fit=fit,
+        sweep=sweep,
     )
 
 
@@ -166,8 +188,12 @@ def result_to_json(res: ReproductionResult) -> dict:
         },
         "unavailable_variants": res.unavailable,
         "physical_fit": res.physical_fit,
-        "versions": {"bdft-workbench": __version__, "control": ct.__version__, "numpy": np.__version__,
-                     "python": platform.python_version()},
+        "versions": {
+            "bdft-workbench": __version__,
+            "control": ct.__version__,
+            "numpy": np.__version__,
+            "python": platform.python_version(),
+        },
     }
 
 
@@ -179,7 +205,9 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
     from reports import figures as plots
     from robust.jsonio import to_jsonable
 
-    page = HtmlPage("Biodynamic feedthrough in backhoe operation: reproduction of the paper's claims")
+    page = HtmlPage(
+        "Biodynamic feedthrough in backhoe operation: reproduction of the paper's claims"
+    )
     page.p(
         "Model: the paper's valve/cylinder (Eqn 3), structure (Eqn 4) and human (Eqn 5) blocks in its Figure 5 "
         "loop, with the PI gains, handle-junction sign and loop-scale factor the paper does not print made "
@@ -194,7 +222,9 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
         for key, c in v.claims.items():
             rows.append([f"{key}: {CLAIM_TEXT[key]}", c.status, v.label, c.detail])
             classes.append({"holds": "holds", "fails": "fails"}.get(c.status, "nt"))
-    page.table(["claim", "status", "model variant and calibration", "numbers"], rows, row_classes=classes)
+    page.table(
+        ["claim", "status", "model variant and calibration", "numbers"], rows, row_classes=classes
+    )
     for name, why in res.unavailable.items():
         page.p(f"Variant {name!r} not evaluated: {why}", cls="note")
 
@@ -208,27 +238,48 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
     # components --------------------------------------------------------------------------
     page.h2("Components (the paper's Figures 6, 7 and 9)")
     f = np.geomspace(0.1, 50, 600)
-    page.figure(plots.bode_figure([("Eqn 3", valve_cylinder())], f, title="Valve/cylinder Y/E (Eqn 3)", inp="e", out="y"),
-                "bode_valve", "Valve/cylinder, valve command e to cylinder position y (Eqn 3).")
-    page.figure(plots.bode_figure([("Eqn 4", structure())], f, title="Structure C/Y (Eqn 4)", inp="y", out="c"),
-                "bode_structure", "Structure, cylinder position y to cab acceleration c (Eqn 4).")
+    page.figure(
+        plots.bode_figure(
+            [("Eqn 3", valve_cylinder())], f, title="Valve/cylinder Y/E (Eqn 3)", inp="e", out="y"
+        ),
+        "bode_valve",
+        "Valve/cylinder, valve command e to cylinder position y (Eqn 3).",
+    )
+    page.figure(
+        plots.bode_figure(
+            [("Eqn 4", structure())], f, title="Structure C/Y (Eqn 4)", inp="y", out="c"
+        ),
+        "bode_structure",
+        "Structure, cylinder position y to cab acceleration c (Eqn 4).",
+    )
     humans = [(v.human.variant, v.human.system()) for v in res.variants]
     seen, uniq = set(), []
     for lab, s in humans:
         if lab not in seen:
             seen.add(lab)
             uniq.append((lab, s))
-    page.figure(plots.bode_figure(uniq, f, title="Human H/C", inp="c", out="h", phase=True),
-                "bode_human", "Human, seat acceleration c to hand motion h relative to the seat, for each variant.")
+    page.figure(
+        plots.bode_figure(uniq, f, title="Human H/C", inp="c", out="h", phase=True),
+        "bode_human",
+        "Human, seat acceleration c to hand motion h relative to the seat, for each variant.",
+    )
 
     # where the feedthrough acts ------------------------------------------------------------
     from robust.analysis.loops import bdft_loop_gain
 
     page.h2("Where the feedthrough acts: BDFT loop gain")
     fl = np.geomspace(0.1, 20, 500)
-    curves = [(v.label, bdft_loop_gain(v.loop.replace(k_psf=K_PSF_STABLE), fl)["loop"]) for v in res.variants]
+    curves = [
+        (v.label, bdft_loop_gain(v.loop.replace(k_psf=K_PSF_STABLE), fl)["loop"])
+        for v in res.variants
+    ]
     page.figure(
-        plots.loop_gain_figure(fl, curves, title=f"|sigma kappa K_PSF H S T| at K_PSF={K_PSF_STABLE}", mark_hz=(1.0, 6.4)),
+        plots.loop_gain_figure(
+            fl,
+            curves,
+            title=f"|sigma kappa K_PSF H S T| at K_PSF={K_PSF_STABLE}",
+            mark_hz=(1.0, 6.4),
+        ),
         "loop_gain",
         "Magnitude of the BDFT loop broken at the handle (human x structure x closed cylinder loop x scale). "
         "Claim C4 needs it to peak near the 6.3-6.5 Hz structure modes; dashed lines at 1 Hz and 6.4 Hz.",
@@ -240,8 +291,13 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
         page.h2(f"Closed loop: {v.label}")
         page.figure(
             plots.pole_map_figure(
-                [(f"K_PSF={K_PSF_NOMINAL}", v.poles_nominal.poles), (f"K_PSF={K_PSF_STABLE}", v.poles_stable.poles)],
-                title=f"Closed-loop poles ({v.label})", xlim=(-20, 5), ylim_hz=(-0.5, 12),
+                [
+                    (f"K_PSF={K_PSF_NOMINAL}", v.poles_nominal.poles),
+                    (f"K_PSF={K_PSF_STABLE}", v.poles_stable.poles),
+                ],
+                title=f"Closed-loop poles ({v.label})",
+                xlim=(-20, 5),
+                ylim_hz=(-0.5, 12),
             ),
             f"poles_{tag}",
             "Closed-loop poles (minimal realisation; hidden modes listed in C1), zoomed on the slow poles.",
@@ -250,17 +306,28 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
             w, wo = v.responses[k]
             state = "unstable" if not loop_poles(v.loop.replace(k_psf=k)).stable else "stable"
             page.figure(
-                plots.time_response_figure(w, wo, title=f"Swept sine {res.sweep.f0_hz:g}-{res.sweep.f1_hz:g} Hz, K_PSF={k} ({state})"),
+                plots.time_response_figure(
+                    w,
+                    wo,
+                    title=f"Swept sine {res.sweep.f0_hz:g}-{res.sweep.f1_hz:g} Hz, K_PSF={k} ({state})",
+                ),
                 f"time_{tag}_{str(k).replace('.', 'p')}",
                 f"Cylinder position for a swept-sine intended motion, with and without BDFT, K_PSF={k} "
                 "(the paper's Figures 11-12); nothing is clipped.",
             )
-        page.figure(plots.ratio_figure(RATIO_FREQS_HZ, v.study, title=f"Workspace study ({v.label})"),
-                    f"ratio_{tag}", "Ratio of cylinder output with to without BDFT for workspace factors 2-10 (the paper's Figure 13).")
+        page.figure(
+            plots.ratio_figure(RATIO_FREQS_HZ, v.study, title=f"Workspace study ({v.label})"),
+            f"ratio_{tag}",
+            "Ratio of cylinder output with to without BDFT for workspace factors 2-10 (the paper's Figure 13).",
+        )
     page.h2("Provenance")
-    page.p(f"bdft-workbench {__version__}, python-control {ct.__version__}, numpy {np.__version__}, "
-           f"Python {platform.python_version()}. No random numbers are used in this report.")
-    page.attach("claims.json", json.dumps(to_jsonable(result_to_json(res)), indent=2, allow_nan=False))
+    page.p(
+        f"bdft-workbench {__version__}, python-control {ct.__version__}, numpy {np.__version__}, "
+        f"Python {platform.python_version()}. No random numbers are used in this report."
+    )
+    page.attach(
+        "claims.json", json.dumps(to_jsonable(result_to_json(res)), indent=2, allow_nan=False)
+    )
     return write_report_dir(page, out_dir)
 
 
@@ -285,27 +352,68 @@ def _calibration_section(page: HtmlPage, res: ReproductionResult) -> None:
             ["handle junction sign sigma (x = u + sigma*kappa*h)", cal.handle_sign],
             ["loop-scale factor kappa", cal.loop_scale],
             ["fresh search agrees with the defaults", "yes" if res.matches_default else "NO"],
-            ["candidates reproducing C1-C3", f"{sum(x.reproduces_c1_c3 for x in s.candidates)} of {len(s.candidates)}"],
+            [
+                "candidates reproducing C1-C3",
+                f"{sum(x.reproduces_c1_c3 for x in s.candidates)} of {len(s.candidates)}",
+            ],
             ["claim log-margin m (max possible ln(0.1097/0.055)/2 = 0.345)", c.margin],
-            ["cylinder loop gain / phase margin", f"{fmt(c.gain_margin_db)} dB / {fmt(c.phase_margin_deg)} deg"],
+            [
+                "cylinder loop gain / phase margin",
+                f"{fmt(c.gain_margin_db)} dB / {fmt(c.phase_margin_deg)} deg",
+            ],
             ["cylinder loop crossover [Hz]", c.crossover_hz],
             ["critical g1 = kappa*K_PSF at loss of stability", c.g1],
             ["frequency of the crossing pair [Hz]", c.crossing_hz],
         ],
     )
-    adm = sorted((x for x in s.candidates if x.admissible), key=lambda x: (-x.reproduces_c1_c3, -x.crossover_hz))
-    page.p(f"The {min(12, len(adm))} best of {len(adm)} admissible candidates (every candidate is in claims.json):", cls="note")
+    adm = sorted(
+        (x for x in s.candidates if x.admissible),
+        key=lambda x: (-x.reproduces_c1_c3, -x.crossover_hz),
+    )
+    page.p(
+        f"The {min(12, len(adm))} best of {len(adm)} admissible candidates (every candidate is in claims.json):",
+        cls="note",
+    )
     page.table(
-        ["kp", "ki", "sign", "GM dB", "PM deg", "crossover Hz", "pair crossing", "crossing Hz", "kappa", "margin", "C1-C3"],
-        [[x.kp, x.ki, x.handle_sign, x.gain_margin_db, x.phase_margin_deg, x.crossover_hz, x.pair_crossing,
-          x.crossing_hz, x.kappa, x.margin, x.reproduces_c1_c3] for x in adm[:12]],
+        [
+            "kp",
+            "ki",
+            "sign",
+            "GM dB",
+            "PM deg",
+            "crossover Hz",
+            "pair crossing",
+            "crossing Hz",
+            "kappa",
+            "margin",
+            "C1-C3",
+        ],
+        [
+            [
+                x.kp,
+                x.ki,
+                x.handle_sign,
+                x.gain_margin_db,
+                x.phase_margin_deg,
+                x.crossover_hz,
+                x.pair_crossing,
+                x.crossing_hz,
+                x.kappa,
+                x.margin,
+                x.reproduces_c1_c3,
+            ]
+            for x in adm[:12]
+        ],
     )
 
 
 def _fit_section(page: HtmlPage, fit: dict) -> None:
     page.h2("Physical human model: fit to Eqn 5")
-    rows = [[k, v if not isinstance(v, dict) else ", ".join(f"{a}={fmt(b)}" for a, b in v.items())] for k, v in fit.items()
-            if not isinstance(v, (list, tuple))]
+    rows = [
+        [k, v if not isinstance(v, dict) else ", ".join(f"{a}={fmt(b)}" for a, b in v.items())]
+        for k, v in fit.items()
+        if not isinstance(v, (list, tuple))
+    ]
     page.table(["quantity", "value"], rows)
 
 
@@ -314,11 +422,16 @@ def _claim_matrix(page: HtmlPage, res: ReproductionResult) -> None:
     import html as _html
 
     cls = {"holds": "holds", "fails": "fails"}
-    header = "<tr><th>claim</th>" + "".join(f"<th>{_html.escape(v.label)}</th>" for v in res.variants) + "</tr>"
+    header = (
+        "<tr><th>claim</th>"
+        + "".join(f"<th>{_html.escape(v.label)}</th>" for v in res.variants)
+        + "</tr>"
+    )
     body = []
     for key, text in CLAIM_TEXT.items():
         cells = "".join(
-            f'<td class="{cls.get(v.claims[key].status, "nt")}">{_html.escape(v.claims[key].status)}</td>' for v in res.variants
+            f'<td class="{cls.get(v.claims[key].status, "nt")}">{_html.escape(v.claims[key].status)}</td>'
+            for v in res.variants
         )
         body.append(f"<tr><td>{key}: {_html.escape(text)}</td>{cells}</tr>")
     page.raw("<table>" + header + "".join(body) + "</table>")

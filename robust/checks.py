@@ -61,7 +61,9 @@ def check_scalar(name: str, value: Any, spec: Spec = FINITE, *, owner: str = "")
     """
     label = f"{owner}.{name}" if owner else name
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{label} must be a real number; got {value!r} ({type(value).__name__})")
+        raise ParameterError(
+            f"{label} must be a real number; got {value!r} ({type(value).__name__})"
+        )
     x = float(value)
     bad = not math.isfinite(x)
     if not bad and spec.low is not None:
@@ -84,7 +86,9 @@ def validate_fields(obj: Any, specs: Mapping[str, Spec]) -> None:
         object.__setattr__(obj, name, check_scalar(name, getattr(obj, name), spec, owner=owner))
 
 
-def check_finite_array(name: str, value: Any, *, ndim: int | None = None, error=DataError) -> np.ndarray:
+def check_finite_array(
+    name: str, value: Any, *, ndim: int | None = None, error=DataError
+) -> np.ndarray:
     """Return ``value`` as a float array, rejecting NaN/inf and a wrong number of dimensions."""
     try:
         arr = np.asarray(value, dtype=float)
@@ -94,5 +98,7 @@ def check_finite_array(name: str, value: Any, *, ndim: int | None = None, error=
         raise error(f"{name} must have {ndim} dimension(s); got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         n_bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
-        raise error(f"{name} contains {n_bad} non-finite value(s) (NaN or inf); clean or drop them first")
+        raise error(
+            f"{name} contains {n_bad} non-finite value(s) (NaN or inf); clean or drop them first"
+        )
     return arr

@@ -20,10 +20,17 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from robust.jsonio import atomic_write, atomic_write_json, to_jsonable
 from robust.errors import ArtifactError, ModelStructureError
+from robust.jsonio import atomic_write, atomic_write_json, to_jsonable
 
-__all__ = ["ControllerArtifact", "discretize", "write_artifact", "load_artifact", "FORMAT_VERSION", "SIGNAL_UNITS"]
+__all__ = [
+    "ControllerArtifact",
+    "discretize",
+    "write_artifact",
+    "load_artifact",
+    "FORMAT_VERSION",
+    "SIGNAL_UNITS",
+]
 
 FORMAT_VERSION = 1
 
@@ -45,7 +52,16 @@ def discretize(K: ct.StateSpace, dt: float, *, prewarp_hz: float | None = None) 
     if prewarp_hz is not None:
         kw["prewarp_frequency"] = 2 * math.pi * prewarp_hz
     Kd = ct.sample_system(K, dt, method="bilinear", **kw)
-    return ct.ss(Kd.A, Kd.B, Kd.C, Kd.D, dt, inputs=K.input_labels, outputs=K.output_labels, name=f"{K.name}_d")
+    return ct.ss(
+        Kd.A,
+        Kd.B,
+        Kd.C,
+        Kd.D,
+        dt,
+        inputs=K.input_labels,
+        outputs=K.output_labels,
+        name=f"{K.name}_d",
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,7 +99,12 @@ class ControllerArtifact:
                 "outputs": self.outputs,
                 "units": {s: SIGNAL_UNITS.get(s, "") for s in self.inputs + self.outputs},
                 "continuous": mats(self.continuous),
-                "discrete": {**mats(self.discrete), "dt": self.discrete.dt, "method": "tustin", "prewarp_hz": self.prewarp_hz},
+                "discrete": {
+                    **mats(self.discrete),
+                    "dt": self.discrete.dt,
+                    "method": "tustin",
+                    "prewarp_hz": self.prewarp_hz,
+                },
                 "order": self.continuous.nstates,
                 "weights": self.weights,
                 "solver": self.solver,
@@ -91,7 +112,7 @@ class ControllerArtifact:
                 "validation": self.validation,
                 "extra": self.extra,
                 "versions": _versions(),
-                "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             }
         )
 
@@ -102,11 +123,19 @@ def _versions() -> dict:
 
     from robust import __version__
 
-    return {"bdft-workbench": __version__, "python": platform.python_version(), "control": ct.__version__,
-            "numpy": np.__version__, "scipy": scipy.__version__, "cvxpy": cvxpy.__version__}
+    return {
+        "bdft-workbench": __version__,
+        "python": platform.python_version(),
+        "control": ct.__version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "cvxpy": cvxpy.__version__,
+    }
 
 
-def write_artifact(art: ControllerArtifact, path: str | Path, *, mat: bool = True) -> dict[str, Path]:
+def write_artifact(
+    art: ControllerArtifact, path: str | Path, *, mat: bool = True
+) -> dict[str, Path]:
     """Write ``path`` (JSON) and, with ``mat=True``, the ``.mat`` beside it; both atomically.
 
     The ``.mat`` holds ``Ac, Bc, Cc, Dc`` (continuous), ``Ad, Bd, Cd, Dd, Ts``
@@ -121,10 +150,23 @@ def write_artifact(art: ControllerArtifact, path: str | Path, *, mat: bool = Tru
         matpath = path.with_suffix(".mat")
         c, k = art.continuous, art.discrete
         payload = {
-            "Ac": c.A, "Bc": c.B, "Cc": c.C, "Dc": c.D,
-            "Ad": k.A, "Bd": k.B, "Cd": k.C, "Dd": k.D, "Ts": float(k.dt),
-            "inputs": np.array(art.inputs, dtype=object), "outputs": np.array(art.outputs, dtype=object),
-            "meta_json": json.dumps({key: d[key] for key in ("name", "weights", "solver", "family", "versions", "created_utc")}),
+            "Ac": c.A,
+            "Bc": c.B,
+            "Cc": c.C,
+            "Dc": c.D,
+            "Ad": k.A,
+            "Bd": k.B,
+            "Cd": k.C,
+            "Dd": k.D,
+            "Ts": float(k.dt),
+            "inputs": np.array(art.inputs, dtype=object),
+            "outputs": np.array(art.outputs, dtype=object),
+            "meta_json": json.dumps(
+                {
+                    key: d[key]
+                    for key in ("name", "weights", "solver", "family", "versions", "created_utc")
+                }
+            ),
         }
 
         def _w(tmp: str) -> None:
@@ -160,7 +202,9 @@ def _ss(d: dict, where: str, inputs, outputs, dt=0):
     expected = {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m)}
     for key, mat in zip("ABCD", (A, B, C, D)):
         if mat.shape != expected[key]:
-            raise ArtifactError(f"{where}.{key}: expected shape {expected[key]} for {n} states, {m} inputs, {p} outputs; got {mat.shape}")
+            raise ArtifactError(
+                f"{where}.{key}: expected shape {expected[key]} for {n} states, {m} inputs, {p} outputs; got {mat.shape}"
+            )
     return ct.ss(A, B, C, D, dt, inputs=list(inputs), outputs=list(outputs))
 
 
@@ -184,15 +228,25 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ArtifactError(f"controller artifact {path} is not valid JSON: {exc}") from None
     if not isinstance(d, dict) or d.get("kind") != "bdft-controller":
-        raise ArtifactError(f"{path}: 'kind' must be 'bdft-controller'; got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}")
+        raise ArtifactError(
+            f"{path}: 'kind' must be 'bdft-controller'; got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}"
+        )
     if d.get("format_version") != FORMAT_VERSION:
-        raise ArtifactError(f"{path}: format_version must be {FORMAT_VERSION}; got {d.get('format_version')!r}")
+        raise ArtifactError(
+            f"{path}: format_version must be {FORMAT_VERSION}; got {d.get('format_version')!r}"
+        )
     ins, outs = d.get("inputs"), d.get("outputs")
     if not (isinstance(ins, list) and isinstance(outs, list) and ins and outs):
-        raise ArtifactError(f"{path}: 'inputs' and 'outputs' must be non-empty lists of signal names")
-    bad = [s for s in ins if s not in CONTROLLER_INPUTS] + [s for s in outs if s not in CONTROLLER_OUTPUTS]
+        raise ArtifactError(
+            f"{path}: 'inputs' and 'outputs' must be non-empty lists of signal names"
+        )
+    bad = [s for s in ins if s not in CONTROLLER_INPUTS] + [
+        s for s in outs if s not in CONTROLLER_OUTPUTS
+    ]
     if bad:
-        raise ArtifactError(f"{path}: unknown signal name(s) {bad}; inputs must be among {CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}")
+        raise ArtifactError(
+            f"{path}: unknown signal name(s) {bad}; inputs must be among {CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}"
+        )
     for sec in ("continuous", "discrete"):
         if not isinstance(d.get(sec), dict):
             raise ArtifactError(f"{path}: missing section {sec!r}")
@@ -208,9 +262,17 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     g1 = np.asarray(disc(z, squeeze=False))
     g2 = np.asarray(again(z, squeeze=False))
     if not np.allclose(g1, g2, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(g2).max())):
-        raise ArtifactError(f"{path}: the discrete controller is not the Tustin transform (dt={dt}, prewarp={prewarp} Hz) of the continuous one")
+        raise ArtifactError(
+            f"{path}: the discrete controller is not the Tustin transform (dt={dt}, prewarp={prewarp} Hz) of the continuous one"
+        )
     return ControllerArtifact(
-        name=str(d.get("name", path.stem)), continuous=cont, discrete=disc, prewarp_hz=prewarp,
-        weights=d.get("weights", {}), solver=d.get("solver", {}), family=d.get("family", {}),
-        validation=d.get("validation", {}), extra=d.get("extra", {}),
+        name=str(d.get("name", path.stem)),
+        continuous=cont,
+        discrete=disc,
+        prewarp_hz=prewarp,
+        weights=d.get("weights", {}),
+        solver=d.get("solver", {}),
+        family=d.get("family", {}),
+        validation=d.get("validation", {}),
+        extra=d.get("extra", {}),
     )

@@ -12,7 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["to_jsonable", "atomic_write_text", "atomic_write_bytes", "atomic_write", "atomic_write_json"]
+__all__ = [
+    "to_jsonable",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "atomic_write",
+    "atomic_write_json",
+]
 
 
 def to_jsonable(obj):

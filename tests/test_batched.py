@@ -113,7 +113,9 @@ def test_bad_inputs_raise():
     with pytest.raises(ParameterError, match="do not match the family's"):
         validate_family(fam, S)
     with pytest.raises(ModelStructureError, match="no force port"):
-        closed_loop_matrices(default_family("literal"), S.values, controller=CONTROLLERS["force-from-c"])
+        closed_loop_matrices(
+            default_family("literal"), S.values, controller=CONTROLLERS["force-from-c"]
+        )
     bad = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs=["u"], outputs=["f"])
     with pytest.raises(ModelStructureError, match="controller inputs must be"):
         closed_loop_matrices(fam, fam.nominal_values()[None], controller=bad)
@@ -132,7 +134,9 @@ _PHYS = default_family("physical")
 
 
 @settings(max_examples=15, deadline=None)
-@given(st.lists(st.floats(0.0, 1.0), min_size=len(_PHYS.parameters), max_size=len(_PHYS.parameters)))
+@given(
+    st.lists(st.floats(0.0, 1.0), min_size=len(_PHYS.parameters), max_size=len(_PHYS.parameters))
+)
 def test_property_any_member_of_the_box_matches_python_control(u):
     row = np.array([p.ppf(x) for p, x in zip(_PHYS.parameters, u)])
     ref = ct.poles(_PHYS.member(row).system())

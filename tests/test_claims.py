@@ -1,9 +1,9 @@
 """The paper's claims C1-C3 (pole counts), checked two independent ways."""
 
 import numpy as np
+import paper_formulas as pf
 import pytest
 
-import paper_formulas as pf
 from robust import (
     DEFAULT_CALIBRATION,
     K_PSF_NOMINAL,
@@ -17,7 +17,7 @@ from robust import (
     evaluate_claims,
     loop_poles,
 )
-from robust.analysis.loops import is_unstable
+from robust.analysis.stability import unstable_mask
 
 CAL = DEFAULT_CALIBRATION
 
@@ -36,8 +36,10 @@ def test_pole_counts_c1_c3(k_psf, n_unstable):
     assert ps.n_unstable == n_unstable
     # independent: roots of the characteristic polynomial built from the printed formulas
     roots = char_roots(k_psf)
-    assert np.count_nonzero(is_unstable(roots)) == n_unstable
-    np.testing.assert_allclose(np.sort_complex(ps.poles), np.sort_complex(roots), rtol=1e-6, atol=1e-8)
+    assert np.count_nonzero(unstable_mask(roots)) == n_unstable
+    np.testing.assert_allclose(
+        np.sort_complex(ps.poles), np.sort_complex(roots), rtol=1e-6, atol=1e-8
+    )
 
 
 def test_nominal_unstable_pair_is_complex():
@@ -66,7 +68,9 @@ def test_calibration_search_reproduces_the_defaults():
 def test_calibration_with_positive_sign_only_cannot_reproduce_c1():
     # positive feedback at the handle loses stability through a real pole: never "two unstable poles"
     with pytest.raises(InfeasibleError, match="no PI gains x junction sign .* reproduce C1-C3"):
-        calibrate(LiteralHuman(), signs=(1,), kp_grid=(0.1, 0.3), ki_ratio_grid=(0.0, 1.0), g_points=60)
+        calibrate(
+            LiteralHuman(), signs=(1,), kp_grid=(0.1, 0.3), ki_ratio_grid=(0.0, 1.0), g_points=60
+        )
 
 
 def test_claims_literal_variant():
@@ -84,9 +88,9 @@ def test_bdft_ratio_matches_formula():
     f = np.array([0.2, 1.0, 6.3])
     loop = BDFTLoop(k_psf=K_PSF_STABLE)
     s = 2j * np.pi * f
-    want = pf.loop_u_to_y(s, K_PSF_STABLE, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign) / pf.loop_u_to_y(
-        s, K_PSF_STABLE, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign, bdft=False
-    )
+    want = pf.loop_u_to_y(
+        s, K_PSF_STABLE, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign
+    ) / pf.loop_u_to_y(s, K_PSF_STABLE, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign, bdft=False)
     np.testing.assert_allclose(bdft_ratio(loop, f), want, rtol=1e-7)
 
 

@@ -15,9 +15,33 @@ def test_design_list(capsys):
 
 
 def test_design_cancellation_json_and_artifact(tmp_path, capsys):
-    assert main(["design", "cancellation", "--samples", "200", "--seed", "5", "--out", str(tmp_path), "--json"]) == 0
+    assert (
+        main(
+            [
+                "design",
+                "cancellation",
+                "--samples",
+                "200",
+                "--seed",
+                "5",
+                "--out",
+                str(tmp_path),
+                "--json",
+            ]
+        )
+        == 0
+    )
     obj = json.loads(capsys.readouterr().out)
-    for key in ("name", "fraction_stable", "max_real_pole", "min_damping", "peak_force_N", "rms_force_N", "order", "artifact"):
+    for key in (
+        "name",
+        "fraction_stable",
+        "max_real_pole",
+        "min_damping",
+        "peak_force_N",
+        "rms_force_N",
+        "order",
+        "artifact",
+    ):
         assert key in obj
     assert obj["seed"] == 5 and obj["samples"] == 200 and obj["order"] == 4
     art = load_artifact(obj["artifact"])
@@ -37,7 +61,11 @@ def test_design_scripts_run(script, tmp_path, capsys, monkeypatch):
     import runpy
     import sys
 
-    monkeypatch.setattr(sys, "argv", [f"designs/{script}.py", "--samples", "150", "--seed", "2", "--out", str(tmp_path)])
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        [f"designs/{script}.py", "--samples", "150", "--seed", "2", "--out", str(tmp_path)],
+    )
     with pytest.raises(SystemExit) as exc:
         runpy.run_path(f"designs/{script}.py", run_name="__main__")
     assert exc.value.code == 0

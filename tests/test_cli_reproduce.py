@@ -5,8 +5,6 @@ import pytest
 from bdft import main
 
 
-
-
 def test_reproduce_json_end_to_end(tmp_path, capsys):
     out = tmp_path / "reproduce"
     code = main(["reproduce", "--out", str(out), "--human", "literal", "--json"])

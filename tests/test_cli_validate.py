@@ -54,7 +54,9 @@ def _write(path, obj):
 
 def test_controller_file_is_validated_like_the_library(capsys, tmp_path):
     A, B, C, D = [[-30.0, 0.0], [1.0, -20.0]], [[1.0], [0.0]], [[0.0, 0.4]], [[0.0]]
-    path = _write(tmp_path / "k.json", {"A": A, "B": B, "C": C, "D": D, "inputs": ["c"], "outputs": ["f"]})
+    path = _write(
+        tmp_path / "k.json", {"A": A, "B": B, "C": C, "D": D, "inputs": ["c"], "outputs": ["f"]}
+    )
     obj = run_json(capsys, "--samples", "200", "--controller", path)
     K = ct.ss(A, B, C, D, inputs=["c"], outputs=["f"])
     fam = default_family("physical")
@@ -70,15 +72,56 @@ def test_controller_file_is_validated_like_the_library(capsys, tmp_path):
     "content, match",
     [
         ("not json", "is not valid JSON"),
-        (json.dumps({"A": [[-1]], "B": [[1]], "C": [[1]], "inputs": ["c"], "outputs": ["f"]}), "missing matrix 'D'"),
-        (json.dumps({"A": [[-1]], "B": [[1, 2]], "C": [[1]], "D": [[0]], "inputs": ["c"], "outputs": ["f"]}),
-         "B must have shape"),
-        (json.dumps({"A": [[-1]], "B": [[1]], "C": [[1]], "D": [[0]], "inputs": ["u"], "outputs": ["f"]}),
-         "controller inputs must be"),
-        (json.dumps({"A": [[-1]], "B": [[1]], "C": [["nan"]], "D": [[0]], "inputs": ["c"], "outputs": ["f"]}),
-         "C contains NaN"),
-        (json.dumps({"A": [[-1]], "B": [[1]], "C": [[1]], "D": [[0]], "inputs": ["c"], "outputs": ["f"], "dt": 0.001}),
-         "must be continuous-time"),
+        (
+            json.dumps({"A": [[-1]], "B": [[1]], "C": [[1]], "inputs": ["c"], "outputs": ["f"]}),
+            "missing matrix 'D'",
+        ),
+        (
+            json.dumps(
+                {
+                    "A": [[-1]],
+                    "B": [[1, 2]],
+                    "C": [[1]],
+                    "D": [[0]],
+                    "inputs": ["c"],
+                    "outputs": ["f"],
+                }
+            ),
+            "B must have shape",
+        ),
+        (
+            json.dumps(
+                {"A": [[-1]], "B": [[1]], "C": [[1]], "D": [[0]], "inputs": ["u"], "outputs": ["f"]}
+            ),
+            "controller inputs must be",
+        ),
+        (
+            json.dumps(
+                {
+                    "A": [[-1]],
+                    "B": [[1]],
+                    "C": [["nan"]],
+                    "D": [[0]],
+                    "inputs": ["c"],
+                    "outputs": ["f"],
+                }
+            ),
+            "C contains NaN",
+        ),
+        (
+            json.dumps(
+                {
+                    "A": [[-1]],
+                    "B": [[1]],
+                    "C": [[1]],
+                    "D": [[0]],
+                    "inputs": ["c"],
+                    "outputs": ["f"],
+                    "dt": 0.001,
+                }
+            ),
+            "must be continuous-time",
+        ),
     ],
     ids=["not-json", "missing-D", "bad-shape", "bad-signal", "nan", "discrete"],
 )
@@ -94,8 +137,17 @@ def test_bad_controller_file_exits_2_with_message(capsys, tmp_path, content, mat
 def _structure_fit(**params):
     p = {"k_s": 210.0, "zeta1": 0.12, "zeta2": 0.2, "f1_hz": 5.0, "f2_hz": 5.5}
     p.update(params)
-    return {"kind": "bdft-component-fit", "form": "structure", "params_class": "StructureParams", "params": p,
-            "fit_error_db": 0.1, "band": [2, 15], "fs": 1000.0, "seed": 7, "source": "rig.csv"}
+    return {
+        "kind": "bdft-component-fit",
+        "form": "structure",
+        "params_class": "StructureParams",
+        "params": p,
+        "fit_error_db": 0.1,
+        "band": [2, 15],
+        "fs": 1000.0,
+        "seed": 7,
+        "source": "rig.csv",
+    }
 
 
 def test_plant_file_replaces_the_nominal(capsys, tmp_path):
@@ -109,9 +161,17 @@ def test_plant_file_replaces_the_nominal(capsys, tmp_path):
 
 
 def test_literal_human_fit_needs_the_literal_variant(capsys, tmp_path):
-    fit = {"kind": "bdft-component-fit", "form": "human", "params_class": "LiteralHumanParams",
-           "params": {"k_h": 4.0, "z1": 50.0, "p1": 1.6}, "fit_error_db": 0.5, "band": [1, 10], "fs": 1000.0,
-           "seed": None, "source": "subject.csv"}
+    fit = {
+        "kind": "bdft-component-fit",
+        "form": "human",
+        "params_class": "LiteralHumanParams",
+        "params": {"k_h": 4.0, "z1": 50.0, "p1": 1.6},
+        "fit_error_db": 0.5,
+        "band": [1, 10],
+        "fs": 1000.0,
+        "seed": None,
+        "source": "subject.csv",
+    }
     path = _write(tmp_path / "h.json", fit)
     assert main(["validate", "--samples", "10", "--plant-file", path]) == 2
     assert "Use --human literal" in capsys.readouterr().err
@@ -126,7 +186,10 @@ def test_literal_human_fit_needs_the_literal_variant(capsys, tmp_path):
         (dict(form="seat"), "'form' must be one of"),
         (dict(params_class="ValveCylinderParams"), "needs params_class 'StructureParams'"),
         (dict(params={"k_s": 1.0}), "missing"),
-        (dict(params={"k_s": -1.0, "zeta1": 0.1, "zeta2": 0.2, "f1_hz": 6.0, "f2_hz": 6.0}), "StructureParams.k_s"),
+        (
+            dict(params={"k_s": -1.0, "zeta1": 0.1, "zeta2": 0.2, "f1_hz": 6.0, "f2_hz": 6.0}),
+            "StructureParams.k_s",
+        ),
     ],
     ids=["kind", "form", "class", "missing-params", "negative-gain"],
 )

@@ -1,9 +1,9 @@
 import math
 
 import numpy as np
+import paper_formulas as pf
 import pytest
 
-import paper_formulas as pf
 from robust import (
     LiteralHuman,
     LiteralHumanParams,
@@ -22,7 +22,9 @@ FREQS_HZ = np.array([0.2, 1.0, 4.7, 6.3, 12.0, 40.0])
 
 def response(sys, inp, out, f_hz):
     s = 2j * np.pi * np.asarray(f_hz)
-    return np.asarray(sys(s, squeeze=False))[sys.output_labels.index(out), sys.input_labels.index(inp)]
+    return np.asarray(sys(s, squeeze=False))[
+        sys.output_labels.index(out), sys.input_labels.index(inp)
+    ]
 
 
 def test_valve_cylinder_matches_eqn3():
@@ -35,13 +37,17 @@ def test_valve_cylinder_matches_eqn3():
 def test_valve_cylinder_custom_parameters():
     p = ValveCylinderParams(k_vc=20.0, p1=200.0, wn_hz=3.0, zeta=0.3)
     got = response(valve_cylinder(p), "e", "y", FREQS_HZ)
-    np.testing.assert_allclose(got, pf.valve(2j * np.pi * FREQS_HZ, 20.0, 200.0, 3.0, 0.3), rtol=1e-9)
+    np.testing.assert_allclose(
+        got, pf.valve(2j * np.pi * FREQS_HZ, 20.0, 200.0, 3.0, 0.3), rtol=1e-9
+    )
 
 
 def test_structure_matches_eqn4():
     sys = structure()
     assert sys.input_labels == ["y"] and sys.output_labels == ["c"]
-    np.testing.assert_allclose(response(sys, "y", "c", FREQS_HZ), pf.structure(2j * np.pi * FREQS_HZ), rtol=1e-9)
+    np.testing.assert_allclose(
+        response(sys, "y", "c", FREQS_HZ), pf.structure(2j * np.pi * FREQS_HZ), rtol=1e-9
+    )
 
 
 def test_structure_peak_near_six_hz():
@@ -53,7 +59,9 @@ def test_structure_peak_near_six_hz():
 def test_literal_human_matches_eqn5():
     sys = LiteralHuman().system()
     assert sys.input_labels == ["c"] and sys.output_labels == ["h"]
-    np.testing.assert_allclose(response(sys, "c", "h", FREQS_HZ), pf.human(2j * np.pi * FREQS_HZ), rtol=1e-9)
+    np.testing.assert_allclose(
+        response(sys, "c", "h", FREQS_HZ), pf.human(2j * np.pi * FREQS_HZ), rtol=1e-9
+    )
 
 
 def test_literal_human_hand_computed_value_at_1hz():
@@ -69,7 +77,9 @@ def test_literal_human_hand_computed_value_at_1hz():
 def test_pi_controller(kp, ki):
     sys = pi_controller(PIParams(kp=kp, ki=ki))
     assert sys.input_labels == ["err"] and sys.output_labels == ["e"]
-    np.testing.assert_allclose(response(sys, "err", "e", FREQS_HZ), pf.pi(2j * np.pi * FREQS_HZ, kp, ki), rtol=1e-12)
+    np.testing.assert_allclose(
+        response(sys, "err", "e", FREQS_HZ), pf.pi(2j * np.pi * FREQS_HZ, kp, ki), rtol=1e-12
+    )
 
 
 def test_position_scale():
@@ -93,8 +103,19 @@ def test_position_scale():
         (PIParams, {"kp": 0.0, "ki": 0.1}, r"PIParams\.kp .*0\.0"),
         (PIParams, {"kp": 0.3, "ki": -0.1}, r"PIParams\.ki .*-0\.1"),
     ],
-    ids=["zeta>1", "neg-gain", "nan-freq", "string", "zero-freq", "zero-damping", "inf-gain",
-         "neg-zero", "bool", "zero-kp", "neg-ki"],
+    ids=[
+        "zeta>1",
+        "neg-gain",
+        "nan-freq",
+        "string",
+        "zero-freq",
+        "zero-damping",
+        "inf-gain",
+        "neg-zero",
+        "bool",
+        "zero-kp",
+        "neg-ki",
+    ],
 )
 def test_bad_parameters_name_the_parameter(factory, kwargs, match):
     with pytest.raises(ParameterError, match=match):

@@ -52,7 +52,9 @@ def test_hinf_robust_holds_on_a_held_out_sample(runs):
 
     r = _run(runs, "hinf-robust")
     fam = default_family()
-    v = validate_family(fam, sample(fam.parameters, 4000, method="lhs", seed=SEED + 1), controller=r.controller)
+    v = validate_family(
+        fam, sample(fam.parameters, 4000, method="lhs", seed=SEED + 1), controller=r.controller
+    )
     assert v.fraction_stable >= 0.99
 
 
@@ -78,7 +80,9 @@ def test_workspace_factor_stabilises_the_sample(runs):
 def test_hinf_nominal_margins(runs):
     r = _run(runs, "hinf-nominal")
     ev = r.evaluation
-    assert 0.2 <= ev.fraction_stable < 1.0  # the nominal design is not robust: that is what the robust one buys
+    assert (
+        0.2 <= ev.fraction_stable < 1.0
+    )  # the nominal design is not robust: that is what the robust one buys
     assert ev.tracking_error < 0.2
     _force_flag_consistent(ev)
     chk = r.details["sampled_data_check"]["nominal"]

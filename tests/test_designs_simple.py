@@ -44,7 +44,10 @@ def test_virtual_damping_damps_the_arm(family):
     hx = ct.ss([], [], [], [[per_m / p.h_gain]], inputs="h", outputs="x")
     cl = ct.interconnect([H, hx, K], inputs="c", outputs="h")
     z_open = min(-np.real(H.poles()) / np.abs(H.poles()))
-    z_closed = min(-np.real(cl.poles()[np.abs(cl.poles()) < 1e3]) / np.abs(cl.poles()[np.abs(cl.poles()) < 1e3]))
+    z_closed = min(
+        -np.real(cl.poles()[np.abs(cl.poles()) < 1e3])
+        / np.abs(cl.poles()[np.abs(cl.poles()) < 1e3])
+    )
     assert z_closed > z_open + 0.05
 
 

@@ -11,10 +11,18 @@ from robust.export import ControllerArtifact, discretize, load_artifact, write_a
 
 @pytest.fixture
 def artifact():
-    K = ct.ss([[-5.0, 1.0], [0.0, -40.0]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 2.0]], [[0.0, 0.1]],
-              inputs=["x", "c"], outputs=["f"], name="K")
-    return ControllerArtifact("test", K, discretize(K, 0.001, prewarp_hz=6.4), 6.4,
-                              weights={"w": 1.0}, family={"seed": 7})
+    K = ct.ss(
+        [[-5.0, 1.0], [0.0, -40.0]],
+        [[1.0, 0.0], [0.0, 1.0]],
+        [[1.0, 2.0]],
+        [[0.0, 0.1]],
+        inputs=["x", "c"],
+        outputs=["f"],
+        name="K",
+    )
+    return ControllerArtifact(
+        "test", K, discretize(K, 0.001, prewarp_hz=6.4), 6.4, weights={"w": 1.0}, family={"seed": 7}
+    )
 
 
 def test_round_trip(tmp_path, artifact):
@@ -33,8 +41,11 @@ def test_round_trip(tmp_path, artifact):
 def test_prewarped_tustin_matches_at_prewarp_frequency(artifact):
     K, Kd = artifact.continuous, artifact.discrete
     w = 2 * np.pi * 6.4
-    np.testing.assert_allclose(np.asarray(Kd(np.exp(1j * w * 0.001), squeeze=False)),
-                               np.asarray(K(1j * w, squeeze=False)), rtol=1e-9)
+    np.testing.assert_allclose(
+        np.asarray(Kd(np.exp(1j * w * 0.001), squeeze=False)),
+        np.asarray(K(1j * w, squeeze=False)),
+        rtol=1e-9,
+    )
 
 
 def _corrupt(tmp_path, artifact, change):
@@ -51,7 +62,10 @@ def _corrupt(tmp_path, artifact, change):
         (lambda d: d.update(kind="other"), r"'kind' must be 'bdft-controller'"),
         (lambda d: d.update(format_version=99), r"format_version must be 1; got 99"),
         (lambda d: d["continuous"].update(A=[[1.0, "nan"], [0, 1]]), r"continuous.A: contains NaN"),
-        (lambda d: d["continuous"].update(B=[[1.0, 2.0, 3.0]]), r"continuous.B: expected shape \(2, 2\)"),
+        (
+            lambda d: d["continuous"].update(B=[[1.0, 2.0, 3.0]]),
+            r"continuous.B: expected shape \(2, 2\)",
+        ),
         (lambda d: d["discrete"].update(dt=-0.001), r"discrete.dt must be a positive sample time"),
         (lambda d: d["discrete"]["A"][0].__setitem__(0, 0.5), r"not the Tustin transform"),
         (lambda d: d.update(inputs=["x", "q"]), r"unknown signal name\(s\) \['q'\]"),

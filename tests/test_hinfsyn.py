@@ -8,12 +8,16 @@ import control
 import numpy as np
 import pytest
 
+from robust.analysis.norms import hinf_norm
 from robust.errors import AssumptionError, InfeasibleError, ModelStructureError
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.hinfsyn import LMISynthesisProblem, hinfsyn_lmi, hinfsyn_multi
 from robust.synthesis.lmi import PlantBlocks
-from robust.analysis.norms import hinf_norm
-from robust.synthesis.testing import dgkf_scalar_gamma_opt, dgkf_scalar_plant, random_generalized_plant
+from robust.synthesis.testing import (
+    dgkf_scalar_gamma_opt,
+    dgkf_scalar_plant,
+    random_generalized_plant,
+)
 
 
 def _check_certificate(gp, res):

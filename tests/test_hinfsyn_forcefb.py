@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from robust import BDFTLoop, human_variant
+from robust.analysis.norms import hinf_norm
+from robust.errors import AssumptionError
 from robust.synthesis.forcefb import force_feedback_plant
 from robust.synthesis.genplant import GeneralizedPlant
-from robust.errors import AssumptionError
 from robust.synthesis.hinfsyn import check_hinf_assumptions, hinfsyn_lmi
-from robust.analysis.norms import hinf_norm
 
 
 def _plant(**loop_kw):
@@ -95,7 +95,9 @@ def test_pbh_still_detects_uncontrollable_unstable_mode_when_badly_scaled():
         [[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]],
     )
     gp = GeneralizedPlant.from_counts(sys, nmeas=1, ncon=1)
-    with pytest.raises(AssumptionError, match=r"\(A, B2\) is not stabilisable: the mode\(s\) \[1\.0\]"):
+    with pytest.raises(
+        AssumptionError, match=r"\(A, B2\) is not stabilisable: the mode\(s\) \[1\.0\]"
+    ):
         check_hinf_assumptions(gp)
 
 

@@ -1,8 +1,8 @@
 import control as ct
 import numpy as np
+import paper_formulas as pf
 import pytest
 
-import paper_formulas as pf
 from robust import (
     DEFAULT_CALIBRATION,
     BDFTLoop,
@@ -26,7 +26,9 @@ def y_over_u(sys, f_hz):
 def test_loop_matches_hand_built_feedback_formula(k_psf, bdft):
     loop = BDFTLoop(k_psf=k_psf)
     got = y_over_u(loop.system(bdft=bdft), FREQS_HZ)
-    want = pf.loop_u_to_y(2j * np.pi * FREQS_HZ, k_psf, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign, bdft=bdft)
+    want = pf.loop_u_to_y(
+        2j * np.pi * FREQS_HZ, k_psf, CAL.kp, CAL.ki, CAL.loop_scale, CAL.handle_sign, bdft=bdft
+    )
     np.testing.assert_allclose(got, want, rtol=1e-7)
 
 
@@ -70,8 +72,14 @@ def test_force_controller_needs_force_port():
     "K,match",
     [
         (ct.ss([], [], [], [[1.0]], inputs="h", outputs="r_corr"), r"inputs must be among"),
-        (ct.ss([], [], [], [[1.0]], inputs="x", outputs="valve"), r"outputs among .*got inputs .*outputs \[.valve.\]"),
-        (ct.ss([[0.5]], [[1]], [[1]], [[0]], dt=0.001, inputs="x", outputs="r_corr"), r"continuous-time"),
+        (
+            ct.ss([], [], [], [[1.0]], inputs="x", outputs="valve"),
+            r"outputs among .*got inputs .*outputs \[.valve.\]",
+        ),
+        (
+            ct.ss([[0.5]], [[1]], [[1]], [[0]], dt=0.001, inputs="x", outputs="r_corr"),
+            r"continuous-time",
+        ),
     ],
     ids=["bad-input", "bad-output", "discrete"],
 )
@@ -110,15 +118,19 @@ def _planted(rng, n_min, n_unc, n_unobs):
     A = np.zeros((n, n))
     A[:n_min, :n_min] = rng.normal(size=(n_min, n_min)) - 3 * np.eye(n_min)
     A[n_min:, n_min:] = np.diag(-rng.uniform(0.5, 5, n_unc + n_unobs))
-    A[:n_min, n_min:] = rng.normal(size=(n_min, n_unc + n_unobs))  # couplings that keep the modes hidden
+    A[:n_min, n_min:] = rng.normal(
+        size=(n_min, n_unc + n_unobs)
+    )  # couplings that keep the modes hidden
     B = np.zeros((n, 2))
     B[:n_min] = rng.normal(size=(n_min, 2))
-    B[n_min + n_unc:] = rng.normal(size=(n_unobs, 2))
+    B[n_min + n_unc :] = rng.normal(size=(n_unobs, 2))
     C = np.zeros((2, n))
     C[:, :n_min] = rng.normal(size=(2, n_min))
     # the unobservable block must not be seen: it must also not feed the observable part
-    A[:n_min, n_min + n_unc:] = 0.0
-    A[n_min:n_min + n_unc, :] = np.hstack([np.zeros((n_unc, n_min)), A[n_min:n_min + n_unc, n_min:]])
+    A[:n_min, n_min + n_unc :] = 0.0
+    A[n_min : n_min + n_unc, :] = np.hstack(
+        [np.zeros((n_unc, n_min)), A[n_min : n_min + n_unc, n_min:]]
+    )
     T = np.linalg.qr(rng.normal(size=(n, n)))[0]
     return T @ A @ T.T, T @ B, C @ T.T, rng.normal(size=(2, 2))
 
@@ -132,7 +144,9 @@ def test_minimal_realization_against_slycot_minreal(seed):
     assert m.n_uncontrollable + m.n_unobservable == 3
     ref = ct.minreal(ct.ss(A, B, C, D), tol=1e-8, verbose=False)  # SLICOT tb01pd
     assert ref.nstates == 5
-    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(m.A)), np.sort_complex(ref.poles()), rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(
+        np.sort_complex(np.linalg.eigvals(m.A)), np.sort_complex(ref.poles()), rtol=1e-7, atol=1e-9
+    )
     # transfer functions equal at test points
     s = np.array([0.3j, 1 + 2j, 7j])
     for sk in s:

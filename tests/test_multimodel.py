@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
-from robust.analysis.sampled import sampled_data_check
 from designs.simple import virtual_damping_controller
+from robust.analysis.sampled import sampled_data_check
 from robust.errors import ModelStructureError
 from robust.export import discretize
 from uncertainty import default_family, sample

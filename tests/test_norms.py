@@ -4,8 +4,8 @@ import control
 import numpy as np
 import pytest
 
-from robust.errors import ModelStructureError, ParameterError
 from robust.analysis.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
+from robust.errors import ModelStructureError, ParameterError
 
 
 def _fr(sys, w):

@@ -12,8 +12,15 @@ from uncertainty.parameters import UncertainParameter
 
 
 def P(**kw):
-    base = dict(name="human.k_arm", nominal=200.0, low=100.0, high=400.0, distribution="uniform", units="N/m",
-                source="test")
+    base = dict(
+        name="human.k_arm",
+        nominal=200.0,
+        low=100.0,
+        high=400.0,
+        distribution="uniform",
+        units="N/m",
+        source="test",
+    )
     base.update(kw)
     return UncertainParameter(**base)
 
@@ -22,10 +29,16 @@ def P(**kw):
     "changes, match",
     [
         (dict(low=500.0), r"'human.k_arm'.*low < high"),
-        (dict(nominal=50.0), r"'human.k_arm'.*nominal must lie in \[low, high\] = \[100.0, 400.0\]; got 50.0"),
+        (
+            dict(nominal=50.0),
+            r"'human.k_arm'.*nominal must lie in \[low, high\] = \[100.0, 400.0\]; got 50.0",
+        ),
         (dict(nominal=float("nan")), r"'human.k_arm'.nominal must be a finite value"),
         (dict(high=float("inf")), r"'human.k_arm'.high must be a finite value"),
-        (dict(low=0.0, nominal=1.0, distribution="loguniform"), r"'human.k_arm'.*log-uniform parameter needs low > 0"),
+        (
+            dict(low=0.0, nominal=1.0, distribution="loguniform"),
+            r"'human.k_arm'.*log-uniform parameter needs low > 0",
+        ),
         (dict(low=-5.0, nominal=1.0, distribution="loguniform"), r"'human.k_arm'.*log-uniform"),
         (dict(distribution="normal"), r"'human.k_arm'.*distribution must be one of"),
         (dict(std=1.0), r"'human.k_arm'.*std applies only to 'truncnormal'"),
@@ -33,8 +46,19 @@ def P(**kw):
         (dict(name=""), r"name must be a non-empty string"),
         (dict(nominal="200"), r"'human.k_arm'.nominal must be a real number"),
     ],
-    ids=["inverted", "nominal-outside", "nan-nominal", "inf-bound", "log-zero-bound", "log-negative-bound",
-         "unknown-distribution", "std-not-truncnormal", "negative-std", "empty-name", "string-value"],
+    ids=[
+        "inverted",
+        "nominal-outside",
+        "nan-nominal",
+        "inf-bound",
+        "log-zero-bound",
+        "log-negative-bound",
+        "unknown-distribution",
+        "std-not-truncnormal",
+        "negative-std",
+        "empty-name",
+        "string-value",
+    ],
 )
 def test_invalid_definitions_raise_value_error_naming_the_parameter(changes, match):
     with pytest.raises(ValueError, match=match) as info:
@@ -88,7 +112,9 @@ def test_nominal_member_is_the_nominal_loop():
 
 def test_family_rejects_parameters_of_the_other_variant():
     lit = default_family("literal").parameter("human.k_h")
-    with pytest.raises(ParameterError, match="'human.k_h' is not a parameter of the physical variant"):
+    with pytest.raises(
+        ParameterError, match="'human.k_h' is not a parameter of the physical variant"
+    ):
         Family(parameters=(lit,), human="physical")
     with pytest.raises(ParameterError, match="unknown parameters"):
         default_family().member({"human.nope": 1.0})

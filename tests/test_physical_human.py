@@ -7,9 +7,15 @@ import numpy as np
 import pytest
 
 from robust.errors import ParameterError
-from robust.model.human import HumanModel, human_variant
 from robust.model._human_fit_data import FIT_RESULT
-from robust.model.human_fit import FIT_BAND_HZ, chain_response, eqn5_response, fit_chain, fit_frequencies
+from robust.model.human import HumanModel, human_variant
+from robust.model.human_fit import (
+    FIT_BAND_HZ,
+    chain_response,
+    eqn5_response,
+    fit_chain,
+    fit_frequencies,
+)
 from robust.model.physical import PhysicalHuman, PhysicalHumanParams, fit_summary, segment_masses
 
 
@@ -28,7 +34,11 @@ def test_response_matches_independent_chain_solution():
     f = np.geomspace(0.1, 30, 50)
     sys = PhysicalHuman(p).system()
     resp = sys(2j * np.pi * f)  # (1, 2, F)
-    ref = p.h_gain * p.c_unit * chain_response(f, [p.m_trunk, p.m_arm], [p.k_trunk, p.k_arm], [p.c_trunk, p.c_arm])
+    ref = (
+        p.h_gain
+        * p.c_unit
+        * chain_response(f, [p.m_trunk, p.m_arm], [p.k_trunk, p.k_arm], [p.c_trunk, p.c_arm])
+    )
     np.testing.assert_allclose(resp[0, 0], ref, rtol=1e-10)
 
 
@@ -37,7 +47,9 @@ def test_low_frequency_motion_is_bounded_and_force_port_is_the_static_compliance
     dc = PhysicalHuman(p).system().dcgain()
     m_tot = p.m_trunk + p.m_arm
     # seat acceleration: the chain sags by the inertial load on each spring
-    np.testing.assert_allclose(dc[0, 0], -p.h_gain * p.c_unit * (m_tot / p.k_trunk + p.m_arm / p.k_arm), rtol=1e-10)
+    np.testing.assert_allclose(
+        dc[0, 0], -p.h_gain * p.c_unit * (m_tot / p.k_trunk + p.m_arm / p.k_arm), rtol=1e-10
+    )
     # handle force: the two springs in series
     np.testing.assert_allclose(dc[0, 1], p.h_gain * (1 / p.k_trunk + 1 / p.k_arm), rtol=1e-10)
 
@@ -48,9 +60,14 @@ def test_fit_summary_error_is_the_models_error_against_eqn5():
     model = PhysicalHuman().system()(2j * np.pi * f)[0, 0]
     err_db = 20 * np.log10(np.abs(eqn5_response(f) / model))
     assert s["fit error, magnitude [dB]"]["max"] == pytest.approx(np.max(np.abs(err_db)), rel=1e-9)
-    assert s["fit error, magnitude [dB]"]["rms"] == pytest.approx(np.sqrt(np.mean(err_db**2)), rel=1e-9)
+    assert s["fit error, magnitude [dB]"]["rms"] == pytest.approx(
+        np.sqrt(np.mean(err_db**2)), rel=1e-9
+    )
     assert s["fit band [Hz]"] == f"{FIT_BAND_HZ[0]:g}-{FIT_BAND_HZ[1]:g}"
-    assert s["unit-conversion gain h_gain [paper h units per m, for c in m/s^2]"] == PhysicalHumanParams().h_gain
+    assert (
+        s["unit-conversion gain h_gain [paper h units per m, for c in m/s^2]"]
+        == PhysicalHumanParams().h_gain
+    )
 
 
 def test_masses_follow_anthropometry():
@@ -63,8 +80,12 @@ def test_masses_follow_anthropometry():
 
 @pytest.mark.parametrize(
     "field, value, match",
-    [("k_trunk", -1.0, "PhysicalHumanParams.k_trunk"), ("c_arm", float("nan"), "PhysicalHumanParams.c_arm"),
-     ("m_arm", 0.0, "PhysicalHumanParams.m_arm"), ("h_gain", 0.0, "h_gain must be nonzero")],
+    [
+        ("k_trunk", -1.0, "PhysicalHumanParams.k_trunk"),
+        ("c_arm", float("nan"), "PhysicalHumanParams.c_arm"),
+        ("m_arm", 0.0, "PhysicalHumanParams.m_arm"),
+        ("h_gain", 0.0, "h_gain must be nonzero"),
+    ],
     ids=["negative-stiffness", "nan-damping", "zero-mass", "zero-gain"],
 )
 def test_invalid_parameters_raise(field, value, match):
@@ -100,9 +121,16 @@ def test_handle_offset_scales_only_the_arm_by_the_arm_geometry():
     q = np.array(g.joint_angles(0.05))
 
     def hand(q):
-        return np.array([L1 * np.cos(q[0]) + L2 * np.cos(q[0] + q[1]), L1 * np.sin(q[0]) + L2 * np.sin(q[0] + q[1])])
+        return np.array(
+            [
+                L1 * np.cos(q[0]) + L2 * np.cos(q[0] + q[1]),
+                L1 * np.sin(q[0]) + L2 * np.sin(q[0] + q[1]),
+            ]
+        )
 
-    J = np.column_stack([(hand(q + e) - hand(q - e)) / 2e-7 for e in (np.array([1e-7, 0]), np.array([0, 1e-7]))])
+    J = np.column_stack(
+        [(hand(q + e) - hand(q - e)) / 2e-7 for e in (np.array([1e-7, 0]), np.array([0, 1e-7]))]
+    )
     np.testing.assert_allclose(hand(q), [g.hand_x + 0.05, g.hand_y], atol=1e-12)
     assert g.fore_aft_compliance(0.05) == pytest.approx((J @ J.T)[0, 0], rel=1e-6)
     with pytest.raises(ParameterError, match="out of the arm's reach"):

@@ -2,7 +2,11 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust.analysis.reduction import balanced_truncation, hankel_singular_values, stable_unstable_split
+from robust.analysis.reduction import (
+    balanced_truncation,
+    hankel_singular_values,
+    stable_unstable_split,
+)
 
 
 def sigma_max(sys, w):
@@ -22,7 +26,9 @@ def test_hsv_match_slycot(seed):
     sys = rand_stable(seed)
     ref = ct.hsvd(sys)  # SLICOT ab13ad
     # Hankel singular values are accurate relative to the largest one
-    np.testing.assert_allclose(hankel_singular_values(sys.A, sys.B, sys.C), ref, rtol=1e-6, atol=1e-9 * ref[0])
+    np.testing.assert_allclose(
+        hankel_singular_values(sys.A, sys.B, sys.C), ref, rtol=1e-6, atol=1e-9 * ref[0]
+    )
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -47,7 +53,9 @@ def test_unstable_part_is_kept():
     (As, Bs, Cs), (Au, Bu, Cu) = stable_unstable_split(su.A, su.B, su.C)
     s = 0.7j
     g = su.C @ np.linalg.solve(s * np.eye(8) - su.A, su.B)
-    g2 = Cs @ np.linalg.solve(s * np.eye(len(As)) - As, Bs) + Cu @ np.linalg.solve(s * np.eye(len(Au)) - Au, Bu)
+    g2 = Cs @ np.linalg.solve(s * np.eye(len(As)) - As, Bs) + Cu @ np.linalg.solve(
+        s * np.eye(len(Au)) - Au, Bu
+    )
     np.testing.assert_allclose(g2, g, rtol=1e-8)
     red = balanced_truncation(su, order=n_unst + 2)
     assert red.n_unstable == n_unst
@@ -66,5 +74,7 @@ def test_tolerance_mode_picks_smallest_order():
 def test_bad_order():
     from robust.errors import ParameterError
 
-    with pytest.raises(ParameterError, match=r"order must be in \[0, 10\] \(unstable states are kept\); got 11"):
+    with pytest.raises(
+        ParameterError, match=r"order must be in \[0, 10\] \(unstable states are kept\); got 11"
+    ):
         balanced_truncation(rand_stable(0), order=11)

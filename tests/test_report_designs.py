@@ -13,9 +13,17 @@ def test_comparison_page_with_verdict(tmp_path):
         assert (out / fig).stat().st_size > 1000
     lines = verdict(runs)
     # workspace scaling stabilises the sample without force; the nominal H-infinity design does not
-    assert lines[0] == "Designs that stabilise every sampled member within the force limits: workspace."
-    assert lines[1].startswith("No handle-force design (hinf-nominal) stabilises every sampled member")
-    assert any(line.startswith("workspace stabilises every sampled member") and "held-out members" in line for line in lines)
+    assert (
+        lines[0]
+        == "Designs that stabilise every sampled member within the force limits: workspace."
+    )
+    assert lines[1].startswith(
+        "No handle-force design (hinf-nominal) stabilises every sampled member"
+    )
+    assert any(
+        line.startswith("workspace stabilises every sampled member") and "held-out members" in line
+        for line in lines
+    )
     assert any("hinf-nominal" in line and "leave members unstable" in line for line in lines)
     why = [line for line in lines if line.startswith("Why:")]
     assert len(why) == 1 and "handle-arm mode" in why[0]

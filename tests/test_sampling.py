@@ -66,8 +66,11 @@ def test_vertices_and_grid():
 
 @pytest.mark.parametrize(
     "kw, match",
-    [(dict(n=0), "n must be a positive integer"), (dict(method="sobol"), "method must be one of"),
-     (dict(seed=-1), "seed must be a non-negative integer")],
+    [
+        (dict(n=0), "n must be a positive integer"),
+        (dict(method="sobol"), "method must be one of"),
+        (dict(seed=-1), "seed must be a non-negative integer"),
+    ],
     ids=["zero-n", "bad-method", "negative-seed"],
 )
 def test_bad_requests_raise(kw, match):

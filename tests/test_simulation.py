@@ -2,7 +2,15 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from robust import DEFAULT_CALIBRATION, K_PSF_STABLE, BDFTLoop, ParameterError, SweptSine, simulate, simulate_swept_sine
+from robust import (
+    DEFAULT_CALIBRATION,
+    K_PSF_STABLE,
+    BDFTLoop,
+    ParameterError,
+    SweptSine,
+    simulate,
+    simulate_swept_sine,
+)
 
 CAL = DEFAULT_CALIBRATION
 
@@ -37,15 +45,20 @@ def test_simulation_matches_scipy_lsim_of_the_formula():
     nh, dh = 5.0 * P([50.3, 1]) ** 2, P([1.57, 1]) ** 2
     k = K_PSF_STABLE
     num = k * npi * nv * ds * dh
-    den = (dpi * dv + npi * nv) * ds * dh - CAL.handle_sign * CAL.loop_scale * k * npi * nv * ns * nh
+    den = (
+        dpi * dv + npi * nv
+    ) * ds * dh - CAL.handle_sign * CAL.loop_scale * k * npi * nv * ns * nh
     _, y, _ = ss.lsim((num.coef[::-1], den.coef[::-1]), u, t)
     np.testing.assert_allclose(resp["y"], y, atol=1e-6 * np.abs(y).max())
 
 
 @pytest.mark.parametrize(
     "kwargs,match",
-    [({"f0_hz": 5.0, "f1_hz": 1.0}, r"f1_hz must exceed"), ({"duration_s": -1.0}, r"SweptSine\.duration_s"),
-     ({"f1_hz": 600.0}, r"Nyquist")],
+    [
+        ({"f0_hz": 5.0, "f1_hz": 1.0}, r"f1_hz must exceed"),
+        ({"duration_s": -1.0}, r"SweptSine\.duration_s"),
+        ({"f1_hz": 600.0}, r"Nyquist"),
+    ],
     ids=["inverted", "negative-duration", "above-nyquist"],
 )
 def test_bad_sweep(kwargs, match):

@@ -31,8 +31,12 @@ def test_stiffness_damping_map_fixes_the_swept_pair():
     base = [p for p in fam.parameters if p.name not in ("human.k_arm", "human.c_arm")]
     S = sample(base, 10, method="lhs", seed=1)
     k, c = res.columns["human.k_arm"][4], res.columns["human.c_arm"][4]
-    vals = np.column_stack([S.column(n) if n in S.names else np.full(10, {"human.k_arm": k, "human.c_arm": c}[n])
-                            for n in fam.names])
+    vals = np.column_stack(
+        [
+            S.column(n) if n in S.names else np.full(10, {"human.k_arm": k, "human.c_arm": c}[n])
+            for n in fam.names
+        ]
+    )
     ref = validate_family(fam, SampleSet(fam.names, vals, "lhs", 1, 10))
     assert res.columns["max_real_pole"][4] == pytest.approx(ref.max_real_pole)
     with pytest.raises(ParameterError, match="needs the physical human"):
@@ -48,7 +52,24 @@ def test_structure_frequency_sweep_spans_tyres_to_stilts():
 @pytest.mark.parametrize("name", ["workspace", "stiffness-damping", "structure-frequency"])
 def test_cli_sweep_writes_page_plots_and_csv(capsys, tmp_path, name):
     out = tmp_path / name
-    assert main(["sweep", name, "--samples", "8", "--points", "3", "--seed", "5", "--out", str(out), "--json"]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                name,
+                "--samples",
+                "8",
+                "--points",
+                "3",
+                "--seed",
+                "5",
+                "--out",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     obj = json.loads(capsys.readouterr().out)
     assert obj["settings"]["seed"] == 5
     page = (out / "index.html").read_text()

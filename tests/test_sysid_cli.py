@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from robust import BDFTLoop, LiteralHuman, LiteralHumanParams, StructureParams, ValveCylinderParams
 from bdft import main
+from robust import BDFTLoop, LiteralHuman, LiteralHumanParams, StructureParams, ValveCylinderParams
 from robust.sysid import ChirpProtocol, load_component_fit, paper_experiment, save_experiment
 
 TRUTH = {

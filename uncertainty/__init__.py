@@ -25,11 +25,17 @@ from uncertainty.batched import (
     member_metrics,
     validate_family,
 )
-from uncertainty.files import family_nominals, load_component_fit, load_controller
 from uncertainty.family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
+from uncertainty.files import family_nominals, load_component_fit, load_controller
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
 from uncertainty.sampling import METHODS, SampleSet, sample
-from uncertainty.sweeps import SWEEPS, SweepResult, stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
+from uncertainty.sweeps import (
+    SWEEPS,
+    SweepResult,
+    stiffness_damping_sweep,
+    structure_frequency_sweep,
+    workspace_sweep,
+)
 
 __all__ = [
     "DISTRIBUTIONS",

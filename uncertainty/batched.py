@@ -47,12 +47,12 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from robust.model.components import valve_cylinder
+from robust.analysis.stability import stability_bound
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
-
-from uncertainty.family import Family
 from robust.model.physical import physical_human_matrices
+from uncertainty.family import Family
 from uncertainty.sampling import SampleSet
 
 __all__ = [
@@ -71,8 +71,9 @@ __all__ = [
 #: Band (Hz) of the poles whose damping ratio is reported: the structure's modes from
 #: a machine on its tyres (about 2.5 Hz) up to twice the stilts frequencies (6.3-6.5 Hz).
 BDFT_BAND_HZ = (2.0, 12.0)
-#: A member is stable when every closed-loop pole has real part below this (1/s).
-STABILITY_THRESHOLD = -1e-9
+#: A member is stable when every closed-loop pole has real part below this, rad/s
+#: (the definition of :mod:`robust.analysis.stability`).
+STABILITY_THRESHOLD = stability_bound(0.0)
 #: Members per chunk: about 27 MB of closed-loop matrices for a 13-state loop (smaller
 #: chunks reuse memory instead of faulting in fresh pages for every batch).
 DEFAULT_CHUNK = 20_000
@@ -100,7 +101,9 @@ class Block:
 
 
 def _const(name, A, B, C, D, inputs, outputs) -> Block:
-    return Block(name, *(np.asarray(x, float)[None] for x in (A, B, C, D)), tuple(inputs), tuple(outputs))
+    return Block(
+        name, *(np.asarray(x, float)[None] for x in (A, B, C, D)), tuple(inputs), tuple(outputs)
+    )
 
 
 def _section(z, w):
@@ -153,7 +156,9 @@ def literal_human_cancelled(k_h, z1, p1) -> Block:
 
 def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     if not isinstance(controller, ct.StateSpace):
-        raise ModelStructureError(f"controller must be a control.StateSpace; got {type(controller).__name__}")
+        raise ModelStructureError(
+            f"controller must be a control.StateSpace; got {type(controller).__name__}"
+        )
     if not controller.isctime():
         raise ModelStructureError(f"controller must be continuous-time; got dt={controller.dt}")
     ins, outs = list(controller.input_labels), list(controller.output_labels)
@@ -165,8 +170,10 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
             f"{CONTROLLER_OUTPUTS}; got inputs {ins}, outputs {outs}"
         )
     if "f" in outs and not has_force_port:
-        raise ModelStructureError("controller drives the handle force 'f', but the literal human has no force port; "
-                                  "use the physical human")
+        raise ModelStructureError(
+            "controller drives the handle force 'f', but the literal human has no force port; "
+            "use the physical human"
+        )
     mats = [np.asarray(x, float) for x in (controller.A, controller.B, controller.C, controller.D)]
     for label, x in zip("ABCD", mats):
         if not np.all(np.isfinite(x)):
@@ -175,7 +182,9 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     return _const("controller", *mats, ins, renamed)
 
 
-def loop_blocks(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> list[Block]:
+def loop_blocks(
+    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+) -> list[Block]:
     """The dynamic blocks of the loop for members ``values`` (shape (N, d))."""
     p = family.model_arrays(values)
     cal = family.calibration
@@ -183,10 +192,22 @@ def loop_blocks(family: Family, values: np.ndarray, *, controller: ct.StateSpace
     if cal.ki > 0.0:
         blocks.append(_const("pi", [[0.0]], [[1.0]], [[cal.ki]], [[cal.kp]], ["err"], ["e"]))
     else:
-        blocks.append(_const("pi", np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[cal.kp]], ["err"], ["e"]))
+        blocks.append(
+            _const(
+                "pi",
+                np.zeros((0, 0)),
+                np.zeros((0, 1)),
+                np.zeros((1, 0)),
+                [[cal.kp]],
+                ["err"],
+                ["e"],
+            )
+        )
     v = valve_cylinder(family.valve)
     blocks.append(_const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"]))
-    blocks.append(structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz"))))
+    blocks.append(
+        structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")))
+    )
     if family.human == "literal":
         blocks.append(literal_human_cancelled(p["human.k_h"], p["human.z1"], p["human.p1"]))
     else:
@@ -224,7 +245,9 @@ def _interconnection(family: Family, blocks: list[Block]) -> np.ndarray:
     return M
 
 
-def closed_loop_matrices(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> np.ndarray:
+def closed_loop_matrices(
+    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+) -> np.ndarray:
     """Closed-loop state matrices of members ``values``.
 
     Parameters
@@ -260,10 +283,10 @@ def closed_loop_matrices(family: Family, values: np.ndarray, *, controller: ct.S
     D = np.zeros((N, p, m))
     xs = us = ys = 0
     for b, k, i, o in zip(blocks, ns, ni, no):
-        A[:, xs:xs + k, xs:xs + k] = b.A
-        B[:, xs:xs + k, us:us + i] = b.B
-        C[:, ys:ys + o, xs:xs + k] = b.C
-        D[:, ys:ys + o, us:us + i] = b.D
+        A[:, xs : xs + k, xs : xs + k] = b.A
+        B[:, xs : xs + k, us : us + i] = b.B
+        C[:, ys : ys + o, xs : xs + k] = b.C
+        D[:, ys : ys + o, us : us + i] = b.D
         xs, us, ys = xs + k, us + i, ys + o
     DM = np.einsum("nom,mq->noq", D, M, optimize=True)
     Z = _solve_algebraic_loop(DM, C)
@@ -304,11 +327,15 @@ def _solve_algebraic_loop(DM: np.ndarray, C: np.ndarray) -> np.ndarray:
     try:
         return np.linalg.solve(lhs, C)
     except np.linalg.LinAlgError:
-        raise ModelStructureError("the loop is ill-posed (I - D M singular) for at least one member; "
-                                  "check the controller's feedthrough D") from None
+        raise ModelStructureError(
+            "the loop is ill-posed (I - D M singular) for at least one member; "
+            "check the controller's feedthrough D"
+        ) from None
 
 
-def batched_poles(family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None) -> np.ndarray:
+def batched_poles(
+    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+) -> np.ndarray:
     """Closed-loop poles of members ``values``, shape (N, n), complex (rad/s)."""
     return np.linalg.eigvals(closed_loop_matrices(family, values, controller=controller))
 
@@ -376,8 +403,11 @@ class ValidationResult:
 
     def to_json(self) -> dict:
         """The JSON object of ``bdft validate --json`` (per-member arrays left out)."""
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name not in ("max_real", "member_min_damping")}
+        d = {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if f.name not in ("max_real", "member_min_damping")
+        }
         d["band_hz"] = list(self.band_hz)
         return d
 
@@ -470,18 +500,30 @@ def validate_family(
     ValidationResult
     """
     if tuple(samples.names) != family.names:
-        raise ParameterError(f"validate_family: sample names {list(samples.names)} do not match the family's "
-                             f"{list(family.names)}")
+        raise ParameterError(
+            f"validate_family: sample names {list(samples.names)} do not match the family's "
+            f"{list(family.names)}"
+        )
     if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
         raise ParameterError(f"validate_family: chunk must be a positive integer; got {chunk!r}")
     lo, hi = (float(b) for b in band_hz)
     if not (0.0 <= lo < hi):
-        raise ParameterError(f"validate_family: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
+        raise ParameterError(
+            f"validate_family: band_hz must satisfy 0 <= low < high; got {band_hz!r}"
+        )
     N = len(samples)
-    max_real, min_damp, nstates = member_metrics(family, samples.values, controller=controller, chunk=chunk,
-                                                 band_hz=(lo, hi), progress=progress)
+    max_real, min_damp, nstates = member_metrics(
+        family,
+        samples.values,
+        controller=controller,
+        chunk=chunk,
+        band_hz=(lo, hi),
+        progress=progress,
+    )
     if not np.all(np.isfinite(max_real)):
-        raise ModelStructureError("non-finite closed-loop poles for some members; check parameter ranges")
+        raise ModelStructureError(
+            "non-finite closed-loop poles for some members; check parameter ranges"
+        )
     stable = max_real < stability_threshold
     worst = int(np.argmax(max_real))
     for arr in (max_real, min_damp):

@@ -24,12 +24,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from robust.checks import POSITIVE, check_scalar
-from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
 from robust.errors import ParameterError
+from robust.model.anthropometry import NOMINAL_BODY_MASS
+from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
 from robust.model.human import LiteralHuman, LiteralHumanParams
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
-
-from robust.model.anthropometry import NOMINAL_BODY_MASS
 from robust.model.physical import PhysicalHuman, PhysicalHumanParams
 from uncertainty.parameters import UncertainParameter
 
@@ -86,14 +85,22 @@ class Family:
 
     def __post_init__(self):
         if self.human not in HUMAN_VARIANTS:
-            raise ParameterError(f"Family.human must be one of {HUMAN_VARIANTS}; got {self.human!r}")
-        object.__setattr__(self, "k_psf", check_scalar("k_psf", self.k_psf, POSITIVE, owner="Family"))
-        object.__setattr__(self, "body_mass", check_scalar("body_mass", self.body_mass, POSITIVE, owner="Family"))
+            raise ParameterError(
+                f"Family.human must be one of {HUMAN_VARIANTS}; got {self.human!r}"
+            )
+        object.__setattr__(
+            self, "k_psf", check_scalar("k_psf", self.k_psf, POSITIVE, owner="Family")
+        )
+        object.__setattr__(
+            self, "body_mass", check_scalar("body_mass", self.body_mass, POSITIVE, owner="Family")
+        )
         params = tuple(self.parameters)
         allowed = MODEL_PARAMETERS[self.human]
         for p in params:
             if not isinstance(p, UncertainParameter):
-                raise ParameterError(f"Family.parameters must be UncertainParameter; got {type(p).__name__}")
+                raise ParameterError(
+                    f"Family.parameters must be UncertainParameter; got {type(p).__name__}"
+                )
             if p.name not in allowed:
                 raise ParameterError(
                     f"Family: parameter {p.name!r} is not a parameter of the {self.human} variant; "
@@ -119,10 +126,10 @@ class Family:
         """Nominal value of every uncertain parameter, shape (d,)."""
         return np.array([p.nominal for p in self.parameters])
 
-    def replace(self, **changes) -> "Family":
+    def replace(self, **changes) -> Family:
         return dataclasses.replace(self, **changes)
 
-    def with_workspace_factor(self, factor: float) -> "Family":
+    def with_workspace_factor(self, factor: float) -> Family:
         """The same family with ``K_PSF`` divided by ``factor`` (workspace multiplied)."""
         f = check_scalar("factor", factor, POSITIVE)
         return self.replace(k_psf=self.k_psf / f)
@@ -145,8 +152,10 @@ class Family:
         """
         v = np.asarray(values, float)
         if v.ndim != 2 or v.shape[1] != len(self.parameters):
-            raise ParameterError(f"Family.model_arrays: values must have shape (N, {len(self.parameters)}); "
-                                 f"got {v.shape}")
+            raise ParameterError(
+                f"Family.model_arrays: values must have shape (N, {len(self.parameters)}); "
+                f"got {v.shape}"
+            )
         n = v.shape[0]
         cols = {name: v[:, j] for j, name in enumerate(self.names)}
         out = {}
@@ -174,7 +183,9 @@ class Family:
         if isinstance(values, Mapping):
             unknown = set(values) - set(self.names)
             if unknown:
-                raise ParameterError(f"Family.member: unknown parameters {sorted(unknown)}; have {list(self.names)}")
+                raise ParameterError(
+                    f"Family.member: unknown parameters {sorted(unknown)}; have {list(self.names)}"
+                )
             row = [values.get(p.name, p.nominal) for p in self.parameters]
         else:
             row = list(values)
@@ -185,7 +196,13 @@ class Family:
             human = LiteralHuman(LiteralHumanParams(**{f: one[f"human.{f}"] for f in _LIT}))
         else:
             human = PhysicalHuman(PhysicalHumanParams(**{f: one[f"human.{f}"] for f in _PHYS}))
-        return BDFTLoop(k_psf=self.k_psf, valve=self.valve, struct=struct, human=human, calibration=self.calibration)
+        return BDFTLoop(
+            k_psf=self.k_psf,
+            valve=self.valve,
+            struct=struct,
+            human=human,
+            calibration=self.calibration,
+        )
 
     def describe(self) -> dict:
         """JSON-ready description (fixed parts, nominals and parameters)."""
@@ -195,7 +212,9 @@ class Family:
             "k_psf": self.k_psf,
             "valve": dataclasses.asdict(self.valve),
             "struct": dataclasses.asdict(self.struct),
-            "human_nominal": dataclasses.asdict(self.literal if self.human == "literal" else self.physical),
+            "human_nominal": dataclasses.asdict(
+                self.literal if self.human == "literal" else self.physical
+            ),
             "calibration": dataclasses.asdict(self.calibration),
             "parameters": [p.describe() for p in self.parameters],
         }
@@ -212,25 +231,50 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
     lo_f = WHEELS_FREQUENCY_FRACTION
     return [
         UncertainParameter(
-            "struct.k_s", s.k_s, s.k_s, 3.0 * s.k_s, "loguniform", "-",
+            "struct.k_s",
+            s.k_s,
+            s.k_s,
+            3.0 * s.k_s,
+            "loguniform",
+            "-",
             # the paper: on its wheels the cab moves with larger amplitude than on stilts
             "Eqn 4 gain on stilts (lower bound); softer support on tyres gives larger cab motion, up to 3x",
         ),
         UncertainParameter(
-            "struct.zeta1", s.zeta1, 0.5 * s.zeta1, min(2.0 * s.zeta1, 0.6), "uniform", "-",
+            "struct.zeta1",
+            s.zeta1,
+            0.5 * s.zeta1,
+            min(2.0 * s.zeta1, 0.6),
+            "uniform",
+            "-",
             "Eqn 4 stilts value x0.5..x2: tyres add damping, soil and outriggers change it (paper)",
         ),
         UncertainParameter(
-            "struct.zeta2", s.zeta2, 0.5 * s.zeta2, min(2.0 * s.zeta2, 0.6), "uniform", "-",
+            "struct.zeta2",
+            s.zeta2,
+            0.5 * s.zeta2,
+            min(2.0 * s.zeta2, 0.6),
+            "uniform",
+            "-",
             "Eqn 4 stilts value x0.5..x2: tyres add damping, soil and outriggers change it (paper)",
         ),
         UncertainParameter(
-            "struct.f1_hz", s.f1_hz, lo_f * s.f1_hz, s.f1_hz, "uniform", "Hz",
+            "struct.f1_hz",
+            s.f1_hz,
+            lo_f * s.f1_hz,
+            s.f1_hz,
+            "uniform",
+            "Hz",
             # tyre-supported machines have rigid-body cab modes near 2.5-3 Hz; stilts are stiffer
             "stilts value (paper, stiffest case) down to x0.4 (about 2.5 Hz), a machine rocking on its tyres",
         ),
         UncertainParameter(
-            "struct.f2_hz", s.f2_hz, lo_f * s.f2_hz, s.f2_hz, "uniform", "Hz",
+            "struct.f2_hz",
+            s.f2_hz,
+            lo_f * s.f2_hz,
+            s.f2_hz,
+            "uniform",
+            "Hz",
             "stilts value (paper, stiffest case) down to x0.4 (about 2.6 Hz), a machine rocking on its tyres",
         ),
     ]
@@ -242,11 +286,18 @@ def _spread(name, nominal, units, source):
 
 
 def _physical_parameters(p: PhysicalHumanParams, body_mass: float) -> list[UncertainParameter]:
-    note = ("fit to Eqn 5 (paper: Hybrid III x0.6) spread over one order of magnitude, "
-            "as literature values vary (paper)")
+    note = (
+        "fit to Eqn 5 (paper: Hybrid III x0.6) spread over one order of magnitude, "
+        "as literature values vary (paper)"
+    )
     return [
         UncertainParameter(
-            "human.body_mass", body_mass, min(50.0, body_mass), max(110.0, body_mass), "uniform", "kg",
+            "human.body_mass",
+            body_mass,
+            min(50.0, body_mass),
+            max(110.0, body_mass),
+            "uniform",
+            "kg",
             "small (about 5th percentile female, 50 kg) to large (about 95th percentile male, 110 kg) operator",
         ),
         _spread("human.k_trunk", p.k_trunk, "N/m", note),
@@ -258,9 +309,21 @@ def _physical_parameters(p: PhysicalHumanParams, body_mass: float) -> list[Uncer
 
 def _literal_parameters(p: LiteralHumanParams) -> list[UncertainParameter]:
     return [
-        _spread("human.k_h", p.k_h, "-", "Eqn 5 gain spread over one order of magnitude (human variability, paper)"),
-        UncertainParameter("human.p1", p.p1, 0.5 * p.p1, 2.0 * p.p1, "loguniform", "rad/s",
-                           "Eqn 5 pole x0.5..x2: fitted to low-coherence data (paper)"),
+        _spread(
+            "human.k_h",
+            p.k_h,
+            "-",
+            "Eqn 5 gain spread over one order of magnitude (human variability, paper)",
+        ),
+        UncertainParameter(
+            "human.p1",
+            p.p1,
+            0.5 * p.p1,
+            2.0 * p.p1,
+            "loguniform",
+            "rad/s",
+            "Eqn 5 pole x0.5..x2: fitted to low-coherence data (paper)",
+        ),
     ]
 
 
@@ -305,9 +368,18 @@ def default_family(
     elif human == "literal":
         params += _literal_parameters(literal)
     else:
-        raise ParameterError(f"default_family: human must be one of {HUMAN_VARIANTS}; got {human!r}")
+        raise ParameterError(
+            f"default_family: human must be one of {HUMAN_VARIANTS}; got {human!r}"
+        )
     return Family(
-        parameters=tuple(params), human=human, k_psf=k_psf, valve=valve or ValveCylinderParams(),
-        struct=struct, literal=literal, physical=physical, body_mass=body_mass, calibration=calibration,
+        parameters=tuple(params),
+        human=human,
+        k_psf=k_psf,
+        valve=valve or ValveCylinderParams(),
+        struct=struct,
+        literal=literal,
+        physical=physical,
+        body_mass=body_mass,
+        calibration=calibration,
         name=f"default-{human}",
     )

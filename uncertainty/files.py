@@ -57,15 +57,19 @@ def _matrix(obj: dict, key: str, where: str, shape: tuple[int | None, int | None
     try:
         m = np.array(raw, dtype=float)
     except (TypeError, ValueError):
-        raise ArtifactError(f"{where}: {key} must be a numeric matrix (list of rows); got {raw!r:.80}") from None
+        raise ArtifactError(
+            f"{where}: {key} must be a numeric matrix (list of rows); got {raw!r:.80}"
+        ) from None
     if m.size == 0:
         m = m.reshape(tuple(0 if s is None else s for s in shape))
     if m.ndim != 2:
         raise ArtifactError(f"{where}: {key} must be 2-D (a list of rows); got shape {m.shape}")
     for axis, want in enumerate(shape):
         if want is not None and m.shape[axis] != want:
-            raise ArtifactError(f"{where}: {key} must have shape {tuple('n' if s is None else s for s in shape)} "
-                                f"consistent with the other matrices and signals; got {m.shape}")
+            raise ArtifactError(
+                f"{where}: {key} must have shape {tuple('n' if s is None else s for s in shape)} "
+                f"consistent with the other matrices and signals; got {m.shape}"
+            )
     if not np.all(np.isfinite(m)):
         raise ArtifactError(f"{where}: {key} contains NaN or infinite entries")
     return m
@@ -109,10 +113,14 @@ def load_controller(path) -> ct.StateSpace:
         except BDFTError as exc:
             raise ArtifactError(f"{where}: {exc}") from None
     if "kind" in obj:
-        raise ArtifactError(f"{where}: unknown kind {obj['kind']!r}; expected 'bdft-controller' or a bare "
-                            "state-space object with A, B, C, D, inputs, outputs")
+        raise ArtifactError(
+            f"{where}: unknown kind {obj['kind']!r}; expected 'bdft-controller' or a bare "
+            "state-space object with A, B, C, D, inputs, outputs"
+        )
     if obj.get("dt") not in (None, 0, 0.0):
-        raise ArtifactError(f"{where}: the controller must be continuous-time (dt 0 or absent); got dt={obj['dt']!r}")
+        raise ArtifactError(
+            f"{where}: the controller must be continuous-time (dt 0 or absent); got dt={obj['dt']!r}"
+        )
     inputs, outputs = _labels(obj, "inputs", where), _labels(obj, "outputs", where)
     A = _matrix(obj, "A", where, (None, None))
     n = A.shape[0]
@@ -121,7 +129,9 @@ def load_controller(path) -> ct.StateSpace:
     B = _matrix(obj, "B", where, (n, len(inputs)))
     C = _matrix(obj, "C", where, (len(outputs), n))
     D = _matrix(obj, "D", where, (len(outputs), len(inputs)))
-    return ct.ss(A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller")))
+    return ct.ss(
+        A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller"))
+    )
 
 
 def load_component_fit(path):
@@ -169,7 +179,9 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
     for fit in fits:
         key = keys[fit.form]
         if key in out:
-            raise ArtifactError(f"two component fits of form {fit.form!r} given ; give one per component")
+            raise ArtifactError(
+                f"two component fits of form {fit.form!r} given ; give one per component"
+            )
         if fit.form == "human" and human != "literal":
             raise ArtifactError(
                 f"the component fit of {fit.source or 'unknown data'!r} is a fit of the paper's Eqn 5 (LiteralHumanParams), which "

@@ -68,24 +68,34 @@ class UncertainParameter:
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
-            raise ParameterError(f"UncertainParameter.name must be a non-empty string; got {self.name!r}")
+            raise ParameterError(
+                f"UncertainParameter.name must be a non-empty string; got {self.name!r}"
+            )
         owner = f"UncertainParameter {self.name!r}"
         for field in ("nominal", "low", "high"):
             object.__setattr__(self, field, check_scalar(field, getattr(self, field), owner=owner))
         if self.distribution not in DISTRIBUTIONS:
-            raise ParameterError(f"{owner}: distribution must be one of {DISTRIBUTIONS}; got {self.distribution!r}")
+            raise ParameterError(
+                f"{owner}: distribution must be one of {DISTRIBUTIONS}; got {self.distribution!r}"
+            )
         if not self.low < self.high:
-            raise ParameterError(f"{owner}: bounds must satisfy low < high; got low={self.low!r}, high={self.high!r}")
+            raise ParameterError(
+                f"{owner}: bounds must satisfy low < high; got low={self.low!r}, high={self.high!r}"
+            )
         if not self.low <= self.nominal <= self.high:
             raise ParameterError(
                 f"{owner}: nominal must lie in [low, high] = [{self.low!r}, {self.high!r}]; got {self.nominal!r}"
             )
         if self.distribution == "loguniform" and self.low <= 0.0:
-            raise ParameterError(f"{owner}: a log-uniform parameter needs low > 0; got low={self.low!r}")
+            raise ParameterError(
+                f"{owner}: a log-uniform parameter needs low > 0; got low={self.low!r}"
+            )
         if self.std is not None:
             if self.distribution != "truncnormal":
-                raise ParameterError(f"{owner}: std applies only to 'truncnormal'; got std={self.std!r} "
-                                     f"with distribution {self.distribution!r}")
+                raise ParameterError(
+                    f"{owner}: std applies only to 'truncnormal'; got std={self.std!r} "
+                    f"with distribution {self.distribution!r}"
+                )
             object.__setattr__(self, "std", check_scalar("std", self.std, POSITIVE, owner=owner))
 
     @property

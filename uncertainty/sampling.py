@@ -19,7 +19,6 @@ import numpy as np
 from scipy.stats import qmc
 
 from robust.errors import ParameterError
-
 from uncertainty.parameters import UncertainParameter
 
 __all__ = ["METHODS", "SampleSet", "sample", "MAX_VERTEX_DIM"]
@@ -57,7 +56,9 @@ class SampleSet:
     def __post_init__(self):
         v = np.array(self.values, dtype=float)
         if v.ndim != 2 or v.shape[1] != len(self.names):
-            raise ParameterError(f"SampleSet.values must have shape (N, {len(self.names)}); got {v.shape}")
+            raise ParameterError(
+                f"SampleSet.values must have shape (N, {len(self.names)}); got {v.shape}"
+            )
         v.setflags(write=False)
         object.__setattr__(self, "values", v)
         object.__setattr__(self, "names", tuple(self.names))
@@ -70,7 +71,9 @@ class SampleSet:
         try:
             return self.values[:, self.names.index(name)]
         except ValueError:
-            raise ParameterError(f"no parameter {name!r} in the sample set; have {list(self.names)}") from None
+            raise ParameterError(
+                f"no parameter {name!r} in the sample set; have {list(self.names)}"
+            ) from None
 
     def row(self, i: int) -> dict[str, float]:
         """Parameters of member ``i`` as ``{name: value}``."""
@@ -101,14 +104,18 @@ def _unit_samples(method: str, n: int, d: int, rng: np.random.Generator) -> np.n
         return np.stack([m.ravel() for m in mesh], axis=1)
     # vertices
     if d > MAX_VERTEX_DIM:
-        raise ParameterError(f"vertices: dimension d={d} gives 2**{d} vertices; at most d={MAX_VERTEX_DIM} supported")
+        raise ParameterError(
+            f"vertices: dimension d={d} gives 2**{d} vertices; at most d={MAX_VERTEX_DIM} supported"
+        )
     corners = np.array(list(itertools.product((0.0, 1.0), repeat=d)))
     if n < len(corners):
         corners = corners[np.sort(rng.choice(len(corners), size=n, replace=False))]
     return corners
 
 
-def sample(parameters: Sequence[UncertainParameter], n: int, *, method: str = "lhs", seed: int | None = 0) -> SampleSet:
+def sample(
+    parameters: Sequence[UncertainParameter], n: int, *, method: str = "lhs", seed: int | None = 0
+) -> SampleSet:
     """Draw ``n`` members of the box spanned by ``parameters``.
 
     Parameters

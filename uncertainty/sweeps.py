@@ -16,7 +16,6 @@ from collections.abc import Callable
 import numpy as np
 
 from robust.errors import ParameterError
-
 from uncertainty.batched import BDFT_BAND_HZ, DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
 from uncertainty.family import Family
 from uncertainty.sampling import sample
@@ -73,15 +72,30 @@ class SweepResult:
         return _FIGURES[self.name](self)
 
 
-def _metrics_on_grid(family: Family, grid_values: list[dict], members: int, *, method: str, seed: int,
-                     chunk: int, progress: Callable[[int], None] | None, band_hz=BDFT_BAND_HZ):
+def _metrics_on_grid(
+    family: Family,
+    grid_values: list[dict],
+    members: int,
+    *,
+    method: str,
+    seed: int,
+    chunk: int,
+    progress: Callable[[int], None] | None,
+    band_hz=BDFT_BAND_HZ,
+):
     """Validate the base sample at every grid point; per-point fraction stable, worst real part, min damping."""
     fixed = set().union(*(g.keys() for g in grid_values))
     base_params = [p for p in family.parameters if p.name not in fixed]
     S = sample(base_params, members, method=method, seed=seed)
     names = family.names
     M = len(S)
-    rows = {"fraction_stable": [], "max_real_pole": [], "min_damping": [], "n_unstable": [], "nominal_max_real": []}
+    rows = {
+        "fraction_stable": [],
+        "max_real_pole": [],
+        "min_damping": [],
+        "n_unstable": [],
+        "nominal_max_real": [],
+    }
     nominal = dict(zip(names, family.nominal_values()))
     for g in grid_values:
         fam = g.get("__family__", family)
@@ -89,7 +103,9 @@ def _metrics_on_grid(family: Family, grid_values: list[dict], members: int, *, m
         for j, name in enumerate(names):
             vals[:M, j] = g[name] if name in g else S.column(name)
             vals[M, j] = g.get(name, nominal[name])  # the other parameters at their nominal values
-        mr_all, md_all, _ = member_metrics(fam, vals, chunk=chunk, band_hz=band_hz, progress=progress)
+        mr_all, md_all, _ = member_metrics(
+            fam, vals, chunk=chunk, band_hz=band_hz, progress=progress
+        )
         mr, md = mr_all[:M], md_all[:M]
         rows["nominal_max_real"].append(float(mr_all[M]))
         stable = mr < STABILITY_THRESHOLD
@@ -116,8 +132,16 @@ def _check_members(members):
         raise ParameterError(f"members must be a positive integer; got {members!r}")
 
 
-def workspace_sweep(family: Family, *, factors=None, members: int = 2000, method: str = "lhs", seed: int = 0,
-                    chunk: int = DEFAULT_CHUNK, progress=None) -> SweepResult:
+def workspace_sweep(
+    family: Family,
+    *,
+    factors=None,
+    members: int = 2000,
+    method: str = "lhs",
+    seed: int = 0,
+    chunk: int = DEFAULT_CHUNK,
+    progress=None,
+) -> SweepResult:
     """Fraction stable and worst real part versus workspace factor (``K_PSF = K_PSF0 / factor``).
 
     Parameters
@@ -138,10 +162,13 @@ def workspace_sweep(family: Family, *, factors=None, members: int = 2000, method
     _check_members(members)
     f = np.asarray(np.arange(1.0, 10.01, 0.5) if factors is None else factors, float)
     if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise ParameterError(f"factors must be a non-empty 1-D array of positive numbers; got {factors!r}")
+        raise ParameterError(
+            f"factors must be a non-empty 1-D array of positive numbers; got {factors!r}"
+        )
     grid = [{"__family__": family.with_workspace_factor(x)} for x in f]
-    rows, settings = _metrics_on_grid(family, grid, members, method=method, seed=seed, chunk=chunk,
-                                      progress=progress)
+    rows, settings = _metrics_on_grid(
+        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+    )
     cols = {"workspace_factor": f, "k_psf": family.k_psf / f, **rows}
     return SweepResult(
         name="workspace",
@@ -150,13 +177,24 @@ def workspace_sweep(family: Family, *, factors=None, members: int = 2000, method
             "Handle workspace multiplied by each factor (K_PSF divided by it), the same family members at "
             "every factor. The paper's study (C2, C3) is factors 2 to 10 for the nominal loop."
         ),
-        columns=cols, settings=settings, grid_shape=(len(f),),
+        columns=cols,
+        settings=settings,
+        grid_shape=(len(f),),
     )
 
 
-def stiffness_damping_sweep(family: Family, *, pair: str = "arm", n_k: int = 12, n_c: int = 12,
-                            members: int = 200, method: str = "lhs", seed: int = 0, chunk: int = DEFAULT_CHUNK,
-                            progress=None) -> SweepResult:
+def stiffness_damping_sweep(
+    family: Family,
+    *,
+    pair: str = "arm",
+    n_k: int = 12,
+    n_c: int = 12,
+    members: int = 200,
+    method: str = "lhs",
+    seed: int = 0,
+    chunk: int = DEFAULT_CHUNK,
+    progress=None,
+) -> SweepResult:
     """Map of the worst real part over a grid of one human stiffness x damping.
 
     Parameters
@@ -172,7 +210,9 @@ def stiffness_damping_sweep(family: Family, *, pair: str = "arm", n_k: int = 12,
     """
     _check_members(members)
     if family.human != "physical":
-        raise ParameterError(f"the stiffness x damping sweep needs the physical human; the family uses {family.human!r}")
+        raise ParameterError(
+            f"the stiffness x damping sweep needs the physical human; the family uses {family.human!r}"
+        )
     if pair not in ("arm", "trunk"):
         raise ParameterError(f"pair must be 'arm' or 'trunk'; got {pair!r}")
     for n in (n_k, n_c):
@@ -183,8 +223,9 @@ def stiffness_damping_sweep(family: Family, *, pair: str = "arm", n_k: int = 12,
     cs = np.geomspace(pc.low, pc.high, n_c)
     K, C = np.meshgrid(ks, cs, indexing="ij")
     grid = [{pk.name: k, pc.name: c} for k, c in zip(K.ravel(), C.ravel())]
-    rows, settings = _metrics_on_grid(family, grid, members, method=method, seed=seed, chunk=chunk,
-                                      progress=progress)
+    rows, settings = _metrics_on_grid(
+        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+    )
     settings["pair"] = pair
     settings["nominal"] = {pk.name: pk.nominal, pc.name: pc.nominal}
     cols = {pk.name: K.ravel(), pc.name: C.ravel(), **rows}
@@ -196,12 +237,22 @@ def stiffness_damping_sweep(family: Family, *, pair: str = "arm", n_k: int = 12,
             f"the family's other parameters, at each {pk.name} x {pc.name} grid point (log-spaced over the "
             "family's order-of-magnitude ranges)."
         ),
-        columns=cols, settings=settings, grid_shape=(n_k, n_c),
+        columns=cols,
+        settings=settings,
+        grid_shape=(n_k, n_c),
     )
 
 
-def structure_frequency_sweep(family: Family, *, scales=None, members: int = 2000, method: str = "lhs",
-                              seed: int = 0, chunk: int = DEFAULT_CHUNK, progress=None) -> SweepResult:
+def structure_frequency_sweep(
+    family: Family,
+    *,
+    scales=None,
+    members: int = 2000,
+    method: str = "lhs",
+    seed: int = 0,
+    chunk: int = DEFAULT_CHUNK,
+    progress=None,
+) -> SweepResult:
     """Fraction stable, worst real part and minimum damping versus the structure's natural frequencies.
 
     Both modes are scaled together, ``f_i = scale * f_i(nominal)``, from the
@@ -214,13 +265,18 @@ def structure_frequency_sweep(family: Family, *, scales=None, members: int = 200
         scales = np.linspace(lo, 1.0, 13)
     s = np.asarray(scales, float)
     if s.ndim != 1 or s.size == 0 or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise ParameterError(f"scales must be a non-empty 1-D array of positive numbers; got {scales!r}")
+        raise ParameterError(
+            f"scales must be a non-empty 1-D array of positive numbers; got {scales!r}"
+        )
     fixed = [n for n in ("struct.f1_hz", "struct.f2_hz") if n in family.names]
     if len(fixed) != 2:
-        raise ParameterError("the structure-frequency sweep needs struct.f1_hz and struct.f2_hz in the family")
+        raise ParameterError(
+            "the structure-frequency sweep needs struct.f1_hz and struct.f2_hz in the family"
+        )
     grid = [{"struct.f1_hz": x * f1n, "struct.f2_hz": x * f2n} for x in s]
-    rows, settings = _metrics_on_grid(family, grid, members, method=method, seed=seed, chunk=chunk,
-                                      progress=progress)
+    rows, settings = _metrics_on_grid(
+        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+    )
     cols = {"scale": s, "f1_hz": s * f1n, "f2_hz": s * f2n, **rows}
     return SweepResult(
         name="structure-frequency",
@@ -229,7 +285,9 @@ def structure_frequency_sweep(family: Family, *, scales=None, members: int = 200
             "Both structure modes scaled together from a machine on its tyres up to the paper's stilts values "
             "(6.3 and 6.5 Hz); the same members of the family's other parameters at each frequency."
         ),
-        columns=cols, settings=settings, grid_shape=(len(s),),
+        columns=cols,
+        settings=settings,
+        grid_shape=(len(s),),
     )
 
 
@@ -262,12 +320,22 @@ def _line_figures(res: SweepResult, xkey: str, xlabel: str):
     ax2[0, 0].axhline(0.0, color="k", lw=0.8)
     ax2[0, 0].set_xlabel(xlabel)
     ax2[0, 0].set_ylabel("minimum damping ratio")
-    ax2[0, 0].set_title(f"Minimum damping of poles in {res.settings['band_hz'][0]:g}-{res.settings['band_hz'][1]:g} Hz")
+    ax2[0, 0].set_title(
+        f"Minimum damping of poles in {res.settings['band_hz'][0]:g}-{res.settings['band_hz'][1]:g} Hz"
+    )
     ax2[0, 0].grid(True, alpha=0.3)
     n = res.settings["members_per_point"]
     return [
-        ("stability", fig, f"Fraction of the {n} members stable and the worst real part, versus {xlabel}."),
-        ("damping", fig2, f"Minimum damping ratio of the poles in the BDFT band over the {n} members."),
+        (
+            "stability",
+            fig,
+            f"Fraction of the {n} members stable and the worst real part, versus {xlabel}.",
+        ),
+        (
+            "damping",
+            fig2,
+            f"Minimum damping ratio of the poles in the BDFT band over the {n} members.",
+        ),
     ]
 
 
@@ -316,17 +384,28 @@ def _map_figures(res: SweepResult):
     fig3.colorbar(m3, ax=ax3[0, 0], label="largest real part of a pole [1/s] (black: 0)")
     n = res.settings["members_per_point"]
     return [
-        ("nominal_real_part", fig3, "Largest real part of the poles with every other parameter at its nominal value; "
-                                    "black line: stability boundary."),
-        ("worst_real_part", fig, f"Worst real part over {n} members at each grid point; black line: 0 (stability "
-                                 "boundary of the worst member)."),
+        (
+            "nominal_real_part",
+            fig3,
+            "Largest real part of the poles with every other parameter at its nominal value; "
+            "black line: stability boundary.",
+        ),
+        (
+            "worst_real_part",
+            fig,
+            f"Worst real part over {n} members at each grid point; black line: 0 (stability "
+            "boundary of the worst member).",
+        ),
         ("fraction_stable", fig2, f"Fraction of the {n} members stable at each grid point."),
     ]
 
 
 _FIGURES = {
-    "workspace": lambda r: _line_figures(r, "workspace_factor", "workspace factor (K_PSF = 0.1097 / factor)"),
+    "workspace": lambda r: _line_figures(
+        r, "workspace_factor", "workspace factor (K_PSF = 0.1097 / factor)"
+    ),
     "stiffness-damping": _map_figures,
-    "structure-frequency": lambda r: _line_figures(r, "f1_hz", "structure mode 1 frequency [Hz] (mode 2 scaled alike)"),
+    "structure-frequency": lambda r: _line_figures(
+        r, "f1_hz", "structure mode 1 frequency [Hz] (mode 2 scaled alike)"
+    ),
 }
-

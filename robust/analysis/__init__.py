@@ -3,17 +3,20 @@ calibration, H-infinity norms, minimal realisation, reduction, simulation and th
 continuous-versus-sampled-data check.
 """
 
-from robust.analysis.calibration import K_PSF_STABLE, CalibrationCandidate, CalibrationResult, calibrate
+from robust.analysis.calibration import (
+    K_PSF_STABLE,
+    CalibrationCandidate,
+    CalibrationResult,
+    calibrate,
+)
 from robust.analysis.claims import CLAIM_TEXT, ClaimResult, evaluate_claims, ratio_study
 from robust.analysis.loops import (
-    STABILITY_RTOL,
     PoleSet,
     bdft_loop_gain,
     bdft_ratio,
     closed_loop_poles,
     critical_k_psf,
     frequency_response,
-    is_unstable,
     loop_poles,
 )
 from robust.analysis.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
@@ -21,15 +24,42 @@ from robust.analysis.realization import MinimalRealization, minimal_realization
 from robust.analysis.reduction import ReducedModel, balanced_truncation, hankel_singular_values
 from robust.analysis.sampled import SampledDataCheck, open_plant, sampled_data_check
 from robust.analysis.simulation import SweptSine, TimeResponse, simulate, simulate_swept_sine
+from robust.analysis.stability import STABILITY_TOL, poles_stable, stable_mask, unstable_mask
 
 __all__ = [
-    "K_PSF_STABLE", "CalibrationCandidate", "CalibrationResult", "calibrate",
-    "CLAIM_TEXT", "ClaimResult", "evaluate_claims", "ratio_study",
-    "STABILITY_RTOL", "PoleSet", "bdft_loop_gain", "bdft_ratio", "closed_loop_poles",
-    "critical_k_psf", "frequency_response", "is_unstable", "loop_poles",
-    "hinf_norm", "is_stable", "sigma_max", "spectral_abscissa",
-    "MinimalRealization", "minimal_realization",
-    "ReducedModel", "balanced_truncation", "hankel_singular_values",
-    "SampledDataCheck", "open_plant", "sampled_data_check",
-    "SweptSine", "TimeResponse", "simulate", "simulate_swept_sine",
+    "K_PSF_STABLE",
+    "CalibrationCandidate",
+    "CalibrationResult",
+    "calibrate",
+    "CLAIM_TEXT",
+    "ClaimResult",
+    "evaluate_claims",
+    "ratio_study",
+    "PoleSet",
+    "bdft_loop_gain",
+    "bdft_ratio",
+    "closed_loop_poles",
+    "critical_k_psf",
+    "frequency_response",
+    "loop_poles",
+    "hinf_norm",
+    "is_stable",
+    "sigma_max",
+    "spectral_abscissa",
+    "MinimalRealization",
+    "minimal_realization",
+    "ReducedModel",
+    "balanced_truncation",
+    "hankel_singular_values",
+    "SampledDataCheck",
+    "open_plant",
+    "sampled_data_check",
+    "STABILITY_TOL",
+    "poles_stable",
+    "stable_mask",
+    "unstable_mask",
+    "SweptSine",
+    "TimeResponse",
+    "simulate",
+    "simulate_swept_sine",
 ]

@@ -37,14 +37,20 @@ import math
 import control as ct
 import numpy as np
 
-from robust.analysis.loops import is_unstable
-from robust.model.components import K_PSF_NOMINAL, PIParams, pi_controller, valve_cylinder
+from robust.analysis.realization import minimal_realization
+from robust.analysis.stability import poles_stable, unstable_mask
 from robust.errors import InfeasibleError
+from robust.model.components import K_PSF_NOMINAL, PIParams, pi_controller, valve_cylinder
 from robust.model.human import HumanModel, LiteralHuman
 from robust.model.loop import BDFTLoop, LoopCalibration
-from robust.analysis.realization import minimal_realization
 
-__all__ = ["CalibrationCandidate", "CalibrationResult", "calibrate", "open_bdft_path", "K_PSF_STABLE"]
+__all__ = [
+    "CalibrationCandidate",
+    "CalibrationResult",
+    "calibrate",
+    "open_bdft_path",
+    "K_PSF_STABLE",
+]
 
 #: The paper's workspace-doubled scale factor (claim C2).
 K_PSF_STABLE = 0.055
@@ -84,7 +90,10 @@ class CalibrationResult:
     settings: dict
 
     def table(self) -> list[dict]:
-        return [dataclasses.asdict(c) | {"reproduces_c1_c3": c.reproduces_c1_c3} for c in self.candidates]
+        return [
+            dataclasses.asdict(c) | {"reproduces_c1_c3": c.reproduces_c1_c3}
+            for c in self.candidates
+        ]
 
 
 def open_bdft_path(human: HumanModel, pi: PIParams, loop: BDFTLoop | None = None):
@@ -115,7 +124,7 @@ def _closed_poles(path, signed_gain: float) -> np.ndarray:
 
 
 def _n_unstable(path, signed_gain: float) -> int:
-    return int(np.count_nonzero(is_unstable(_closed_poles(path, signed_gain))))
+    return int(np.count_nonzero(unstable_mask(_closed_poles(path, signed_gain))))
 
 
 def _refine(path, sign: int, lo: float, hi: float, pred, rtol: float = 1e-7) -> float:
@@ -139,17 +148,35 @@ def _candidate(human, kp, ki, sign, settings) -> CalibrationCandidate:
     pi = PIParams(kp=kp, ki=ki)
     inner_open = pi_controller(pi) * valve_cylinder()
     inner_poles = ct.feedback(inner_open, 1).poles()
-    inner_stable = bool(np.all(inner_poles.real < 0))
+    inner_stable = poles_stable(inner_poles)
     gm, pm, _, _, wpc, wgc = _margins(inner_open)
     gm_db = 20 * math.log10(gm) if math.isfinite(gm) and gm > 0 else math.inf
-    admissible = inner_stable and gm_db >= settings["min_gain_margin_db"] and pm >= settings["min_phase_margin_deg"]
+    admissible = (
+        inner_stable
+        and gm_db >= settings["min_gain_margin_db"]
+        and pm >= settings["min_phase_margin_deg"]
+    )
     nan = float("nan")
     base = dict(
-        kp=kp, ki=ki, handle_sign=sign, inner_stable=inner_stable, gain_margin_db=gm_db,
-        phase_margin_deg=pm, crossover_hz=wgc / (2 * math.pi), admissible=admissible,
+        kp=kp,
+        ki=ki,
+        handle_sign=sign,
+        inner_stable=inner_stable,
+        gain_margin_db=gm_db,
+        phase_margin_deg=pm,
+        crossover_hz=wgc / (2 * math.pi),
+        admissible=admissible,
     )
     if not inner_stable:
-        return CalibrationCandidate(**base, g1=nan, g2=nan, pair_crossing=False, crossing_hz=nan, kappa=nan, margin=-math.inf)
+        return CalibrationCandidate(
+            **base,
+            g1=nan,
+            g2=nan,
+            pair_crossing=False,
+            crossing_hz=nan,
+            kappa=nan,
+            margin=-math.inf,
+        )
     path = open_bdft_path(human, pi)
     grid = np.geomspace(settings["g_min"], settings["g_max"], settings["g_points"])
     counts = np.array([_n_unstable(path, sign * g) for g in grid])
@@ -161,7 +188,7 @@ def _candidate(human, kp, ki, sign, settings) -> CalibrationCandidate:
         i = first[0]
         g1 = _refine(path, sign, grid[i - 1], grid[i], lambda n: n > 0)
         just_after = _closed_poles(path, sign * g1 * (1 + 1e-4))
-        unstable = just_after[is_unstable(just_after)]
+        unstable = just_after[unstable_mask(just_after)]
         pair = unstable.size == 2 and bool(np.all(np.abs(unstable.imag) > 0))
         crossing_hz = float(np.abs(unstable.imag).max() / (2 * math.pi)) if unstable.size else nan
         more = np.flatnonzero(counts > 2)
@@ -178,7 +205,15 @@ def _candidate(human, kp, ki, sign, settings) -> CalibrationCandidate:
             math.log(K_PSF_NOMINAL * kappa / g1),
             math.log(g2 / (K_PSF_NOMINAL * kappa)) if math.isfinite(g2) else math.inf,
         )
-    return CalibrationCandidate(**base, g1=g1, g2=g2, pair_crossing=pair, crossing_hz=crossing_hz, kappa=kappa, margin=margin)
+    return CalibrationCandidate(
+        **base,
+        g1=g1,
+        g2=g2,
+        pair_crossing=pair,
+        crossing_hz=crossing_hz,
+        kappa=kappa,
+        margin=margin,
+    )
 
 
 def _margins(L):
@@ -231,10 +266,17 @@ def calibrate(
     """
     human = human or LiteralHuman()
     settings = dict(
-        kp_grid=list(kp_grid), ki_ratio_grid=list(ki_ratio_grid), signs=list(signs),
-        min_gain_margin_db=min_gain_margin_db, min_phase_margin_deg=min_phase_margin_deg,
-        g_min=g_min, g_max=g_max, g_points=g_points, human=human.variant,
-        k_psf_nominal=K_PSF_NOMINAL, k_psf_stable=K_PSF_STABLE,
+        kp_grid=list(kp_grid),
+        ki_ratio_grid=list(ki_ratio_grid),
+        signs=list(signs),
+        min_gain_margin_db=min_gain_margin_db,
+        min_phase_margin_deg=min_phase_margin_deg,
+        g_min=g_min,
+        g_max=g_max,
+        g_points=g_points,
+        human=human.variant,
+        k_psf_nominal=K_PSF_NOMINAL,
+        k_psf_stable=K_PSF_STABLE,
     )
     cands = []
     total = len(kp_grid) * len(ki_ratio_grid) * len(signs)
@@ -256,7 +298,12 @@ def calibrate(
     near = [c for c in good if c.margin >= best_margin - 0.01 * abs(best_margin)]
     chosen = max(near, key=lambda c: (c.crossover_hz, -c.kp, -c.ki))
     cal = LoopCalibration(
-        kp=chosen.kp, ki=chosen.ki, loop_scale=chosen.kappa, handle_sign=chosen.handle_sign,
+        kp=chosen.kp,
+        ki=chosen.ki,
+        loop_scale=chosen.kappa,
+        handle_sign=chosen.handle_sign,
         source=f"robust.analysis.calibration.calibrate(human={human.variant!r}) default search",
     )
-    return CalibrationResult(calibration=cal, chosen=chosen, candidates=tuple(cands), settings=settings)
+    return CalibrationResult(
+        calibration=cal, chosen=chosen, candidates=tuple(cands), settings=settings
+    )

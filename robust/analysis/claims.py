@@ -11,12 +11,19 @@ import dataclasses
 
 import numpy as np
 
-from robust.analysis.loops import bdft_loop_gain, bdft_ratio, critical_k_psf, loop_poles
 from robust.analysis.calibration import K_PSF_STABLE
+from robust.analysis.loops import bdft_loop_gain, bdft_ratio, critical_k_psf, loop_poles
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.loop import BDFTLoop
 
-__all__ = ["ClaimResult", "evaluate_claims", "CLAIM_TEXT", "WORKSPACE_FACTORS", "RATIO_FREQS_HZ", "ratio_study"]
+__all__ = [
+    "ClaimResult",
+    "evaluate_claims",
+    "CLAIM_TEXT",
+    "WORKSPACE_FACTORS",
+    "RATIO_FREQS_HZ",
+    "ratio_study",
+]
 
 CLAIM_TEXT = {
     "C1": "At nominal K_PSF (0.1097) the closed loop has exactly two unstable poles.",
@@ -51,7 +58,12 @@ class ClaimResult:
         return self.status == "holds"
 
     def to_json(self) -> dict:
-        return {"holds": self.holds, "status": self.status, "detail": self.detail, "numbers": self.numbers}
+        return {
+            "holds": self.holds,
+            "status": self.status,
+            "detail": self.detail,
+            "numbers": self.numbers,
+        }
 
 
 def _hz(p) -> float:
@@ -90,9 +102,17 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         "C1",
         "holds" if ps.n_unstable == 2 else "fails",
         f"{ps.n_unstable} unstable pole(s) at K_PSF={K_PSF_NOMINAL}"
-        + (f": {', '.join(f'{p.real:+.3f}{p.imag:+.3f}j' for p in unst)} rad/s ({_hz(unst[0]):.2f} Hz)" if unst.size else "")
+        + (
+            f": {', '.join(f'{p.real:+.3f}{p.imag:+.3f}j' for p in unst)} rad/s ({_hz(unst[0]):.2f} Hz)"
+            if unst.size
+            else ""
+        )
         + f"; stability is lost at K_PSF={k_crit:.4g}"
-        + (f"; {ps.hidden.size} hidden mode(s) at |s|<={np.abs(ps.hidden).max():.1e} removed (Eqn 4 s^2 x Eqn 5 1/s^2)" if ps.hidden.size else ""),
+        + (
+            f"; {ps.hidden.size} hidden mode(s) at |s|<={np.abs(ps.hidden).max():.1e} removed (Eqn 4 s^2 x Eqn 5 1/s^2)"
+            if ps.hidden.size
+            else ""
+        ),
         dict(
             n_unstable=ps.n_unstable,
             unstable_poles=[complex(p) for p in unst],
@@ -129,9 +149,14 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
     )
     stable_facs = [f for f in facs if study[f]["stable"]]
     if not stable_facs:
-        res["C4"] = ClaimResult("C4", "fails", "no workspace factor 2..10 is stable; the ratio is undefined", {})
+        res["C4"] = ClaimResult(
+            "C4", "fails", "no workspace factor 2..10 is stable; the ratio is undefined", {}
+        )
     else:
-        in_band = [C4_PEAK_BAND_HZ[0] <= study[f]["peak_freq_hz"] <= C4_PEAK_BAND_HZ[1] for f in stable_facs]
+        in_band = [
+            C4_PEAK_BAND_HZ[0] <= study[f]["peak_freq_hz"] <= C4_PEAK_BAND_HZ[1]
+            for f in stable_facs
+        ]
         low_ok = [study[f]["low_band_dev_db"] <= C4_LOW_TOL_DB for f in stable_facs]
         worst_low = max(study[f]["low_band_dev_db"] for f in stable_facs)
         ok = all(in_band) and all(low_ok)
@@ -140,10 +165,18 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         lg = np.abs(bdft_loop_gain(loop.replace(k_psf=K_PSF_STABLE), diag_f)["loop"])
         why = []
         if not all(in_band):
-            bad = [f"x{f}: {study[f]['peak_freq_hz']:.2f} Hz" for f, b in zip(stable_facs, in_band) if not b]
-            why.append(f"peak deviation outside {C4_PEAK_BAND_HZ[0]:g}-{C4_PEAK_BAND_HZ[1]:g} Hz ({', '.join(bad[:3])})")
+            bad = [
+                f"x{f}: {study[f]['peak_freq_hz']:.2f} Hz"
+                for f, b in zip(stable_facs, in_band)
+                if not b
+            ]
+            why.append(
+                f"peak deviation outside {C4_PEAK_BAND_HZ[0]:g}-{C4_PEAK_BAND_HZ[1]:g} Hz ({', '.join(bad[:3])})"
+            )
         if not all(low_ok):
-            why.append(f"deviation below {C4_LOW_BAND_HZ:g} Hz reaches {worst_low:.2f} dB (> {C4_LOW_TOL_DB:g} dB)")
+            why.append(
+                f"deviation below {C4_LOW_BAND_HZ:g} Hz reaches {worst_low:.2f} dB (> {C4_LOW_TOL_DB:g} dB)"
+            )
         res["C4"] = ClaimResult(
             "C4",
             "holds" if ok else "fails",
@@ -183,7 +216,9 @@ def _claim_c5(loop: BDFTLoop) -> ClaimResult:
     base = _hand_response(human, freqs)
     devs = {}
     for dx in (-0.1016, 0.1016):
-        devs[f"{dx:+.4f} m"] = float(np.max(np.abs(20 * np.log10(np.abs(_hand_response(offset(dx), freqs) / base)))))
+        devs[f"{dx:+.4f} m"] = float(
+            np.max(np.abs(20 * np.log10(np.abs(_hand_response(offset(dx), freqs) / base))))
+        )
     worst = max(devs.values())
     return ClaimResult(
         "C5",
@@ -196,4 +231,6 @@ def _claim_c5(loop: BDFTLoop) -> ClaimResult:
 def _hand_response(human, freqs_hz):
     sys = human.system()
     w = 2 * np.pi * freqs_hz
-    return np.asarray(sys(1j * w, squeeze=False))[sys.output_labels.index("h"), sys.input_labels.index("c"), :]
+    return np.asarray(sys(1j * w, squeeze=False))[
+        sys.output_labels.index("h"), sys.input_labels.index("c"), :
+    ]

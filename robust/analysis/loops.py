@@ -13,30 +13,19 @@ import dataclasses
 import control as ct
 import numpy as np
 
-from robust.model.loop import BDFTLoop
 from robust.analysis.realization import minimal_realization
+from robust.analysis.stability import poles_stable, unstable_mask
+from robust.model.loop import BDFTLoop
 
 __all__ = [
-    "STABILITY_RTOL",
     "PoleSet",
     "closed_loop_poles",
     "loop_poles",
-    "is_unstable",
     "bdft_ratio",
     "frequency_response",
     "critical_k_psf",
     "bdft_loop_gain",
 ]
-
-#: A pole counts as unstable when ``Re(p) > STABILITY_RTOL * max(1, |p|)``.
-STABILITY_RTOL = 1e-9
-
-
-def is_unstable(poles: np.ndarray, *, rtol: float = STABILITY_RTOL) -> np.ndarray:
-    """Boolean mask of poles in the open right half plane (with a relative tolerance)."""
-    p = np.asarray(poles)
-    return p.real > rtol * np.maximum(1.0, np.abs(p))
-
 
 @dataclasses.dataclass(frozen=True)
 class PoleSet:
@@ -58,11 +47,12 @@ class PoleSet:
 
     @property
     def n_unstable(self) -> int:
-        return int(np.count_nonzero(is_unstable(self.poles)))
+        return int(np.count_nonzero(unstable_mask(self.poles)))
 
     @property
     def stable(self) -> bool:
-        return self.n_unstable == 0
+        """Every pole stable (:mod:`robust.analysis.stability`)."""
+        return poles_stable(self.poles)
 
     @property
     def max_real(self) -> float:
@@ -70,7 +60,7 @@ class PoleSet:
 
     @property
     def unstable_poles(self) -> np.ndarray:
-        return self.poles[is_unstable(self.poles)]
+        return self.poles[unstable_mask(self.poles)]
 
     def damping(self) -> np.ndarray:
         """Damping ratio ``-Re(p)/|p|`` of each pole (1 for a pole at the origin)."""
@@ -85,7 +75,9 @@ def closed_loop_poles(sys: ct.StateSpace, *, rtol: float = 1e-9) -> PoleSet:
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D, rtol=rtol)
     p = np.linalg.eigvals(m.A) if m.nstates else np.zeros(0, complex)
     order = np.lexsort((p.imag, -p.real))
-    return PoleSet(poles=p[order], hidden=np.sort_complex(m.removed_eigenvalues), n_states_full=sys.nstates)
+    return PoleSet(
+        poles=p[order], hidden=np.sort_complex(m.removed_eigenvalues), n_states_full=sys.nstates
+    )
 
 
 def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet:
@@ -93,7 +85,9 @@ def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet
     return closed_loop_poles(loop.system(bdft=bdft, controller=controller))
 
 
-def frequency_response(sys: ct.StateSpace, freqs_hz: np.ndarray, *, inp: str = "u", out: str = "y") -> np.ndarray:
+def frequency_response(
+    sys: ct.StateSpace, freqs_hz: np.ndarray, *, inp: str = "u", out: str = "y"
+) -> np.ndarray:
     """Complex frequency response of one channel of ``sys`` at ``freqs_hz`` (Hz)."""
     w = 2.0 * np.pi * np.asarray(freqs_hz, float)
     i = sys.input_labels.index(inp)
@@ -113,7 +107,14 @@ def bdft_ratio(loop: BDFTLoop, freqs_hz: np.ndarray, *, controller=None) -> np.n
     return with_b / without
 
 
-def critical_k_psf(loop: BDFTLoop, *, k_min: float = 1e-4, k_max: float = 10.0, n_grid: int = 120, xtol: float = 1e-6) -> float:
+def critical_k_psf(
+    loop: BDFTLoop,
+    *,
+    k_min: float = 1e-4,
+    k_max: float = 10.0,
+    n_grid: int = 120,
+    xtol: float = 1e-6,
+) -> float:
     """Smallest ``K_PSF`` at which the BDFT loop loses stability (``inf`` if none in range).
 
     Scans ``K_PSF`` on a log grid from ``k_min`` to ``k_max`` and refines the first

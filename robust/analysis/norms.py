@@ -34,6 +34,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.optimize as sopt
 
+from robust.analysis.stability import stability_bound
 from robust.errors import ModelStructureError, ParameterError
 
 __all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
@@ -69,8 +70,12 @@ def spectral_abscissa(sys) -> float:
 
 
 def is_stable(sys, *, margin: float = 0.0) -> bool:
-    """Whether every pole has real part below ``-margin`` (rad/s)."""
-    return spectral_abscissa(sys) < -margin
+    """Whether every pole has real part below ``-margin`` (rad/s).
+
+    The definition of :mod:`robust.analysis.stability`: with ``margin=0`` a pole is
+    stable when its real part is below ``-STABILITY_TOL``.
+    """
+    return spectral_abscissa(sys) < stability_bound(margin)
 
 
 def sigma_max(sys, omega) -> np.ndarray:

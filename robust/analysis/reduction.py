@@ -87,7 +87,9 @@ def _chol_psd(M):
     return V * np.sqrt(np.clip(w, 0, None))
 
 
-def balanced_truncation(sys: ct.StateSpace, order: int | None = None, *, tol: float | None = None) -> ReducedModel:
+def balanced_truncation(
+    sys: ct.StateSpace, order: int | None = None, *, tol: float | None = None
+) -> ReducedModel:
     """Reduce ``sys`` by square-root balanced truncation of its stable part.
 
     Parameters
@@ -119,7 +121,9 @@ def balanced_truncation(sys: ct.StateSpace, order: int | None = None, *, tol: fl
         k = int(np.argmax(2 * tail <= tol))
     else:
         if not (nu <= order <= n):
-            raise ParameterError(f"balanced_truncation: order must be in [{nu}, {n}] (unstable states are kept); got {order}")
+            raise ParameterError(
+                f"balanced_truncation: order must be in [{nu}, {n}] (unstable states are kept); got {order}"
+            )
         k = order - nu
     k = min(k, int(np.count_nonzero(hsv > hsv[0] * 1e-14)) if hsv.size else 0)
     if k:
@@ -132,6 +136,10 @@ def balanced_truncation(sys: ct.StateSpace, order: int | None = None, *, tol: fl
     A = sla.block_diag(Ar, Au)
     B = np.vstack([Br, Bu])
     C = np.hstack([Cr, Cu])
-    red = ct.ss(A, B, C, sys.D, inputs=sys.input_labels, outputs=sys.output_labels, name=f"{sys.name}_red")
+    red = ct.ss(
+        A, B, C, sys.D, inputs=sys.input_labels, outputs=sys.output_labels, name=f"{sys.name}_red"
+    )
     bound = float(2 * hsv[k:].sum())
-    return ReducedModel(sys=red, hsv=hsv, error_bound=bound, order_before=n, order_after=k + nu, n_unstable=nu)
+    return ReducedModel(
+        sys=red, hsv=hsv, error_bound=bound, order_before=n, order_after=k + nu, n_unstable=nu
+    )

@@ -55,7 +55,9 @@ class SampledDataCheck:
 def open_plant(loop, K):
     """The member's loop with the controller removed: inputs ``u`` and K's outputs, outputs ``y`` and K's inputs."""
     blocks = [b for b in loop.blocks(bdft=True, controller=K) if b is not K]
-    return ct.interconnect(blocks, inputs=["u", *K.output_labels], outputs=["y", *K.input_labels], name="open_plant")
+    return ct.interconnect(
+        blocks, inputs=["u", *K.output_labels], outputs=["y", *K.input_labels], name="open_plant"
+    )
 
 
 def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
@@ -71,8 +73,12 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
         Its discrete equivalent, same signal names, ``dt > 0``.
     """
     if not (Kd.isdtime(strict=True) and Kd.dt > 0):
-        raise ModelStructureError(f"Kd must be a discrete-time controller with a sample time; got dt={Kd.dt}")
-    if list(K.input_labels) != list(Kd.input_labels) or list(K.output_labels) != list(Kd.output_labels):
+        raise ModelStructureError(
+            f"Kd must be a discrete-time controller with a sample time; got dt={Kd.dt}"
+        )
+    if list(K.input_labels) != list(Kd.input_labels) or list(K.output_labels) != list(
+        Kd.output_labels
+    ):
         raise ModelStructureError(
             f"K and Kd must have the same signals; got {K.input_labels}->{K.output_labels} and "
             f"{Kd.input_labels}->{Kd.output_labels}"
@@ -81,7 +87,16 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
     poles_c = loop_poles(loop, controller=K)
     G = open_plant(loop, K)
     Gd = ct.sample_system(G, T, method="zoh")
-    Gd = ct.ss(Gd.A, Gd.B, Gd.C, Gd.D, T, inputs=G.input_labels, outputs=G.output_labels, name="open_plant_d")
+    Gd = ct.ss(
+        Gd.A,
+        Gd.B,
+        Gd.C,
+        Gd.D,
+        T,
+        inputs=G.input_labels,
+        outputs=G.output_labels,
+        name="open_plant_d",
+    )
     cl_d = ct.interconnect([Gd, Kd], inputs="u", outputs="y", name="sampled_loop")
     z = np.linalg.eigvals(np.asarray(cl_d.A, float))
     s_d = np.log(z.astype(complex)) / T

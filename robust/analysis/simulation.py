@@ -13,10 +13,10 @@ import control as ct
 import numpy as np
 from scipy.signal import chirp
 
+from robust.analysis.realization import minimal_realization
 from robust.checks import POSITIVE, check_scalar
 from robust.errors import ParameterError
 from robust.model.loop import BDFTLoop
-from robust.analysis.realization import minimal_realization
 
 __all__ = ["SweptSine", "swept_sine", "TimeResponse", "simulate_swept_sine", "simulate"]
 
@@ -45,15 +45,23 @@ class SweptSine:
 
     def __post_init__(self):
         for name in ("f0_hz", "f1_hz", "duration_s", "amplitude", "fs_hz"):
-            object.__setattr__(self, name, check_scalar(name, getattr(self, name), POSITIVE, owner="SweptSine"))
+            object.__setattr__(
+                self, name, check_scalar(name, getattr(self, name), POSITIVE, owner="SweptSine")
+            )
         if self.f1_hz <= self.f0_hz:
-            raise ParameterError(f"SweptSine.f1_hz must exceed f0_hz={self.f0_hz}; got {self.f1_hz}")
+            raise ParameterError(
+                f"SweptSine.f1_hz must exceed f0_hz={self.f0_hz}; got {self.f1_hz}"
+            )
         if self.f1_hz >= self.fs_hz / 2:
-            raise ParameterError(f"SweptSine.f1_hz must be below the Nyquist frequency {self.fs_hz / 2}; got {self.f1_hz}")
+            raise ParameterError(
+                f"SweptSine.f1_hz must be below the Nyquist frequency {self.fs_hz / 2}; got {self.f1_hz}"
+            )
 
     def signal(self) -> tuple[np.ndarray, np.ndarray]:
         t = np.arange(int(round(self.duration_s * self.fs_hz)) + 1) / self.fs_hz
-        u = self.amplitude * chirp(t, f0=self.f0_hz, t1=self.duration_s, f1=self.f1_hz, method="linear", phi=-90)
+        u = self.amplitude * chirp(
+            t, f0=self.f0_hz, t1=self.duration_s, f1=self.f1_hz, method="linear", phi=-90
+        )
         return t, u
 
 
@@ -75,7 +83,9 @@ class TimeResponse:
         return self.outputs[name]
 
 
-def simulate(loop: BDFTLoop, t: np.ndarray, u: np.ndarray, *, bdft: bool = True, controller=None) -> TimeResponse:
+def simulate(
+    loop: BDFTLoop, t: np.ndarray, u: np.ndarray, *, bdft: bool = True, controller=None
+) -> TimeResponse:
     """Response of the loop outputs to intended motion ``u(t)`` from rest."""
     sys = loop.system(bdft=bdft, controller=controller)
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
@@ -88,7 +98,9 @@ def simulate(loop: BDFTLoop, t: np.ndarray, u: np.ndarray, *, bdft: bool = True,
     return TimeResponse(t=np.asarray(t), u=np.asarray(u), outputs=outs, bdft=bdft, k_psf=loop.k_psf)
 
 
-def simulate_swept_sine(loop: BDFTLoop, sweep: SweptSine | None = None, *, controller=None) -> tuple[TimeResponse, TimeResponse]:
+def simulate_swept_sine(
+    loop: BDFTLoop, sweep: SweptSine | None = None, *, controller=None
+) -> tuple[TimeResponse, TimeResponse]:
     """Cylinder response to a swept sine with and without BDFT (Figures 11 and 12)."""
     sweep = sweep or SweptSine()
     t, u = sweep.signal()

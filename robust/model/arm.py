@@ -59,8 +59,10 @@ class ArmGeometry:
     elbow_to_shoulder: float = 1.0
 
     def __post_init__(self):
-        validate_fields(self, {"height": POSITIVE, "hand_x": Spec(), "hand_y": Spec(),
-                               "elbow_to_shoulder": POSITIVE})
+        validate_fields(
+            self,
+            {"height": POSITIVE, "hand_x": Spec(), "hand_y": Spec(), "elbow_to_shoulder": POSITIVE},
+        )
 
     @property
     def lengths(self) -> tuple[float, float]:
@@ -74,8 +76,10 @@ class ArmGeometry:
         r2 = x * x + y * y
         cos_el = (r2 - L1 * L1 - L2 * L2) / (2 * L1 * L2)
         if not -1.0 < cos_el < 1.0:
-            raise ParameterError(f"ArmGeometry: the grip at ({x:.3f}, {y:.3f}) m is out of the arm's reach "
-                                 f"({abs(L1 - L2):.3f}-{L1 + L2:.3f} m); got dx={dx!r}")
+            raise ParameterError(
+                f"ArmGeometry: the grip at ({x:.3f}, {y:.3f}) m is out of the arm's reach "
+                f"({abs(L1 - L2):.3f}-{L1 + L2:.3f} m); got dx={dx!r}"
+            )
         q2 = math.acos(cos_el)  # elbow flexion, positive: elbow below the shoulder-hand line
         q1 = math.atan2(y, x) - math.atan2(L2 * math.sin(q2), L1 + L2 * math.cos(q2))
         return q1, q2
@@ -84,10 +88,12 @@ class ArmGeometry:
         """Fore-aft compliance at the grip per unit shoulder compliance, m^2 (times rad/(N m))."""
         L1, L2 = self.lengths
         q1, q2 = self.joint_angles(dx)
-        J = np.array([
-            [-L1 * math.sin(q1) - L2 * math.sin(q1 + q2), -L2 * math.sin(q1 + q2)],
-            [L1 * math.cos(q1) + L2 * math.cos(q1 + q2), L2 * math.cos(q1 + q2)],
-        ])
+        J = np.array(
+            [
+                [-L1 * math.sin(q1) - L2 * math.sin(q1 + q2), -L2 * math.sin(q1 + q2)],
+                [L1 * math.cos(q1) + L2 * math.cos(q1 + q2), L2 * math.cos(q1 + q2)],
+            ]
+        )
         Kq_inv = np.diag([1.0, 1.0 / self.elbow_to_shoulder])
         return float((J @ Kq_inv @ J.T)[0, 0])
 

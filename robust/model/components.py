@@ -68,7 +68,9 @@ class ValveCylinderParams:
     zeta: float = 0.45
 
     def __post_init__(self):
-        validate_fields(self, {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING})
+        validate_fields(
+            self, {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING}
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,7 +96,13 @@ class StructureParams:
     def __post_init__(self):
         validate_fields(
             self,
-            {"k_s": POSITIVE, "zeta1": _DAMPING, "zeta2": _DAMPING, "f1_hz": POSITIVE, "f2_hz": POSITIVE},
+            {
+                "k_s": POSITIVE,
+                "zeta1": _DAMPING,
+                "zeta2": _DAMPING,
+                "f1_hz": POSITIVE,
+                "f2_hz": POSITIVE,
+            },
         )
 
 
@@ -125,7 +133,9 @@ def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFuncti
     return ct.tf(num, [1.0, 2.0 * zeta * wn, wn * wn])
 
 
-def valve_cylinder(params: ValveCylinderParams | None = None, *, name: str = "valve_cylinder") -> ct.StateSpace:
+def valve_cylinder(
+    params: ValveCylinderParams | None = None, *, name: str = "valve_cylinder"
+) -> ct.StateSpace:
     """Valve/cylinder, Eqn 3: ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)``.
 
     Input ``e``: valve command (paper's units). Output ``y``: cylinder position

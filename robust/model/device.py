@@ -61,7 +61,9 @@ class ForceCheck:
 
     @property
     def within_limits(self) -> bool:
-        return self.peak_force_n <= self.peak_limit_n and self.rms_force_n <= self.continuous_limit_n
+        return (
+            self.peak_force_n <= self.peak_limit_n and self.rms_force_n <= self.continuous_limit_n
+        )
 
     def describe(self) -> str:
         verdict = "within limits" if self.within_limits else "OVER the device limits"

@@ -95,7 +95,11 @@ class LiteralHuman:
         return ct.ss(self.transfer_function(), inputs="c", outputs="h", name=name)
 
     def describe(self) -> dict:
-        return {"variant": self.variant, "equation": "paper Eqn 5", **dataclasses.asdict(self.params)}
+        return {
+            "variant": self.variant,
+            "equation": "paper Eqn 5",
+            **dataclasses.asdict(self.params),
+        }
 
 
 def human_variant(name: str) -> HumanModel:

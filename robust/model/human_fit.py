@@ -114,9 +114,17 @@ def _wrap(phase):
     return np.angle(np.exp(1j * phase))
 
 
-def fit_chain(masses, *, band_hz=FIT_BAND_HZ, n_freq: int = N_FREQ, seed: int = FIT_SEED,
-              n_starts: int = N_STARTS, target: LiteralHumanParams | None = None,
-              phase_weight: float = 0.0, sign: float | None = None) -> dict:
+def fit_chain(
+    masses,
+    *,
+    band_hz=FIT_BAND_HZ,
+    n_freq: int = N_FREQ,
+    seed: int = FIT_SEED,
+    n_starts: int = N_STARTS,
+    target: LiteralHumanParams | None = None,
+    phase_weight: float = 0.0,
+    sign: float | None = None,
+) -> dict:
     """Fit the stiffnesses, dampings and unit gain of a chain with the given masses to Eqn 5.
 
     Parameters
@@ -149,7 +157,9 @@ def fit_chain(masses, *, band_hz=FIT_BAND_HZ, n_freq: int = N_FREQ, seed: int = 
     target_resp = eqn5_response(f, target)
     target_db = 20.0 * np.log10(np.abs(target_resp))
     if phase_weight and sign not in (1.0, -1.0):
-        raise ValueError(f"fit_chain: phase_weight={phase_weight!r} needs sign=+1 or -1; got sign={sign!r}")
+        raise ValueError(
+            f"fit_chain: phase_weight={phase_weight!r} needs sign=+1 or -1; got sign={sign!r}"
+        )
 
     def residual(theta):
         h = chain_response(f, m, np.exp(theta[:n]), np.exp(theta[n:]))
@@ -166,7 +176,9 @@ def fit_chain(masses, *, band_hz=FIT_BAND_HZ, n_freq: int = N_FREQ, seed: int = 
     best = None
     for _ in range(n_starts):
         x0 = rng.uniform(lo + 0.5, hi - 0.5)
-        sol = least_squares(residual, x0, bounds=(lo, hi), x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        sol = least_squares(
+            residual, x0, bounds=(lo, hi), x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12
+        )
         if best is None or sol.cost < best.cost - 1e-12:
             best = sol
     k, c = np.exp(best.x[:n]), np.exp(best.x[n:])
@@ -235,13 +247,17 @@ def _write_data(result: dict) -> Path:
     from robust.jsonio import atomic_write_text
 
     path = Path(__file__).with_name("_human_fit_data.py")
-    text = _DATA_HEADER + "FIT_RESULT = " + pprint.pformat(result, width=100, sort_dicts=True) + "\n"
+    text = (
+        _DATA_HEADER + "FIT_RESULT = " + pprint.pformat(result, width=100, sort_dicts=True) + "\n"
+    )
     return atomic_write_text(path, text)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", action="store_true", help="regenerate robust/model/_human_fit_data.py")
+    parser.add_argument(
+        "--write", action="store_true", help="regenerate robust/model/_human_fit_data.py"
+    )
     args = parser.parse_args(argv)
     result = run_fit()
     pprint.pprint(result, width=100, sort_dicts=True)

@@ -28,6 +28,7 @@ import control as ct
 
 from robust.checks import NONNEGATIVE as NONNEG
 from robust.checks import POSITIVE, check_scalar, validate_fields
+from robust.errors import ParameterError
 from robust.model.components import (
     K_PSF_NOMINAL,
     PIParams,
@@ -38,7 +39,6 @@ from robust.model.components import (
     structure,
     valve_cylinder,
 )
-from robust.errors import ParameterError
 from robust.model.human import HumanModel, LiteralHuman
 
 __all__ = [
@@ -80,7 +80,9 @@ class LoopCalibration:
     def __post_init__(self):
         validate_fields(self, {"kp": POSITIVE, "ki": NONNEG, "loop_scale": POSITIVE})
         if self.handle_sign not in (1, -1) or isinstance(self.handle_sign, bool):
-            raise ParameterError(f"LoopCalibration.handle_sign must be +1 or -1; got {self.handle_sign!r}")
+            raise ParameterError(
+                f"LoopCalibration.handle_sign must be +1 or -1; got {self.handle_sign!r}"
+            )
 
     @property
     def pi(self) -> PIParams:
@@ -127,10 +129,10 @@ class BDFTLoop:
                 f"BDFTLoop.human must implement robust.model.human.HumanModel; got {type(self.human).__name__}"
             )
 
-    def replace(self, **changes) -> "BDFTLoop":
+    def replace(self, **changes) -> BDFTLoop:
         return dataclasses.replace(self, **changes)
 
-    def with_workspace_factor(self, factor: float) -> "BDFTLoop":
+    def with_workspace_factor(self, factor: float) -> BDFTLoop:
         """The same loop with the handle workspace multiplied by ``factor`` (``K_PSF / factor``)."""
         f = check_scalar("factor", factor, POSITIVE)
         return self.replace(k_psf=self.k_psf / f)
@@ -187,14 +189,18 @@ class BDFTLoop:
             terms = ["f_ext"]
             if controller is not None and "f" in controller.output_labels:
                 terms.append("f_ctrl")
-                blocks = [_rename_output(b, "f", "f_ctrl") if b is controller else b for b in blocks]
+                blocks = [
+                    _rename_output(b, "f", "f_ctrl") if b is controller else b for b in blocks
+                ]
             blocks.append(ct.summing_junction(inputs=terms, output="f", name="hand_force"))
             inputs.append("f_ext")
             if controller is not None and "f" in controller.output_labels and "f" not in outs:
                 outs.append("f")
         if controller is not None and "r_corr" in controller.output_labels and "r_corr" not in outs:
             outs.append("r_corr")
-        return ct.interconnect(blocks, inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop")
+        return ct.interconnect(
+            blocks, inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop"
+        )
 
 
 def _rename_output(sys: ct.StateSpace, old: str, new: str) -> ct.StateSpace:
@@ -211,7 +217,9 @@ def _check_controller(controller, human: HumanModel, bdft: bool) -> None:
     from robust.errors import ModelStructureError
 
     if not isinstance(controller, ct.StateSpace):
-        raise ModelStructureError(f"controller must be a control.StateSpace; got {type(controller).__name__}")
+        raise ModelStructureError(
+            f"controller must be a control.StateSpace; got {type(controller).__name__}"
+        )
     if not controller.isctime():
         raise ModelStructureError(
             "controller must be continuous-time for the loop (dt=0 or None); "
@@ -230,4 +238,6 @@ def _check_controller(controller, human: HumanModel, bdft: bool) -> None:
             + ("" if bdft else " (and the loop is built without BDFT)")
         )
     if not bdft and "c" in controller.input_labels:
-        raise ModelStructureError("controller measures 'c', which does not exist in the loop without BDFT")
+        raise ModelStructureError(
+            "controller measures 'c', which does not exist in the loop without BDFT"
+        )

@@ -45,10 +45,9 @@ import numpy as np
 
 from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
 from robust.errors import ParameterError
-
 from robust.model._human_fit_data import FIT_RESULT
-from robust.model.arm import ArmGeometry
 from robust.model.anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
+from robust.model.arm import ArmGeometry
 
 __all__ = [
     "SEGMENT_MASS_FRACTIONS",
@@ -140,8 +139,12 @@ def physical_human_matrices(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_ga
     A, B, C, D : ndarray
         Shapes (N, 4, 4), (N, 4, 2), (N, 1, 4), (N, 1, 2); N = 1 for scalars.
     """
-    args = np.broadcast_arrays(*[np.atleast_1d(np.asarray(v, float)) for v in
-                                 (m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_gain, c_unit)])
+    args = np.broadcast_arrays(
+        *[
+            np.atleast_1d(np.asarray(v, float))
+            for v in (m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_gain, c_unit)
+        ]
+    )
     mt, ma, kt, ct_, ka, ca, g, cu = args
     n = mt.shape[0]
     A = np.zeros((n, 4, 4))
@@ -183,10 +186,15 @@ class PhysicalHuman:
             raise ParameterError(
                 f"PhysicalHuman.params must be PhysicalHumanParams; got {type(self.params).__name__}"
             )
-        object.__setattr__(self, "handle_offset_m", check_scalar("handle_offset_m", self.handle_offset_m,
-                                                                 owner="PhysicalHuman"))
+        object.__setattr__(
+            self,
+            "handle_offset_m",
+            check_scalar("handle_offset_m", self.handle_offset_m, owner="PhysicalHuman"),
+        )
 
-    def with_handle_offset(self, dx_m: float, *, geometry: ArmGeometry | None = None) -> "PhysicalHuman":
+    def with_handle_offset(
+        self, dx_m: float, *, geometry: ArmGeometry | None = None
+    ) -> PhysicalHuman:
         """The same operator with the handle moved ``dx_m`` metres forward (paper's C5: +-4 in = +-0.1016 m).
 
         The arm's fore-aft stiffness and damping are scaled by the two-link arm
@@ -197,11 +205,13 @@ class PhysicalHuman:
         dx = check_scalar("dx_m", dx_m)
         g = geometry or ArmGeometry()
         s = g.stiffness_scale(self.handle_offset_m + dx, from_dx=self.handle_offset_m)
-        p = dataclasses.replace(self.params, k_arm=self.params.k_arm * s, c_arm=self.params.c_arm * s)
+        p = dataclasses.replace(
+            self.params, k_arm=self.params.k_arm * s, c_arm=self.params.c_arm * s
+        )
         return dataclasses.replace(self, params=p, handle_offset_m=self.handle_offset_m + dx)
 
     @classmethod
-    def for_body_mass(cls, body_mass: float, **changes) -> "PhysicalHuman":
+    def for_body_mass(cls, body_mass: float, **changes) -> PhysicalHuman:
         """Nominal joints with the masses of an operator of ``body_mass`` kg (Winter's fractions)."""
         bm = check_scalar("body_mass", body_mass, POSITIVE)
         seg = segment_masses(bm)
@@ -209,8 +219,16 @@ class PhysicalHuman:
 
     def system(self, *, name: str = "human") -> ct.StateSpace:
         A, B, C, D = (x[0] for x in physical_human_matrices(**dataclasses.asdict(self.params)))
-        return ct.ss(A, B, C, D, inputs=["c", "f"], outputs=["h"],
-                     states=["z_trunk", "z_arm", "v_trunk", "v_arm"], name=name)
+        return ct.ss(
+            A,
+            B,
+            C,
+            D,
+            inputs=["c", "f"],
+            outputs=["h"],
+            states=["z_trunk", "z_arm", "v_trunk", "v_arm"],
+            name=name,
+        )
 
     def describe(self) -> dict:
         return {
@@ -259,18 +277,21 @@ def fit_summary() -> dict:
         "dampings [N s/m]": {"c_trunk": p.c_trunk, "c_arm": p.c_arm},
         "unit-conversion gain h_gain [paper h units per m, for c in m/s^2]": p.h_gain,
         "c_unit [m/s^2 per paper c unit] (assumed)": p.c_unit,
-        "modes, seat fixed": {f"mode {i + 1}": f"{m['f_hz']:.3g} Hz, zeta {m['zeta']:.3g}" for i, m in enumerate(modes)},
+        "modes, seat fixed": {
+            f"mode {i + 1}": f"{m['f_hz']:.3g} Hz, zeta {m['zeta']:.3g}"
+            for i, m in enumerate(modes)
+        },
         "3-DOF chain also fitted (trunk, upper arm, forearm+hand)": {
             "err_db_max": three["err_db_max"],
             "err_db_rms": three["err_db_rms"],
             "err_deg_rms": three["err_deg_rms"],
             "parameters at search bounds": ", ".join(three["at_bounds"]) or "none",
             "retained": "no: the extra degree of freedom lowers the magnitude error only with a joint damping "
-                        "driven to the search bound (an undamped joint), and the phase error grows",
+            "driven to the search bound (an undamped joint), and the phase error grows",
         },
         "masses from": "Winter, Biomechanics and Motor Control of Human Movement (2009), Table 4.1 fractions",
         "handle position (C5)": "arm stiffness and damping scaled by a two-link sagittal arm (robust.model.arm: "
-                                "equal shoulder and elbow stiffness, Winter's segment lengths, grip 0.30 m forward "
-                                "and 0.35 m below the shoulder)",
+        "equal shoulder and elbow stiffness, Winter's segment lengths, grip 0.30 m forward "
+        "and 0.35 m below the shoulder)",
         "regenerate with": "python -m robust.model.human_fit --write",
     }

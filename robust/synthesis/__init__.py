@@ -15,8 +15,17 @@ from robust.synthesis.hinfsyn import (
 from robust.synthesis.solve import SolveResult, solve_problem
 
 __all__ = [
-    "ForceFeedbackWeights", "as_loop_controller", "force_feedback_plant",
-    "GeneralizedPlant", "as_generalized_plant",
-    "HinfResult", "LMISynthesisProblem", "MultiHinfResult", "check_hinf_assumptions",
-    "hinfsyn_lmi", "hinfsyn_multi", "SolveResult", "solve_problem",
+    "ForceFeedbackWeights",
+    "as_loop_controller",
+    "force_feedback_plant",
+    "GeneralizedPlant",
+    "as_generalized_plant",
+    "HinfResult",
+    "LMISynthesisProblem",
+    "MultiHinfResult",
+    "check_hinf_assumptions",
+    "hinfsyn_lmi",
+    "hinfsyn_multi",
+    "SolveResult",
+    "solve_problem",
 ]

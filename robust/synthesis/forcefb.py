@@ -34,8 +34,8 @@ import math
 import control as ct
 
 from robust.checks import POSITIVE, Spec, validate_fields
-from robust.model.device import DeviceLimits
 from robust.errors import ModelStructureError
+from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
 
 __all__ = [
@@ -48,7 +48,12 @@ __all__ = [
 ]
 
 #: Partition of the generalized plant (without the optional channels).
-FORCE_PLANT_SIGNALS = {"w": ["w_u", "n_x", "n_c"], "u": ["f"], "z": ["z_e", "z_f"], "y": ["x_m", "c_m"]}
+FORCE_PLANT_SIGNALS = {
+    "w": ["w_u", "n_x", "n_c"],
+    "u": ["f"],
+    "z": ["z_e", "z_f"],
+    "y": ["x_m", "c_m"],
+}
 
 
 def handle_units_per_m(loop: BDFTLoop) -> float:
@@ -152,7 +157,9 @@ def force_feedback_plant(
     wts = weights or ForceFeedbackWeights()
     lim = limits or DeviceLimits()
     if not loop.human.has_force_port:
-        raise ModelStructureError(f"force feedback needs a human with a force port; {loop.human.variant!r} has none")
+        raise ModelStructureError(
+            f"force feedback needs a human with a force port; {loop.human.variant!r} has none"
+        )
     upm = handle_units_per_m(loop)
     amp = wts.intent_fraction * (lim.workspace_mm / 2) * 1e-3 * upm  # handle units
     cal = loop.calibration
@@ -160,8 +167,11 @@ def force_feedback_plant(
     blocks = [
         intent_filter(wts.intent_bandwidth_hz, amp),
         position_scale(loop.k_psf),
-        ct.summing_junction(inputs=["r", "r_corr", "-y"] if reference_correction else ["r", "-y"], output="err",
-                            name="cyl_err"),
+        ct.summing_junction(
+            inputs=["r", "r_corr", "-y"] if reference_correction else ["r", "-y"],
+            output="err",
+            name="cyl_err",
+        ),
         pi_controller(cal.pi),
         valve_cylinder(loop.valve),
         structure(loop.struct),
@@ -193,7 +203,9 @@ def force_feedback_plant(
         z.append("z_r")
         u.append("r_corr")
     w, y = ["w_u", "n_x", "n_c"], ["x_m", "c_m"]
-    sys = _balanced(ct.interconnect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant"))
+    sys = _balanced(
+        ct.interconnect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant")
+    )
     return GeneralizedPlant.from_system(sys, w=w, u=u, z=z, y=y)
 
 
@@ -208,8 +220,15 @@ def _balanced(sys: ct.StateSpace) -> ct.StateSpace:
 
     _, (scale, _) = sla.matrix_balance(sys.A, permute=False, separate=True)
     A = sys.A * (1.0 / scale)[:, None] * scale[None, :]
-    return ct.ss(A, sys.B / scale[:, None], sys.C * scale[None, :], sys.D,
-                 inputs=sys.input_labels, outputs=sys.output_labels, name=sys.name)
+    return ct.ss(
+        A,
+        sys.B / scale[:, None],
+        sys.C * scale[None, :],
+        sys.D,
+        inputs=sys.input_labels,
+        outputs=sys.output_labels,
+        name=sys.name,
+    )
 
 
 def as_loop_controller(K: ct.StateSpace, *, name: str = "K") -> ct.StateSpace:
@@ -221,5 +240,6 @@ def as_loop_controller(K: ct.StateSpace, *, name: str = "K") -> ct.StateSpace:
         outs = ["f"]
     if len(ins) != K.ninputs or outs not in (["f"], ["f", "r_corr"]):
         raise ModelStructureError(
-            f"expected a controller x_m, c_m -> f (or f, r_corr); got {K.input_labels} -> {K.output_labels}")
+            f"expected a controller x_m, c_m -> f (or f, r_corr); got {K.input_labels} -> {K.output_labels}"
+        )
     return ct.ss(K.A, K.B, K.C, K.D, inputs=ins, outputs=outs, name=name)

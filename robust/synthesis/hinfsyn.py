@@ -27,6 +27,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
+from robust.analysis.norms import hinf_norm, spectral_abscissa
 from robust.errors import (
     AssumptionError,
     InfeasibleError,
@@ -44,7 +45,6 @@ from robust.synthesis.lmi import (
     projection_lmis,
     reconstruct_controller,
 )
-from robust.analysis.norms import hinf_norm, spectral_abscissa
 from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, solve_problem
 
 __all__ = [

@@ -37,7 +37,12 @@ from robust.sysid.fit import (
     parse_form,
 )
 from robust.sysid.identify import Identification, identify_file, identify_records
-from robust.sysid.model_file import ComponentFit, load_component_fit, read_component_fit, save_component_fit
+from robust.sysid.model_file import (
+    ComponentFit,
+    load_component_fit,
+    read_component_fit,
+    save_component_fit,
+)
 from robust.sysid.plots import bode_figure, coherence_figure
 from robust.sysid.spectral import (
     FrequencyResponseEstimate,

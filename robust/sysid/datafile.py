@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from robust.checks import POSITIVE, check_scalar
-from robust.jsonio import atomic_write
 from robust.errors import DataError, ParameterError
+from robust.jsonio import atomic_write
 
 __all__ = ["ChannelData", "load_channels", "save_experiment", "select_channels"]
 

@@ -585,7 +585,12 @@ def paper_experiment(
         With ``system`` the true component and channel names ``e``/``y``,
         ``y``/``c`` or ``c``/``h``.
     """
-    from robust.model.components import StructureParams, ValveCylinderParams, structure, valve_cylinder
+    from robust.model.components import (
+        StructureParams,
+        ValveCylinderParams,
+        structure,
+        valve_cylinder,
+    )
     from robust.model.human import LiteralHuman, LiteralHumanParams
 
     if component not in PAPER_COMPONENTS:

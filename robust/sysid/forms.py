@@ -17,8 +17,8 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from robust.model.components import StructureParams, ValveCylinderParams
 from robust.errors import ParameterError
+from robust.model.components import StructureParams, ValveCylinderParams
 from robust.model.human import LiteralHumanParams
 
 __all__ = ["FORMS", "FORM_SPECS", "ZETA_BOUNDS", "RationalParams", "form_system", "parse_form"]

@@ -27,9 +27,9 @@ import math
 import os
 from pathlib import Path
 
+from robust.errors import ArtifactError, ParameterError
 from robust.jsonio import atomic_write_json
 from robust.model.components import StructureParams, ValveCylinderParams
-from robust.errors import ArtifactError, ParameterError
 from robust.model.human import LiteralHumanParams
 
 __all__ = ["KIND", "ComponentFit", "load_component_fit", "read_component_fit", "save_component_fit"]
