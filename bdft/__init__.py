@@ -10,47 +10,50 @@ standard output (progress and log lines go to standard error).
 from __future__ import annotations
 
 import argparse
-import importlib
-import json
 import sys
 
+from bdft import design, identify, report, reproduce, sweep, validate
 from robust.errors import BDFTError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "COMMANDS"]
 
 #: Sub-command modules, in the order ``bdft --help`` lists them.
-COMMANDS = [
-    "reproduce",
-    "validate",
-    "sweep",
-    "identify",
-    "design",
-    "report",
-]
+COMMANDS = (reproduce, validate, sweep, identify, design, report)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``bdft`` argument parser with every sub-command registered.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        Parser of ``bdft COMMAND ...``, one sub-parser per module of :data:`COMMANDS`
+        (each module's ``register``); the parsed namespace's ``func`` runs the command.
+    """
     parser = argparse.ArgumentParser(
         prog="bdft",
         description="Biodynamic-feedthrough robust-control workbench.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMANDS:
-        module = importlib.import_module(f"{__name__}.{name}")
+    for module in COMMANDS:
         module.register(sub)
     return parser
 
 
-def print_json(obj) -> None:
-    """Print one JSON object on stdout (numpy scalars and arrays converted)."""
-    from robust.jsonio import to_jsonable
-
-    sys.stdout.write(json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
-    sys.stdout.flush()
-
-
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``bdft`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        Exit code: 0 on success, 2 on a reported error.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -58,7 +61,3 @@ def main(argv: list[str] | None = None) -> int:
     except BDFTError as exc:
         print(f"bdft {args.command}: error: {exc}", file=sys.stderr)
         return 2
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

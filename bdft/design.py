@@ -4,13 +4,27 @@ from __future__ import annotations
 
 import sys
 
+from bdft.common import print_json
+from designs.registry import design_names, run_design
+from robust.errors import ParameterError
+
+__all__ = ["register", "run"]
+
 
 def register(sub) -> None:
+    """Add the ``design`` sub-command (options ``NAME``, ``--list``, ``--samples``...).
+
+    Parameters
+    ----------
+    sub : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+    """
     p = sub.add_parser(
         "design",
         help="list the compensator designs, or run one and write its artifact",
-        description="Run one compensator design on the default family: build it, validate it on a "
-        "seeded sample, reduce and discretise it, and write its artifact (JSON + .mat).",
+        description="Run one compensator design on the default family: build it, validate it "
+        "on a seeded sample, reduce and discretise it, and write its artifact (JSON + .mat).",
     )
     p.add_argument("name", nargs="?", help="design name (see --list)")
     p.add_argument("--list", action="store_true", help="print the design names, one per line")
@@ -30,10 +44,27 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from bdft import print_json
-    from designs.registry import design_names, run_design
-    from robust.errors import ParameterError
+    """List the designs, or run one through :func:`designs.registry.run_design` and print it.
 
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft design`` options: ``name`` (a design name, or ``None`` with
+        ``list``), ``list``, ``samples`` (family members to validate on), ``seed``,
+        ``method`` (sampling method), ``out`` (artifact folder) and ``json``.
+
+    Returns
+    -------
+    int
+        Exit code 0. The summary goes to standard output (one JSON object with
+        ``--json``, otherwise one line per key), progress to standard error.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        Without a design name and without ``--list``, with ``--samples`` below 1, or
+        for an unknown design name.
+    """
     if args.list:
         print("\n".join(design_names()))
         return 0

@@ -25,8 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bdft.common import print_json
 from robust.errors import ParameterError
 from robust.jsonio import atomic_write, atomic_write_json, atomic_write_text
+from robust.sysid.fit import parse_form
+from robust.sysid.identify import identify_file
+from robust.sysid.model_file import save_component_fit
+from robust.sysid.plots import bode_figure, coherence_figure
 
 __all__ = ["register", "run"]
 
@@ -34,14 +39,27 @@ DEFAULT_OUT = Path("reports") / "out" / "identify"
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add the ``identify`` sub-command to ``subparsers``."""
+    """Add the ``identify`` sub-command to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``identify`` parser.
+    """
     p = subparsers.add_parser(
         "identify",
         help="fit a valve/structure/human or rational model to measured chirp data",
         description=(
-            "Estimate H1 and coherence from input/output records (Welch, averaged over records) and "
-            "fit a fixed form (the paper's Eqn 3 'valve', Eqn 4 'structure', Eqn 5 'human') or a "
-            "rational model 'M/N' (numerator order M, denominator order N, e.g. 2/4) over a band."
+            "Estimate H1 and coherence from input/output records (Welch, averaged over records) "
+            "and fit a fixed form (the paper's Eqn 3 'valve', Eqn 4 'structure', Eqn 5 'human') "
+            "or a rational model 'M/N' (numerator order M, denominator order N, e.g. 2/4) over a "
+            "band."
         ),
     )
     p.add_argument("data", metavar="DATA", help="CSV (header of channel names) or .mat file")
@@ -107,19 +125,46 @@ def _slug(text: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robust.sysid.fit import parse_form
-    from robust.sysid.identify import identify_file
-    from robust.sysid.model_file import save_component_fit
-    from robust.sysid.plots import bode_figure, coherence_figure
+    """Estimate H1 and coherence, fit the form and write the plots, table and summary.
 
+    Everything is computed before the first file is written; each file is written
+    atomically (see the module notes for the file names).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft identify`` options: ``data`` (CSV or ``.mat`` path), ``input``
+        and ``output`` (channel names), ``fs`` (sampling rate, Hz), ``form``
+        (``"valve"``, ``"structure"``, ``"human"`` or ``"M/N"``), ``band`` (fit band
+        ``(low, high)``, Hz), ``json``, ``out`` (output folder), ``save_model``
+        (component-fit JSON path or ``None``; fixed forms only), ``nperseg`` (Welch
+        segment length, samples), ``window``, ``detrend``, ``weighting``,
+        ``min_coherence``, ``significance`` (family-wise level, positive; 1 or more
+        keeps every frequency) and ``confidence`` (level of the plotted bounds, in
+        (0, 1)).
+
+    Returns
+    -------
+    int
+        Exit code 0. Standard output gets the fit summary as one JSON object
+        (``--json``) or as text.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        For ``--save-model`` with a rational form, a ``--significance`` that is not
+        positive, or a ``--confidence`` outside (0, 1).
+    """
     parsed = parse_form(args.form)
     if args.save_model is not None and isinstance(parsed, tuple):
         raise ParameterError(
-            f"--save-model needs a fixed form (valve, structure or human); got the rational form {args.form!r}"
+            "--save-model needs a fixed form (valve, structure or human); "
+            f"got the rational form {args.form!r}"
         )
     if not 0.0 < args.significance:
         raise ParameterError(
-            f"--significance must be in (0, 1], 1 keeping every frequency; got {args.significance!r}"
+            "--significance must be in (0, 1], 1 keeping every frequency; "
+            f"got {args.significance!r}"
         )
     if not 0.0 < args.confidence < 1.0:
         raise ParameterError(f"--confidence must be in (0, 1); got {args.confidence!r}")
@@ -179,8 +224,6 @@ def run(args: argparse.Namespace) -> int:
             args.save_model, fit, fs=result.fs, seed=result.seed, source=str(args.data)
         )
     if args.json:
-        from bdft import print_json
-
         print_json(summary)
     else:
         _print_text(summary)
@@ -198,9 +241,11 @@ def _table_csv(result, confidence: float) -> str:
     cols["in_band"] = ((est.f_hz >= fit.band_hz[0]) & (est.f_hz <= fit.band_hz[1])).astype(float)
     buf = io.StringIO()
     buf.write(
-        f"# bdft identify: source={result.source} input={result.input_name} output={result.output_name} "
-        f"fs={result.fs:g} seed={'none' if result.seed is None else result.seed} form={fit.form} "
-        f"nperseg={est.nperseg} window={est.window} detrend={est.detrend} records={est.n_records}\n"
+        f"# bdft identify: source={result.source} input={result.input_name} "
+        f"output={result.output_name} fs={result.fs:g} "
+        f"seed={'none' if result.seed is None else result.seed} form={fit.form} "
+        f"nperseg={est.nperseg} window={est.window} detrend={est.detrend} "
+        f"records={est.n_records}\n"
     )
     buf.write(",".join(cols) + "\n")
     np.savetxt(buf, np.column_stack(list(cols.values())), delimiter=",", fmt="%.10g")
@@ -218,7 +263,8 @@ def _print_text(summary: dict) -> None:
         sd = summary["std_errors"].get(name)
         w(f"  {name:>8s} = {val:.6g}" + (f"  (+- {sd:.2g})" if sd is not None else "") + "\n")
     w(
-        f"fit error: {summary['fit_error_db']:.3f} dB, {summary['fit_error_deg']:.2f} deg (weighted RMS)\n"
+        f"fit error: {summary['fit_error_db']:.3f} dB, "
+        f"{summary['fit_error_deg']:.2f} deg (weighted RMS)\n"
     )
     for b in summary["band_errors"]:
         a, c = b["band_hz"]

@@ -3,9 +3,23 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
+
+from bdft.common import print_json
+from reports.designs import run_all_designs, write_design_report
+
+__all__ = ["register", "run"]
 
 
 def register(sub) -> None:
+    """Add the ``report`` sub-command (options ``--samples``, ``--seed``, ``--out``, ``--json``).
+
+    Parameters
+    ----------
+    sub : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+    """
     p = sub.add_parser(
         "report",
         help="run every design on the default family and write the comparison report",
@@ -26,10 +40,25 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
+    """Run every design on the same sample and write the comparison page.
 
-    from bdft import print_json
-    from reports.designs import run_all_designs, write_design_report
+    The page goes to ``args.out``, the designs' artifacts to the sibling folder
+    ``<out>-artifacts``; a design that raises a workbench error
+    (:class:`robust.errors.BDFTError`) is listed with its error instead of its numbers.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft report`` options: ``samples`` (family members every design is
+        validated on), ``seed`` (sampling seed), ``out`` (report folder) and ``json``.
+
+    Returns
+    -------
+    int
+        Exit code 0. Standard output gets one JSON object (``--json``: the report path
+        and every design's summary or error) or one line per design; progress goes to
+        standard error.
+    """
 
     def progress(name):
         print(f"[bdft report] design {name} ...", file=sys.stderr, flush=True)
@@ -56,8 +85,10 @@ def run(args) -> int:
                 e = r.evaluation
                 ho = r.details.get("held_out", {}).get("fraction_stable", float("nan"))
                 print(
-                    f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  worst Re {e.max_real_pole:+.3f}  "
-                    f"peak force {e.peak_force_n:.3g} N  rms {e.rms_force_n:.3g} N  order {r.order_reduced}"
+                    f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  "
+                    f"worst Re {e.max_real_pole:+.3f}  "
+                    f"peak force {e.peak_force_n:.3g} N  rms {e.rms_force_n:.3g} N  "
+                    f"order {r.order_reduced}"
                 )
         print(f"report: {path}")
     return 0

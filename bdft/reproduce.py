@@ -4,13 +4,26 @@ from __future__ import annotations
 
 import sys
 
+from bdft.common import print_json
+from reports.reproduce import reproduce, result_to_json, write_reproduction_report
+
+__all__ = ["register", "run"]
+
 
 def register(sub) -> None:
+    """Add the ``reproduce`` sub-command (options ``--out``, ``--human``, ``--json``).
+
+    Parameters
+    ----------
+    sub : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+    """
     p = sub.add_parser(
         "reproduce",
         help="check the paper's claims C1-C5 and write the reproduction report (HTML)",
-        description="Build the paper's loop, run the calibration search, check claims C1-C5 for each "
-        "human variant and write one HTML page with its figures.",
+        description="Build the paper's loop, run the calibration search, check claims C1-C5 for "
+        "each human variant and write one HTML page with its figures.",
     )
     p.add_argument(
         "--out", default="reports/out/reproduce", help="output folder (default: %(default)s)"
@@ -28,9 +41,21 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from bdft import print_json
-    from reports.reproduce import reproduce, result_to_json, write_reproduction_report
+    """Check claims C1-C5 (:func:`reports.reproduce.reproduce`) and write the report.
 
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft reproduce`` options: ``out`` (report folder), ``human``
+        (``"literal"``, ``"physical"`` or ``"both"``) and ``json``.
+
+    Returns
+    -------
+    int
+        Exit code 0. Standard output gets the claims and calibration as one JSON object
+        (``--json``, with the report path under ``"report"``) or one line per claim and
+        variant; progress goes to standard error.
+    """
     variants = ("literal", "physical") if args.human == "both" else (args.human,)
 
     def progress(msg: str) -> None:

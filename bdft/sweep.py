@@ -1,25 +1,44 @@
-"""``bdft sweep``: parameter sweeps across a family, one HTML page per sweep with plots and CSV."""
+"""``bdft sweep``: parameter sweeps across a family; the page is built by :mod:`reports.sweeps`."""
 
 from __future__ import annotations
 
-import html
-import io
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from bdft.common import print_json
 from bdft.validate import add_family_arguments, build_family, progress_bar
+from reports.sweeps import write_sweep_report
+from uncertainty import DEFAULT_CHUNK
+from uncertainty.sweeps import (
+    stiffness_damping_sweep,
+    structure_frequency_sweep,
+    workspace_sweep,
+)
+
+__all__ = ["register", "run"]
 
 _NAMES = ("workspace", "stiffness-damping", "structure-frequency")
 _DEFAULT_MEMBERS = {"workspace": 2000, "stiffness-damping": 200, "structure-frequency": 2000}
 
 
 def register(sub) -> None:
+    """Add the ``sweep`` sub-command (``NAME`` and the family, grid and output options).
+
+    Parameters
+    ----------
+    sub : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+    """
     p = sub.add_parser(
         "sweep",
-        help="sweep workspace factor, human stiffness x damping or structure frequency across the family",
-        description="Validate the same family members on a grid of one or two quantities and write one HTML "
-        "page with plots and the table behind them (CSV). --samples is the number of family members at each "
-        "grid point.",
+        help="sweep workspace factor, human stiffness x damping or structure frequency "
+        "across the family",
+        description="Validate the same family members on a grid of one or two quantities and "
+        "write one HTML page with plots and the table behind them (CSV). --samples is the "
+        "number of family members at each grid point.",
     )
     p.add_argument("name", choices=_NAMES, help="which sweep")
     add_family_arguments(p, samples=0)
@@ -45,8 +64,9 @@ def register(sub) -> None:
         "--workspace-factor",
         type=float,
         default=None,
-        help="workspace factor of the family (K_PSF = 0.1097 / factor); default 1 for the workspace "
-        "sweep (its reference) and 2 for the others (the paper's stabilised workspace, C2)",
+        help="workspace factor of the family (K_PSF = 0.1097 / factor); default 1 for the "
+        "workspace sweep (its reference) and 2 for the others (the paper's stabilised "
+        "workspace, C2)",
     )
     p.add_argument("--out", default=None, help="output folder (default: reports/out/sweep-<name>)")
     p.add_argument(
@@ -56,15 +76,6 @@ def register(sub) -> None:
 
 
 def _run_sweep(args, family, progress):
-    import numpy as np
-
-    from uncertainty import DEFAULT_CHUNK
-    from uncertainty.sweeps import (
-        stiffness_damping_sweep,
-        structure_frequency_sweep,
-        workspace_sweep,
-    )
-
     members = args.samples or _DEFAULT_MEMBERS[args.name]
     common = dict(
         members=members,
@@ -98,65 +109,29 @@ def _total(args) -> int:
     return (members + 1) * pts  # plus the nominal member at each point
 
 
-def _page(res, figures, csv_name: str) -> str:
-    def esc(x):
-        return html.escape(str(x))
-
-    parts = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
-        f"<title>{esc(res.title)}</title>",
-        "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}table{border-collapse:collapse}"
-        "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}img{max-width:100%}</style>",
-        "</head><body>",
-        f"<h1>{esc(res.title)}</h1>",
-        f"<p>{esc(res.description)}</p>",
-        "<h2>Settings</h2><table>",
-    ]
-    for k, v in res.settings.items():
-        parts.append(f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>")
-    parts.append("</table><h2>Figures</h2>")
-    for name, _, caption in figures:
-        parts.append(
-            f"<figure><img src='{esc(name)}.png' alt='{esc(name)}'><figcaption>{esc(caption)}</figcaption>"
-            "</figure>"
-        )
-    parts.append(
-        f"<h2>Table</h2><p>Also as <a href='{esc(csv_name)}'>{esc(csv_name)}</a>.</p><table><tr>"
-    )
-    keys = list(res.columns)
-    parts.extend(f"<th>{esc(k)}</th>" for k in keys)
-    parts.append("</tr>")
-    n = len(res.columns[keys[0]])
-    for i in range(n):
-        parts.append("<tr>" + "".join(f"<td>{res.columns[k][i]:.6g}</td>" for k in keys) + "</tr>")
-    parts.append("</table></body></html>\n")
-    return "\n".join(parts)
-
-
-def write_sweep(res, out_dir) -> Path:
-    """Write ``index.html``, one PNG per figure and ``<name>.csv`` into ``out_dir``, each atomically."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from robust.jsonio import atomic_write_bytes, atomic_write_json, atomic_write_text
-
-    out = Path(out_dir)
-    figures = res.figures()
-    for name, fig, _ in figures:
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110)
-        atomic_write_bytes(out / f"{name}.png", buf.getvalue())
-    csv_name = f"{res.name}.csv"
-    atomic_write_text(out / csv_name, res.csv())
-    atomic_write_json(
-        out / "sweep.json", {"name": res.name, "settings": res.settings, "columns": res.columns}
-    )
-    return atomic_write_text(out / "index.html", _page(res, figures, csv_name))
-
-
 def run(args) -> int:
-    from bdft import print_json
+    """Run the sweep ``args.name`` and write its page (:func:`reports.sweeps.write_sweep_report`).
 
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft sweep`` options: ``name`` (``"workspace"``,
+        ``"stiffness-damping"`` or ``"structure-frequency"``); the family options of
+        :func:`bdft.validate.add_family_arguments` (``samples``: members per grid
+        point, 0 when not given, meaning 2000, or 200 for the stiffness-damping map;
+        ``seed``, ``human``, ``plant_file``, ``chunk``); ``method`` (``"mc"`` or
+        ``"lhs"``); ``pair`` (``"arm"`` or ``"trunk"``, for the stiffness-damping map);
+        ``points`` (grid points per swept axis, ``None`` for 19 factors, a 12 x 12 map
+        or 13 frequencies); ``workspace_factor`` (``None``: 1 for the workspace sweep,
+        2 for the others); ``out`` (report folder, ``None`` for
+        ``reports/out/sweep-<name>``) and ``json``.
+
+    Returns
+    -------
+    int
+        Exit code 0. Standard output gets the table and settings as one JSON object
+        (``--json``) or the title and the CSV table; progress goes to standard error.
+    """
     factor = (
         args.workspace_factor
         if args.workspace_factor is not None
@@ -166,7 +141,7 @@ def run(args) -> int:
     with progress_bar(_total(args), f"sweep {args.name}") as bar:
         res, _ = _run_sweep(args, family, bar.update)
     out = Path(args.out or f"reports/out/sweep-{args.name}")
-    index = write_sweep(res, out)
+    index = write_sweep_report(res, out)
     print(f"[bdft sweep] report written to {index}", file=sys.stderr)
     if args.json:
         print_json(

@@ -2,18 +2,28 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
+
+from tqdm import tqdm
+
+from bdft.common import print_json
+from uncertainty import DEFAULT_CHUNK, default_family, sample, validate_family
+from uncertainty.files import family_nominals, load_component_fit, load_controller
+
+__all__ = ["add_family_arguments", "build_family", "progress_bar", "register", "run"]
 
 _METHODS = ("mc", "lhs", "grid", "vertices")
 
 
 def _int_at_least(minimum: int, what: str):
-    """An argparse ``type`` accepting integers >= ``minimum``; the message says ``what`` was expected."""
+    """An argparse ``type`` accepting integers >= ``minimum``.
+
+    The error message says a ``what`` integer was expected.
+    """
 
     def parse(text: str) -> int:
-        import argparse
-
         try:
             n = int(text)
         except ValueError:
@@ -30,7 +40,19 @@ _nonneg_int = _int_at_least(0, "non-negative")
 
 
 def add_family_arguments(p, *, samples: int) -> None:
-    """Options shared by ``validate`` and ``sweep``: family, sampling, plant files."""
+    """Add the options shared by ``validate`` and ``sweep``: family, sampling, plant files.
+
+    The options are ``--samples``, ``--seed``, ``--human``, ``--plant-file`` (repeatable)
+    and ``--chunk``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    samples : int
+        Default of ``--samples`` (number of family members; ``sweep`` passes 0, meaning
+        its per-sweep default).
+    """
     p.add_argument(
         "--samples",
         type=_positive_int,
@@ -63,12 +85,21 @@ def add_family_arguments(p, *, samples: int) -> None:
 
 
 def register(sub) -> None:
+    """Add the ``validate`` sub-command (family options, ``--method``, ``--controller``...).
+
+    Parameters
+    ----------
+    sub : argparse subparsers action
+        What :meth:`argparse.ArgumentParser.add_subparsers` returned; the new parser's
+        ``func`` default is :func:`run`.
+    """
     p = sub.add_parser(
         "validate",
         help="closed-loop poles across a family: fraction stable, worst pole, minimum damping",
-        description="Sample a family of BDFT loops (human stiffness, damping and mass, structure frequencies, "
-        "damping and gain), assemble every member's closed loop in batches and report the fraction stable, "
-        "the largest real part of any pole, the minimum damping ratio in the BDFT band and the worst member.",
+        description="Sample a family of BDFT loops (human stiffness, damping and mass, "
+        "structure frequencies, damping and gain), assemble every member's closed loop in "
+        "batches and report the fraction stable, the largest real part of any pole, the "
+        "minimum damping ratio in the BDFT band and the worst member.",
     )
     add_family_arguments(p, samples=10_000)
     p.add_argument(
@@ -91,18 +122,41 @@ def register(sub) -> None:
 
 
 def build_family(args):
-    """The default family for the parsed options (plant files applied)."""
-    from uncertainty import default_family
-    from uncertainty.files import family_nominals, load_component_fit
+    """The default family for the parsed options (plant files applied).
 
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options of :func:`add_family_arguments`; ``human`` (``"literal"`` or
+        ``"physical"``) and ``plant_file`` (component-fit JSON paths whose parameters
+        replace that component's nominal values) are used.
+
+    Returns
+    -------
+    uncertainty.Family
+        :func:`uncertainty.default_family` of that human variant, at the nominal
+        workspace (factor 1).
+    """
     fits = [load_component_fit(path) for path in args.plant_file]
     return default_family(args.human, **family_nominals(fits, human=args.human))
 
 
 def progress_bar(total: int, desc: str):
-    """A tqdm progress bar on stderr (shown on terminals for long runs only)."""
-    from tqdm import tqdm
+    """A tqdm progress bar on stderr (shown on terminals for long runs only).
 
+    Parameters
+    ----------
+    total : int
+        Members the run will validate; below 100000 the bar is disabled, otherwise
+        tqdm shows it when standard error is a terminal.
+    desc : str
+        Label in front of the bar.
+
+    Returns
+    -------
+    tqdm.tqdm
+        A context manager; ``bar.update(n)`` advances it by ``n`` members.
+    """
     return tqdm(
         total=total,
         desc=desc,
@@ -115,10 +169,24 @@ def progress_bar(total: int, desc: str):
 
 
 def run(args) -> int:
-    from bdft import print_json
-    from uncertainty import DEFAULT_CHUNK, sample, validate_family
-    from uncertainty.files import load_controller
+    """Validate a sample of the family (optionally with a controller) and print the metrics.
 
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``bdft validate`` options: the family options of
+        :func:`add_family_arguments` (``samples``, ``seed``, ``human``, ``plant_file``,
+        ``chunk``), ``method`` (``"mc"``, ``"lhs"``, ``"grid"`` or ``"vertices"``),
+        ``controller`` (controller JSON path or ``None``), ``workspace_factor``
+        (``K_PSF = 0.1097 / factor``) and ``json``.
+
+    Returns
+    -------
+    int
+        Exit code 0. Standard output gets the metrics of
+        :class:`uncertainty.ValidationResult` with the run's settings and the elapsed
+        time in seconds, as one JSON object (``--json``) or as text.
+    """
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()
@@ -146,12 +214,14 @@ def run(args) -> int:
         print_json(obj)
         return 0
     print(
-        f"family: {family.name}, {res.samples} members ({res.method}, seed {res.seed}), K_PSF {res.k_psf:.5g}"
+        f"family: {family.name}, {res.samples} members ({res.method}, seed {res.seed}), "
+        f"K_PSF {res.k_psf:.5g}"
     )
     print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")
     print(f"  max real pole     {res.max_real_pole:.6g} 1/s")
     print(
-        f"  min damping       {res.min_damping:.6g}  (poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
+        f"  min damping       {res.min_damping:.6g}  "
+        f"(poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
     )
     print("  worst member:")
     for k, v in res.worst.items():

@@ -75,7 +75,8 @@ def main(argv=None) -> int:
     per_member_a = time_python_control(family, probe.values, args.subset)
     rate_a = 1.0 / per_member_a
     print(
-        f"(a) python-control per member (BDFTLoop.system + control.poles), {args.subset} members timed: "
+        "(a) python-control per member (BDFTLoop.system + control.poles), "
+        f"{args.subset} members timed: "
         f"{per_member_a * 1e3:.2f} ms/member = {rate_a:,.0f} members/s"
     )
     print(
@@ -94,7 +95,8 @@ def main(argv=None) -> int:
         rate = n / t_val
         print(
             f"{n:>9d} {t_sample:>9.2f} {t_val:>11.2f} {rate:>11,.0f} {n * per_member_a:>11.0f} "
-            f"{rate / rate_a:>9.0f} {t_b:>10.2f} {n / t_b:>11,.0f} {t_val / t_b:>7.2f} {rss:>13.0f}",
+            f"{rate / rate_a:>9.0f} {t_b:>10.2f} {n / t_b:>11,.0f} {t_val / t_b:>7.2f} "
+            f"{rss:>13.0f}",
             flush=True,
         )
         del S, res

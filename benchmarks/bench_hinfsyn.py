@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib.metadata
 import platform
 import resource
 import time
@@ -37,6 +38,7 @@ import numpy as np
 
 import robust
 from robust.analysis.norms import hinf_norm, spectral_abscissa
+from robust.analysis.stability import stability_bound
 from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.testing import random_generalized_plant
 
@@ -45,7 +47,7 @@ NMEAS, NCON = 2, 2
 
 def _achieved(gp, K):
     cl = gp.closed_loop(K)
-    if not spectral_abscissa(cl) < 0:
+    if not spectral_abscissa(cl) < stability_bound():
         return np.inf
     return hinf_norm(cl)
 
@@ -94,9 +96,7 @@ def _methods():
         ms["dkpy"] = _dk
         dk_version = getattr(dkpy, "__version__", None)
         if dk_version is None:
-            from importlib.metadata import version
-
-            dk_version = version("dkpy")
+            dk_version = importlib.metadata.version("dkpy")
     except ImportError:
         dk_version = None
     return ms, dk_version
@@ -127,7 +127,8 @@ def main(argv=None):
         f"dkpy {dk_version if dk_version else 'not installed'}, machine {platform.machine()}"
     )
     print(
-        f"plants: robust.synthesis.testing.random_generalized_plant(n, seed=s), nw=nz=4, nu=ny=2, 2 unstable poles; "
+        "plants: robust.synthesis.testing.random_generalized_plant(n, seed=s), "
+        "nw=nz=4, nu=ny=2, 2 unstable poles; "
         f"seeds 0..{args.seeds - 1}"
     )
     names = list(methods)
@@ -163,10 +164,11 @@ def main(argv=None):
             if s_ach is not None and np.isfinite(s_ach) and l_ach is not None:
                 ratio = l_ach / s_ach
             tratio = rec["lmi"]["t"] / rec["slicot"]["t"]
-            line = f"{n:>3} {seed:>4} | " + " | ".join(
-                f"{rec[m]['t']:>10.3g} {_fmt(rec[m]['gam'] if rec[m]['err'] is None else 'FAILED', 10)}"
-                for m in names
-            )
+            cells = []
+            for m in names:
+                gam = rec[m]["gam"] if rec[m]["err"] is None else "FAILED"
+                cells.append(f"{rec[m]['t']:>10.3g} {_fmt(gam, 10)}")
+            line = f"{n:>3} {seed:>4} | " + " | ".join(cells)
             line += f" | {_fmt(slicot_rep, 10)} | {_fmt(ratio, 10)} | {tratio:>12.3g}"
             if args.tracemalloc:
                 line += " | " + " ".join(f"{rec[m]['peak']:>10.1f}" for m in names)
@@ -180,7 +182,10 @@ def main(argv=None):
     print()
     print("summary per order (failure = exception, no controller, or unstable closed loop)")
     head = f"{'n':>3} | " + " | ".join(f"{m + ' fail':>11}" for m in names)
-    head += f" | {'max lmi/slicot (slicot stable)':>30} | {'median t lmi/slicot':>19} | {'median t dkpy/slicot':>20}"
+    head += (
+        f" | {'max lmi/slicot (slicot stable)':>30} | {'median t lmi/slicot':>19}"
+        f" | {'median t dkpy/slicot':>20}"
+    )
     print(head)
     print("-" * len(head))
     for n, rows in summary.items():
@@ -200,9 +205,8 @@ def main(argv=None):
         line += f" | {np.median(tr):>19.3g} | {(f'{np.median(dk):.3g}' if dk else 'n/a'):>20}"
         print(line)
     print()
-    print(
-        f"process peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB"
-    )
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"process peak resident memory: {peak_mib:.0f} MiB")
     if dk_version is None:
         print("dkpy not installed")
 

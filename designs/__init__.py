@@ -1,9 +1,29 @@
 """Compensator designs against biodynamic feedthrough, all evaluated on the same family.
 
-Each design is a function ``design_<name>(family, samples, **options) -> DesignResult``;
-the scripts in the repository's ``designs/`` folder and ``bdft design NAME`` run them.
+One module per design, readable top to bottom as that design's script (family,
+weights, synthesis; validation and export through the common pipeline):
+:mod:`designs.workspace`, :mod:`designs.virtual_damping`, :mod:`designs.cancellation`,
+:mod:`designs.hinf_nominal`, :mod:`designs.hinf_robust`, :mod:`designs.hinf_robust_corr`.
+Each defines ``DESIGN`` (a :class:`Design`) whose ``build`` returns a
+:class:`DesignResult`; :mod:`designs.registry` lists them and
+:func:`run_design` runs one end to end. :mod:`designs.evaluate` holds the numbers
+every design reports, :mod:`designs.multimodel` the multi-model tuning.
+
+Builds on :mod:`robust` and :mod:`uncertainty`; the reports and the command line build on it.
 """
 
 from designs.evaluate import DesignEvaluation, evaluate_design, intended_motion
+from designs.registry import DESIGNS, design_names, get_design, run_design
+from designs.result import Design, DesignResult
 
-__all__ = ["DesignEvaluation", "evaluate_design", "intended_motion"]
+__all__ = [
+    "DESIGNS",
+    "Design",
+    "DesignEvaluation",
+    "DesignResult",
+    "design_names",
+    "evaluate_design",
+    "get_design",
+    "intended_motion",
+    "run_design",
+]

@@ -24,23 +24,76 @@ from robust.errors import ModelStructureError
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits, check_force
 from robust.model.loop import BDFTLoop
-from robust.synthesis.forcefb import handle_units_per_m, intent_filter
+from robust.synthesis.forcefb import intent_filter
+from uncertainty import validate_family
 
 __all__ = [
     "DesignEvaluation",
     "evaluate_design",
     "SUPPRESSION_BAND_HZ",
     "TRACKING_BAND_HZ",
+    "INTENT_FRACTION",
     "intended_motion",
+    "output_ratio",
+    "frequency_metrics",
+    "force_histories",
 ]
 
+#: Band of the BDFT suppression figure, Hz (around the structure modes at 6.3-6.5 Hz).
 SUPPRESSION_BAND_HZ = (5.0, 7.5)
+#: Band of the intended-motion tracking figure, Hz (the band people command in).
 TRACKING_BAND_HZ = (0.05, 2.0)
+#: Intended-motion amplitude: this fraction of the half-workspace (0.25: +-8.9 mm of 71 mm).
+INTENT_FRACTION = 0.25
 
 
 @dataclasses.dataclass(frozen=True)
 class DesignEvaluation:
-    """Everything a design reports; see the module notes for definitions."""
+    """Everything a design reports; see the module notes for definitions.
+
+    Parameters
+    ----------
+    name : str
+        Design name.
+    samples : int
+        Number of family members validated.
+    seed : int
+        Seed of the sample set.
+    method : str
+        Sampling method (``"lhs"``, ``"mc"``, ``"grid"``, ``"vertices"``).
+    k_psf : float
+        Position scale factor of the family the design was evaluated on (its workspace).
+    fraction_stable : float
+        Fraction of the members whose closed-loop poles all lie left of the stability
+        threshold.
+    max_real_pole : float
+        Largest real part of any member's closed-loop pole, rad/s.
+    min_damping : float
+        Smallest damping ratio of the members' poles in the BDFT band (2-12 Hz;
+        ``inf`` if no pole lies in it).
+    worst : dict
+        Parameters (name -> value) of the member with the largest real part.
+    suppression_db : float
+        Largest ``|20 log10 |Y/Y_ref||`` over :data:`SUPPRESSION_BAND_HZ` on the nominal
+        member, dB (0: no BDFT left; ``inf`` if the nominal member is unstable).
+    tracking_error : float
+        Largest ``|Y/Y_ref - 1|`` over :data:`TRACKING_BAND_HZ` on the nominal member
+        (``inf`` if it is unstable).
+    peak_force_n : float
+        Peak handle force over the simulated histories, N (0 for a design without
+        handle force, ``inf`` if no member could be simulated).
+    rms_force_n : float
+        Largest RMS handle force of one simulated history, N.
+    force_within_limits : bool
+        Whether the peak and RMS forces respect the device's peak and continuous limits.
+    force_members : int
+        Number of members whose force was simulated (the nominal and up to
+        ``n_force_members`` worst stable ones).
+    order : int
+        Order of the evaluated controller (0 without a controller).
+    notes : tuple of str
+        Caveats: the design's own and those of the evaluation.
+    """
 
     name: str
     samples: int
@@ -61,15 +114,33 @@ class DesignEvaluation:
     notes: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
+        """Every field, as a dict (``dataclasses.asdict``)."""
         return dataclasses.asdict(self)
 
 
 def intended_motion(
     t: np.ndarray, amplitude: float, bandwidth_hz: float, *, seed: int
 ) -> np.ndarray:
-    """Realistic intended handle motion: seeded white noise through the 0-2 Hz intent filter.
+    """Realistic intended handle motion: seeded white noise through the intent filter.
 
     Scaled so its RMS is ``amplitude / sqrt(2)`` (that of a sine of that amplitude).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Time grid, s (equally spaced, as :func:`control.forced_response` needs).
+    amplitude : float
+        Amplitude of the equivalent sine, in the loop's handle units.
+    bandwidth_hz : float
+        Cut-off of the second-order Butterworth intent filter
+        (:func:`robust.synthesis.forcefb.intent_filter`), Hz; 2 Hz in the evaluation.
+    seed : int
+        Seed of the white noise.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The intended motion ``u`` at ``t``.
     """
     rng = np.random.default_rng(seed)
     w = rng.standard_normal(t.size)
@@ -78,18 +149,54 @@ def intended_motion(
     return u * (amplitude / math.sqrt(2) / max(np.sqrt(np.mean(u**2)), 1e-300))
 
 
-def _ratio(loop: BDFTLoop, controller, f_hz: np.ndarray) -> np.ndarray:
+def output_ratio(loop: BDFTLoop, controller, f_hz: np.ndarray) -> np.ndarray:
+    """``Y / Y_ref`` at ``f_hz``, the paper's Figure 13 measure.
+
+    The cylinder response to the intended motion with BDFT (and ``controller``) over
+    that without BDFT and without compensation.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        One member.
+    controller : control.StateSpace or None
+        The compensator.
+    f_hz : ndarray
+        Frequencies, Hz.
+
+    Returns
+    -------
+    ndarray of complex, shape of ``f_hz``
+        The ratio at each frequency.
+    """
     with_k = frequency_response(loop.system(bdft=True, controller=controller), f_hz)
     ref = frequency_response(loop.system(bdft=False), f_hz)
     return with_k / ref
 
 
 def frequency_metrics(loop: BDFTLoop, controller) -> tuple[float, float]:
-    """``(suppression_db, tracking_error)`` of one stable member (see module notes)."""
+    """``(suppression_db, tracking_error)`` of one stable member (see module notes).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        One member; its closed loop must be stable.
+    controller : control.StateSpace or None
+        The compensator.
+
+    Returns
+    -------
+    suppression_db : float
+        Largest ``|20 log10 |Y/Y_ref||`` over :data:`SUPPRESSION_BAND_HZ` (60
+        frequencies), dB.
+    tracking_error : float
+        Largest ``|Y/Y_ref - 1|`` over :data:`TRACKING_BAND_HZ` (80 log-spaced
+        frequencies).
+    """
     fs = np.linspace(*SUPPRESSION_BAND_HZ, 60)
     ft = np.geomspace(*TRACKING_BAND_HZ, 80)
-    sup = float(np.max(np.abs(20 * np.log10(np.abs(_ratio(loop, controller, fs))))))
-    trk = float(np.max(np.abs(_ratio(loop, controller, ft) - 1.0)))
+    sup = float(np.max(np.abs(20 * np.log10(np.abs(output_ratio(loop, controller, fs))))))
+    trk = float(np.max(np.abs(output_ratio(loop, controller, ft) - 1.0)))
     return sup, trk
 
 
@@ -103,7 +210,31 @@ def force_histories(
     fs_hz: float = 1000.0,
     intent_bandwidth_hz: float = 2.0,
 ) -> list[np.ndarray]:
-    """Handle force for a chirp and for a realistic intended motion on one member."""
+    """Handle force for a chirp and for a realistic intended motion on one member.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        One member (physical human: the force acts on the hand).
+    controller : control.StateSpace or None
+        The compensator; without a force output ``f`` there is no force to simulate.
+    amplitude : float
+        Intended-motion amplitude, in the loop's handle units.
+    seed : int
+        Seed of the realistic intended motion (:func:`intended_motion`).
+    duration_s : float
+        Length of each simulation, s.
+    fs_hz : float
+        Sampling rate of the simulations, Hz.
+    intent_bandwidth_hz : float
+        Bandwidth of the realistic intended motion, Hz.
+
+    Returns
+    -------
+    list of ndarray
+        ``[force for a 0.1-8 Hz chirp, force for the realistic motion]``, N, sampled
+        at ``fs_hz``; empty when ``controller`` does not drive ``f``.
+    """
     if controller is None or "f" not in controller.output_labels:
         return []
     sweep = SweptSine(f0_hz=0.1, f1_hz=8.0, duration_s=duration_s, amplitude=amplitude, fs_hz=fs_hz)
@@ -122,7 +253,7 @@ def evaluate_design(
     *,
     limits: DeviceLimits | None = None,
     n_force_members: int = 3,
-    intent_fraction: float = 0.25,
+    intent_fraction: float = INTENT_FRACTION,
     notes=(),
 ) -> DesignEvaluation:
     """Validate ``controller`` on ``family`` (members ``samples``) and measure its cost.
@@ -136,17 +267,22 @@ def evaluate_design(
     samples : uncertainty.SampleSet
         Members to validate; the seed is reported.
     controller : control.StateSpace, optional
-        Compensator in the loop convention (inputs among ``x, c, y``; outputs among ``f, r_corr``).
-    limits : DeviceLimits
+        Compensator in the loop convention (inputs among ``x, c, y``; outputs among
+        ``f, r_corr``); ``None`` evaluates the loop alone.
+    limits : DeviceLimits, optional
         Device limits (default: the Omni's).
     n_force_members : int
         How many of the worst stable members are simulated for the force figures
-        (the nominal member is always simulated too).
+        (the nominal member is simulated too when it is stable).
     intent_fraction : float
-        Intended-motion amplitude as a fraction of the handle workspace.
-    """
-    from uncertainty.batched import validate_family
+        Intended-motion amplitude as a fraction of half the handle workspace.
+    notes : sequence of str
+        Caveats carried into the result (the design's own), before the evaluation's.
 
+    Returns
+    -------
+    DesignEvaluation
+    """
     lim = limits or DeviceLimits()
     val = validate_family(family, samples, controller=controller)
     nominal = family.member(family.nominal_values())
@@ -161,13 +297,10 @@ def evaluate_design(
     worst_stable = stable_idx[np.argsort(val.max_real[stable_idx])[::-1][:n_force_members]]
     members = [nominal] + [family.member(samples.values[i]) for i in worst_stable]
     forces = []
-    workspace_factor = (
-        K_PSF_NOMINAL / family.k_psf
-    )  # the operator uses the workspace the design gives
     for i, m in enumerate(members):
         if not loop_poles(m, controller=controller).stable:
             continue
-        amp = intent_fraction * (lim.workspace_mm * workspace_factor / 2) * 1e-3 * _units(m)
+        amp = _amplitude(m, lim, intent_fraction)
         forces += force_histories(m, controller, amplitude=amp, seed=samples.seed + i)
     if forces:
         allf = np.concatenate(forces)
@@ -202,8 +335,14 @@ def evaluate_design(
     )
 
 
-def _units(loop: BDFTLoop) -> float:
+def _amplitude(loop: BDFTLoop, limits: DeviceLimits, fraction: float) -> float:
+    """Intended-motion amplitude in the loop's handle units.
+
+    The literal Eqn 5 human has no metric handle units; its handle units are then
+    taken as metres (one unit per metre).
+    """
     try:
-        return handle_units_per_m(loop)
-    except ModelStructureError:  # literal human: no metric handle units
-        return 1.0
+        return loop.intended_amplitude(limits, fraction)
+    except ModelStructureError:
+        factor = K_PSF_NOMINAL / loop.k_psf
+        return limits.intended_amplitude_m(fraction, workspace_factor=factor)

@@ -1,6 +1,6 @@
 """Multi-model robust stabilisation of a fixed-order controller over family members.
 
-The LMI multi-model iteration (:func:`robust.synthesis.hinfsyn.hinfsyn_multi`) needs a
+The LMI multi-model iteration (:func:`robust.synthesis.hinfsyn_multi`) needs a
 controller that already stabilises every design member, and on the default
 family the nominal H-infinity design leaves most members unstable. This module
 supplies the missing step, the first phase of the nonsmooth multi-model
@@ -37,7 +37,9 @@ import control as ct
 import numpy as np
 import scipy.optimize as so
 
+from robust.analysis.sampled import open_plant
 from robust.errors import ModelStructureError, ParameterError
+from uncertainty import validate_family
 
 __all__ = [
     "OpenLoopData",
@@ -53,7 +55,27 @@ __all__ = [
 
 @dataclasses.dataclass(frozen=True)
 class OpenLoopData:
-    """Members' plants seen from the controller: ``x' = A x + B v``, ``m = C x`` (stacked over members)."""
+    """Members' plants seen from the controller, stacked over ``N`` members.
+
+    ``x' = A x + B v + Bu u``, ``m = C x + Du u``, ``y = Cy x``: ``v`` are the
+    controller's outputs (``nv`` signals), ``m`` its inputs (``nm`` measurements),
+    ``u`` the intended motion and ``y`` the cylinder position; ``n`` plant states.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, n, n)
+        State matrices.
+    B : ndarray, shape (N, n, nv)
+        Input matrices of the controller's outputs.
+    C : ndarray, shape (N, nm, n)
+        Output matrices of the controller's inputs.
+    Bu : ndarray, shape (N, n)
+        Input column of the intended motion ``u``.
+    Du : ndarray, shape (N, nm)
+        Feedthrough of ``u`` to the measurements.
+    Cy : ndarray, shape (N, n)
+        Output row of the cylinder position ``y`` (no feedthrough).
+    """
 
     A: np.ndarray  # (N, n, n)
     B: np.ndarray  # (N, n, nv): inputs = the controller's outputs
@@ -64,9 +86,29 @@ class OpenLoopData:
 
 
 def open_loop_data(members, K) -> OpenLoopData:
-    """Cut each member's Figure 5 loop open at ``K``'s signals (inputs: K's outputs; outputs: K's inputs)."""
-    from robust.analysis.sampled import open_plant
+    """Cut each member's Figure 5 loop open at ``K``'s signals.
 
+    The plant's inputs are ``u`` and K's outputs, its outputs ``y`` and K's inputs
+    (:func:`robust.analysis.sampled.open_plant`).
+
+    Parameters
+    ----------
+    members : sequence of BDFTLoop
+        Family members with the same number of states.
+    K : control.StateSpace
+        Controller in the loop convention; only its signal names are used.
+
+    Returns
+    -------
+    OpenLoopData
+
+    Raises
+    ------
+    ModelStructureError
+        If a plant has a direct feedthrough from the controller's outputs, or from ``u``
+        to ``y`` (only ``u`` to the measurements is allowed), or if the members' state
+        counts differ.
+    """
     As, Bs, Cs, Bus, Dus, Cys = [], [], [], [], [], []
     for loop in members:
         G = open_plant(loop, K)  # inputs u, K's outputs; outputs y, K's inputs
@@ -111,13 +153,30 @@ def _closed_loop(data: OpenLoopData, Om, nk):
 
 
 def spectral_abscissas(data: OpenLoopData, Om, nk) -> np.ndarray:
-    """Largest closed-loop real part per member, rad/s."""
+    """Largest closed-loop real part per member, rad/s.
+
+    Parameters
+    ----------
+    data : OpenLoopData
+        The members' plants seen from the controller.
+    Om : ndarray, shape (nk + nv, nk + nm)
+        Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+    nk : int
+        Controller order.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
     Acl, _, _ = _closed_loop(data, Om, nk)
     return np.linalg.eigvals(Acl).real.max(axis=1)
 
 
 def _eigen_gradients(data: OpenLoopData, Om, nk):
-    """All closed-loop eigenvalues (N, n) and the gradients of their real parts w.r.t. ``Om`` (N, n, *Om.shape)."""
+    """All closed-loop eigenvalues (N, n) and the gradients of their real parts.
+
+    The gradients are with respect to ``Om``, shape (N, n, *Om.shape).
+    """
     Acl, Bb, Cb = _closed_loop(data, Om, nk)
     w, V = np.linalg.eig(Acl)
     L = np.conj(np.linalg.inv(V)).transpose(0, 2, 1)  # columns: left eigenvectors, l_k^H r_k = 1
@@ -130,16 +189,39 @@ def _eigen_gradients(data: OpenLoopData, Om, nk):
 def closed_loop_response(data: OpenLoopData, Om, nk, w, out="y", *, grad: bool = False):
     """Closed-loop response from the intended motion ``u`` at ``w`` rad/s, per member.
 
-    ``out`` is ``"y"`` (cylinder position) or the index of a controller output (e.g. the
-    handle force). With ``R = (jw - Acl)^-1``, ``Bcl = Bu + Bb Om Du`` and
-    ``M = Cb R Bcl + Du`` (the controller's input signals):
+    With ``R = (jw - Acl)^-1``, ``Bcl = Bu + Bb Om Du`` and ``M = Cb R Bcl + Du`` (the
+    controller's input signals):
 
-    * controller output ``e``: ``T = e' Om M``, ``dT = p dOm M`` with ``p = e' + e' Om Cb R Bb``;
+    * controller output ``e``: ``T = e' Om M``, ``dT = p dOm M`` with
+      ``p = e' + e' Om Cb R Bb``;
     * cylinder position: ``T = cy' R Bcl``, ``dT = p dOm M`` with ``p = cy' R Bb``;
 
-    so ``d|T - r|^2 / dOm = 2 Re(conj(T - r) p M')`` for any fixed ``r``. Returns ``T``
-    (N, n_w) and, with ``grad``, the complex factors ``p`` (N, n_w, nk+nv) and ``M``
-    (N, n_w, nk+nm).
+    so ``d|T - r|^2 / dOm = 2 Re(conj(T - r) p M')`` for any fixed ``r``.
+
+    Parameters
+    ----------
+    data : OpenLoopData
+        The members' plants seen from the controller.
+    Om : ndarray, shape (nk + nv, nk + nm)
+        Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+    nk : int
+        Controller order.
+    w : ndarray, shape (n_w,)
+        Frequencies, rad/s.
+    out : "y" or int
+        ``"y"`` (cylinder position) or the index of a controller output (e.g. the
+        handle force).
+    grad : bool
+        Also return the factors of the gradient.
+
+    Returns
+    -------
+    T : ndarray of complex, shape (N, n_w)
+        The response of every member at every frequency.
+    p : ndarray of complex, shape (N, n_w, nk + nv), or None
+        Left factor of ``dT = p dOm M`` (``None`` without ``grad``).
+    M : ndarray of complex, shape (N, n_w, nk + nm), or None
+        Right factor (``None`` without ``grad``).
     """
     Acl, Bb, Cb = _closed_loop(data, Om, nk)
     N, n = Acl.shape[:2]
@@ -176,7 +258,30 @@ def _sq_gradient(err, p, M):
 
 
 def force_response(data: OpenLoopData, Om, nk, w, out: int = 0, *, grad: bool = False):
-    """Closed-loop ``u -> v_out`` (a controller output) and, with ``grad``, the gradient of ``|T|^2``."""
+    """Closed-loop ``u -> v_out`` (a controller output) and the gradient of ``|T|^2``.
+
+    Parameters
+    ----------
+    data : OpenLoopData
+        The members' plants seen from the controller.
+    Om : ndarray, shape (nk + nv, nk + nm)
+        Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+    nk : int
+        Controller order.
+    w : ndarray, shape (n_w,)
+        Frequencies, rad/s.
+    out : int
+        Index of the controller output (the handle force ``f`` in the designs).
+    grad : bool
+        Also return the gradient.
+
+    Returns
+    -------
+    T : ndarray of complex, shape (N, n_w)
+        The response, controller-output units per handle unit of ``u``.
+    gradient : ndarray, shape (N, n_w, nk + nv, nk + nm), or None
+        ``d|T|^2 / dOm`` per member and frequency (``None`` without ``grad``).
+    """
     T, p, M = closed_loop_response(data, Om, nk, w, out, grad=grad)
     return T, (_sq_gradient(T, p, M) if grad else None)
 
@@ -203,11 +308,22 @@ def _minimise(fun, K, unit, nk, K0, max_iter):
 
 @dataclasses.dataclass(frozen=True)
 class TrackingBudget:
-    """Keep ``|Y/Y_ref - 1| <= max_error`` over ``f_hz`` (the intent band) on every design member.
+    """Keep ``|Y/Y_ref - 1| <= max_error`` over ``f_hz`` (the intent band) on the members.
 
     ``y_ref`` is the cylinder response without BDFT and without compensation (the same
     for every member: the human is not in that path). Penalty ``weight * sum over
     members of mean over the grid of relu(|Y/Y_ref - 1| / max_error - 1)^2``.
+
+    Parameters
+    ----------
+    y_ref : ndarray of complex, shape (n_f,)
+        Reference response ``u -> y`` at ``f_hz`` (cylinder position per handle unit).
+    max_error : float
+        Largest allowed relative tracking error ``|Y/Y_ref - 1|``.
+    f_hz : ndarray, shape (n_f,)
+        Frequency grid, Hz.
+    weight : float
+        Weight of the penalty in the tuning objective.
     """
 
     y_ref: np.ndarray  # complex, at f_hz
@@ -216,6 +332,22 @@ class TrackingBudget:
     weight: float = 10.0
 
     def penalty(self, data, Om, nk):
+        """The penalty and its gradient with respect to ``Om`` for the members of ``data``.
+
+        Parameters
+        ----------
+        data : OpenLoopData
+            The members the budget applies to.
+        Om : ndarray, shape (nk + nv, nk + nm)
+            Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+        nk : int
+            Controller order.
+
+        Returns
+        -------
+        value : float
+        gradient : ndarray, shape of ``Om``
+        """
         w = 2 * np.pi * np.asarray(self.f_hz, float)
         T, p, M = closed_loop_response(data, Om, nk, w, "y", grad=True)
         err = T - self.y_ref[None, :]
@@ -246,6 +378,21 @@ class ForceBudget:
     spending equal time per decade has RMS ``A sqrt(mean |T|^2 / 2)`` over a log grid.
     The penalty is ``weight * sum over members of (relu(peak/peak_n - 1)^2 mean over
     the grid + relu(rms/rms_n - 1)^2)``.
+
+    Parameters
+    ----------
+    amplitude : float
+        Intended-motion amplitude, handle units.
+    peak_n : float
+        Peak-force budget, N.
+    rms_n : float
+        RMS-force budget, N.
+    f_hz : ndarray
+        Frequency grid of the sweep (log-spaced), Hz.
+    weight : float
+        Weight of the penalty in the tuning objective.
+    output : int
+        Index of the force ``f`` among the controller's outputs.
     """
 
     amplitude: float  # intended-motion amplitude, handle units
@@ -256,6 +403,22 @@ class ForceBudget:
     output: int = 0  # index of the force among the controller's outputs
 
     def penalty(self, data, Om, nk):
+        """The penalty and its gradient with respect to ``Om`` for the members of ``data``.
+
+        Parameters
+        ----------
+        data : OpenLoopData
+            The members the budget applies to.
+        Om : ndarray, shape (nk + nv, nk + nm)
+            Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+        nk : int
+            Controller order.
+
+        Returns
+        -------
+        value : float
+        gradient : ndarray, shape of ``Om``
+        """
         w = 2 * np.pi * np.asarray(self.f_hz, float)
         T, g = force_response(data, Om, nk, w, self.output, grad=True)
         a2 = self.amplitude**2
@@ -275,7 +438,29 @@ class ForceBudget:
 
 @dataclasses.dataclass(frozen=True)
 class RobustTuning:
-    """Result of :func:`tune_spectral_abscissa`."""
+    """Result of :func:`tune_spectral_abscissa`.
+
+    Parameters
+    ----------
+    controller : control.StateSpace
+        The tuned controller (signal names of ``K0``).
+    design_rows : ndarray, shape (n_design, d)
+        Parameter rows of the final design set (the nominal first; columns in
+        ``family.names`` order).
+    alpha_design : ndarray, shape (n_design,)
+        Spectral abscissa of each design member with ``controller``, rad/s.
+    history : tuple of tuple
+        Per round: ``(design members, worst sampled spectral abscissa in rad/s,
+        fraction stable)``.
+    rounds : int
+        Number of rounds run (``len(history)``).
+    converged : bool
+        Whether every sampled member is stable with the margin.
+    force_phase : dict or None
+        Outcome of the second (force and tracking budget) phase: ``accepted``,
+        ``worst_sampled_max_real`` (rad/s) and ``fraction_stable``; ``None`` if it
+        did not run.
+    """
 
     controller: ct.StateSpace
     design_rows: np.ndarray  # parameter rows of the final design set
@@ -303,11 +488,16 @@ def tune_spectral_abscissa(
     output_scales=None,
     progress=None,
 ) -> RobustTuning:
-    """Tune ``K0``'s entries so that every sampled member's closed loop has real parts below ``-margin``.
+    """Tune ``K0``'s entries so every sampled member's closed loop decays faster than ``margin``.
+
+    The goal is every closed-loop pole of every sampled member with real part below
+    ``-margin``.
 
     Parameters
     ----------
     family : uncertainty.Family
+        The family (physical human for a force budget); its nominal member starts the
+        design set.
     samples : uncertainty.SampleSet
         The scenario set; each round validates on all of it (batched) and adds the
         ``add_per_round`` worst members to the design set (which starts with the nominal).
@@ -333,15 +523,28 @@ def tune_spectral_abscissa(
     tracking : TrackingBudget, optional
         Keep the intended-motion tracking within the budget: on the nominal member while
         stabilising, on every design member in the second phase.
-    """
-    from uncertainty.batched import validate_family
+    force_while_stabilising : bool
+        Apply the force budget on the nominal member during the stabilising rounds too.
+    progress : callable, optional
+        Called after each round's validation as ``progress(round, entry)``, ``entry``
+        being that round's ``history`` tuple (see :class:`RobustTuning`).
 
+    Returns
+    -------
+    RobustTuning
+
+    Raises
+    ------
+    ParameterError
+        If ``margin`` or ``tau`` is not a positive number.
+    """
     for name, val in (("margin", margin), ("tau", tau)):
         if not (np.isfinite(val) and val > 0):
             raise ParameterError(f"{name} must be positive; got {val!r}")
     nk = K0.nstates
     Om0 = _omega(K0)
-    # entrywise units of the parameters (diagonal preconditioning): the controller's entries span decades
+    # entrywise units of the parameters (diagonal preconditioning): the controller's
+    # entries span decades
     unit = np.maximum(np.abs(Om0), 1e-3 * np.abs(Om0).max() + 1e-300)
     for name, scale in (output_scales or {}).items():
         row = nk + list(K0.output_labels).index(name)

@@ -1,12 +1,35 @@
-"""Reports: figures (library code returns matplotlib figures) and HTML pages."""
+"""Report builders: the reproduction of the paper, the design comparison and the sweep pages.
 
-from reports.html import HtmlPage, write_report_dir
-from reports.reproduce import ReproductionResult, reproduce, write_reproduction_report
+Every page goes through one builder (:class:`reports.html.HtmlPage`, written
+atomically by :func:`reports.html.write_report_dir`); figure code returns matplotlib
+figures (:mod:`reports.figures`, :mod:`reports.sweeps`) and only the builders save
+them. Builds on :mod:`robust`, :mod:`uncertainty` and :mod:`designs`; the command
+line builds on it.
+"""
+
+from reports.designs import run_all_designs, verdict, write_design_report
+from reports.html import HtmlPage, fmt, write_report_dir
+from reports.reproduce import (
+    ReproductionResult,
+    VariantResult,
+    reproduce,
+    result_to_json,
+    write_reproduction_report,
+)
+from reports.sweeps import sweep_figures, write_sweep_report
 
 __all__ = [
     "HtmlPage",
-    "write_report_dir",
     "ReproductionResult",
+    "VariantResult",
+    "fmt",
     "reproduce",
+    "result_to_json",
+    "run_all_designs",
+    "sweep_figures",
+    "verdict",
+    "write_design_report",
+    "write_report_dir",
     "write_reproduction_report",
+    "write_sweep_report",
 ]

@@ -1,20 +1,50 @@
-"""The design comparison report (``bdft report``): every design on the same family, one HTML page."""
+"""The design comparison report (``bdft report``): every design on the same family, one page."""
 
 from __future__ import annotations
 
+import json
+import math
+
+import matplotlib.pyplot as plt
 import numpy as np
 
+from designs import design_names, run_design
+from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
 from reports.html import HtmlPage, write_report_dir
+from robust.analysis.loops import loop_poles
 from robust.errors import BDFTError
+from robust.jsonio import to_jsonable
 from robust.model.components import StructureParams
+from robust.model.device import DeviceLimits
+from uncertainty import batched_poles, default_family, sample
 
-__all__ = ["run_all_designs", "write_design_report"]
+__all__ = ["run_all_designs", "verdict", "write_design_report"]
 
 
 def run_all_designs(*, samples: int = 2000, seed: int = 0, out_dir=None, names=None, progress=None):
-    """Run every design (or ``names``); a design that fails is kept with its error, not dropped."""
-    from designs.registry import design_names, run_design
+    """Run every design (or ``names``); a design that fails is kept with its error, not dropped.
 
+    Each design runs through :func:`designs.run_design` on the default family.
+
+    Parameters
+    ----------
+    samples : int
+        Members of the design and validation sample (the same for every design).
+    seed : int
+        Sampling seed.
+    out_dir : path-like, optional
+        Folder for the designs' artifacts; ``None`` writes none.
+    names : sequence of str, optional
+        Designs to run (default: every registered design, in report order).
+    progress : callable, optional
+        Called with each design's name before it runs.
+
+    Returns
+    -------
+    dict
+        Design name to its evaluated :class:`designs.DesignResult`, or to the
+        :class:`robust.errors.BDFTError` it raised.
+    """
     runs = {}
     for name in names or design_names():
         if progress:
@@ -27,25 +57,15 @@ def run_all_designs(*, samples: int = 2000, seed: int = 0, out_dir=None, names=N
 
 
 def _ratio_envelope(family, values, controller, freqs):
-    from designs.evaluate import _ratio
-    from robust.analysis.loops import loop_poles
-
     curves = []
     for row in values:
         m = family.member(row)
         if loop_poles(m, controller=controller).stable:
-            curves.append(20 * np.log10(np.abs(_ratio(m, controller, freqs))))
+            curves.append(20 * np.log10(np.abs(output_ratio(m, controller, freqs))))
     return np.array(curves)
 
 
-def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
-    import matplotlib.pyplot as plt
-
-    from designs.evaluate import force_histories
-    from robust.synthesis.forcefb import handle_units_per_m
-    from uncertainty import default_family, sample
-    from uncertainty.batched import batched_poles
-
+def _figures(page: HtmlPage, runs: dict, samples: int, seed: int, limits: DeviceLimits) -> None:
     ok = {k: r for k, r in runs.items() if not isinstance(r, Exception)}
     n_show = min(samples, 400)
     fig, axes = plt.subplots(1, len(ok), figsize=(3.2 * len(ok), 3.4), sharey=True, squeeze=False)
@@ -109,25 +129,42 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int) -> None:
         for ax, (name, run) in zip(axes[:, 0], force_runs.items()):
             fam = default_family(k_psf=run.evaluation.k_psf)
             nominal = fam.member(fam.nominal_values())
-            amp = 0.25 * 0.0355 * handle_units_per_m(nominal)
+            amp = nominal.intended_amplitude(limits, INTENT_FRACTION)
             hist = force_histories(nominal, run.controller, amplitude=amp, seed=seed)
             t = np.arange(len(hist[1])) / 1000.0 if hist else np.zeros(0)
             if hist:
                 ax.plot(t, hist[1], lw=0.7, label="realistic intended motion")
                 ax.plot(t, hist[0], lw=0.7, alpha=0.7, label="chirp 0.1-8 Hz")
-            ax.axhline(3.3, color="r", ls="--", lw=0.8)
-            ax.axhline(-3.3, color="r", ls="--", lw=0.8)
+            ax.axhline(limits.peak_force_n, color="r", ls="--", lw=0.8)
+            ax.axhline(-limits.peak_force_n, color="r", ls="--", lw=0.8)
             ax.set_ylabel(f"{name}\nforce [N]", fontsize=8)
             ax.legend(fontsize=7, loc="upper right")
         axes[-1, 0].set_xlabel("time [s]")
         fig.tight_layout()
         page.figure(
-            fig, "forces", "Handle force on the nominal member (dashed: the 3.3 N peak limit)."
+            fig,
+            "forces",
+            "Handle force on the nominal member "
+            f"(dashed: the {limits.peak_force_n:g} N peak limit).",
         )
 
 
 def verdict(runs: dict) -> list[str]:
-    """Plain sentences: which design (if any) stabilises every member within the force limits, and what each costs."""
+    """The report's verdict: plain sentences generated from the runs.
+
+    Which design (if any) stabilises every sampled member within the force limits,
+    what each costs, and why the handle-force designs fail if they do.
+
+    Parameters
+    ----------
+    runs : dict
+        Design name -> :class:`designs.DesignResult` (evaluated) or the exception it raised.
+
+    Returns
+    -------
+    list of str
+        One sentence or short paragraph per entry.
+    """
     ok = {n: r for n, r in runs.items() if not isinstance(r, Exception)}
     valid = [
         n
@@ -135,9 +172,7 @@ def verdict(runs: dict) -> list[str]:
         if r.evaluation.fraction_stable == 1.0 and r.evaluation.force_within_limits
     ]
     robust = [n for n, r in ok.items() if r.evaluation.fraction_stable == 1.0]
-    force_designs = [
-        n for n, r in ok.items() if r.controller is not None and "f" in r.controller.output_labels
-    ]
+    force_designs = [n for n, r in ok.items() if r.drives_force]
     valid_force = [n for n in valid if n in force_designs]
     out = []
     if valid:
@@ -148,74 +183,84 @@ def verdict(runs: dict) -> list[str]:
         )
     else:
         out.append(
-            "No design stabilises every sampled member while keeping the handle force within the device limits."
+            "No design stabilises every sampled member while keeping the handle force within "
+            "the device limits."
         )
     if force_designs and not valid_force:
         out.append(
             "No handle-force design ("
             + ", ".join(force_designs)
-            + ") stabilises every sampled member within "
-            "the device's force limits."
+            + ") stabilises every sampled member within the device's force limits."
         )
     for n in robust:
-        e, d = ok[n].evaluation, ok[n].details
-        cost = f"peak force {e.peak_force_n:.3g} N, RMS {e.rms_force_n:.3g} N, tracking error {e.tracking_error:.3g}"
-        if n == "workspace":
-            cost = (
-                f"workspace factor x{d.get('factor', float('nan')):.3g} (the handle's travel covers 1/{d.get('factor', float('nan')):.3g} of the stick's)"
-                f", tracking error {e.tracking_error:.3g}, no force"
-            )
+        r = ok[n]
+        e, d = r.evaluation, r.details
+        force = (
+            f"peak force {e.peak_force_n:.3g} N, RMS {e.rms_force_n:.3g} N"
+            if r.drives_force
+            else "no force"
+        )
+        cost = ", ".join(
+            x for x in (r.cost_note, f"tracking error {e.tracking_error:.3g}", force) if x
+        )
         ho = d.get("held_out", {})
         held = f"; {ho['fraction_stable']:.4g} of {ho['samples']} held-out members" if ho else ""
         out.append(
-            f"{n} stabilises every sampled member (worst real part {e.max_real_pole:.3g} rad/s{held}) "
-            f"at the cost of: {cost}."
+            f"{n} stabilises every sampled member (worst real part {e.max_real_pole:.3g} "
+            f"rad/s{held}) at the cost of: {cost}."
         )
     partial = [n for n in ok if n not in robust]
     if partial:
         out.append(
             "The others leave members unstable: "
             + ", ".join(
-                f"{n} {ok[n].evaluation.fraction_stable:.3g} stable (peak force {ok[n].evaluation.peak_force_n:.3g} N)"
+                f"{n} {ok[n].evaluation.fraction_stable:.3g} stable "
+                f"(peak force {ok[n].evaluation.peak_force_n:.3g} N)"
                 for n in partial
             )
             + "."
         )
-    hard = _hardest_member(ok)
+    failing_force = [n for n in force_designs if n not in valid_force]
+    hard = _hardest_member({n: ok[n] for n in failing_force})
     if force_designs and not valid_force and hard:
         band = (
-            "That mode lies in the 0-2 Hz band people command in, so handle force that damps it also resists "
-            "the operator's intended motion; "
+            "That mode lies in the 0-2 Hz band people command in, so handle force that damps it "
+            "also resists the operator's intended motion; "
             if hard["f_arm"] <= 2.0
             else "The feedthrough loop closes through that structure mode; "
         )
         out.append(
-            f"Why: the member the nominal H-infinity design does worst on ({hard['which']}) has an arm of "
-            f"stiffness {hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode at "
-            f"{hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a structure whose first mode "
-            f"is at {hard['f1']:.3g} Hz (nominal {StructureParams().f1_hz:.3g} Hz). "
+            f"Why: the member {hard['which']} does worst on has an arm of stiffness "
+            f"{hard['k_arm']:.3g} N/m and damping {hard['c_arm']:.3g} N s/m, a handle-arm mode "
+            f"at {hard['f_arm']:.3g} Hz with damping ratio {hard['zeta_arm']:.3g}, on a "
+            f"structure whose first mode is at {hard['f1']:.3g} Hz (nominal "
+            f"{StructureParams().f1_hz:.3g} Hz). "
             + band
-            + "a cylinder-reference correction avoids the force but costs tracking; workspace scaling works "
-            "only by shrinking the stick's motion per handle millimetre."
+            + "a cylinder-reference correction avoids the force but costs tracking; workspace "
+            "scaling works only by shrinking the stick's motion per handle millimetre."
         )
     return out
 
 
-def _hardest_member(ok: dict) -> dict | None:
-    """Arm and structure figures of the nominal H-infinity design's worst member (if that design ran)."""
-    import math
+def _hardest_member(failing: dict) -> dict | None:
+    """Arm and structure figures of the worst member of the least robust failing force design.
 
-    from uncertainty import default_family
-
-    run = ok.get("hinf-nominal")
-    if run is None or not run.evaluation.worst:
+    The least robust design is the one with the smallest fraction of stable members
+    (ties: the largest worst real part).
+    """
+    candidates = [(n, r) for n, r in failing.items() if r.evaluation.worst]
+    if not candidates:
         return None
-    fam = default_family()
+    name, run = min(
+        candidates,
+        key=lambda nr: (nr[1].evaluation.fraction_stable, -nr[1].evaluation.max_real_pole),
+    )
+    fam = run.family
     worst = run.evaluation.worst
     loop = fam.member([worst[n] for n in fam.names])
     p = loop.human.params
     return {
-        "which": "hinf-nominal's worst",
+        "which": name,
         "k_arm": p.k_arm,
         "c_arm": p.c_arm,
         "f_arm": math.sqrt(p.k_arm / p.m_arm) / (2 * math.pi),
@@ -225,17 +270,38 @@ def _hardest_member(ok: dict) -> dict | None:
 
 
 def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
-    """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories."""
-    import json
+    """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories.
 
-    from robust.jsonio import to_jsonable
+    The folder is replaced atomically (:func:`reports.html.write_report_dir`) and
+    holds ``index.html``, the figures and ``designs.json`` (every design's summary).
 
+    Parameters
+    ----------
+    runs : dict
+        Design name -> evaluated :class:`designs.DesignResult` or the exception it
+        raised, as :func:`run_all_designs` returns.
+    out_dir : path-like
+        The report folder.
+    samples : int
+        Members each design was validated on (the figures redraw the same sample).
+    seed : int
+        Sampling seed of that sample.
+
+    Returns
+    -------
+    pathlib.Path
+        The page's ``index.html``.
+    """
+    limits = DeviceLimits()
     page = HtmlPage("Compensators against biodynamic feedthrough: comparison on the default family")
     page.p(
-        f"Every design is validated on the same {samples} members of the default family (Latin hypercube, "
-        f"seed {seed}): physical human stiffness, damping and mass, structure frequencies, damping ratios and gain. "
-        "Force is simulated on the nominal member and the three worst stable members with a 0.1-8 Hz chirp and a "
-        "seeded 0-2 Hz intended motion (25 % of the workspace); the Omni's limits are 3.3 N peak, 0.88 N continuous."
+        f"Every design is validated on the same {samples} members of the default family "
+        f"(Latin hypercube, seed {seed}): physical human stiffness, damping and mass, "
+        "structure frequencies, damping ratios and gain. "
+        "Force is simulated on the nominal member and the three worst stable members with a "
+        "0.1-8 Hz chirp and a seeded 0-2 Hz intended motion "
+        f"({100 * INTENT_FRACTION:g} % of the half-workspace); the Omni's limits are "
+        f"{limits.peak_force_n:g} N peak, {limits.continuous_force_n:g} N continuous."
     )
     rows, classes = [], []
     for name, run in runs.items():
@@ -283,16 +349,18 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
         row_classes=classes,
     )
     page.p(
-        "A design is valid only if every sampled member is stable and its force stays within the device limits. "
+        "A design is valid only if every sampled member is stable and its force stays within "
+        "the device limits. "
         "Held-out: fraction stable on 10000 further members (LHS, seed + 1) that no design saw. "
-        "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member (0 dB: no effect). "
+        "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member "
+        "(0 dB: no effect). "
         "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member.",
         cls="note",
     )
     page.h2("Verdict")
     for text in verdict(runs):
         page.p(text)
-    _figures(page, runs, samples, seed)
+    _figures(page, runs, samples, seed, limits)
     page.attach(
         "designs.json",
         json.dumps(

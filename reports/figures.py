@@ -1,4 +1,8 @@
-"""Figures of the workbench. Every function returns a matplotlib ``Figure``; nothing is saved here."""
+"""Figures of the reproduction report.
+
+Every function returns a matplotlib ``Figure``; nothing is saved here (the page
+builder, :meth:`reports.html.HtmlPage.figure`, saves and closes them).
+"""
 
 from __future__ import annotations
 
@@ -27,7 +31,28 @@ def bode_figure(
     phase: bool = True,
     ylabel: str = "magnitude [dB]",
 ):
-    """Bode plot of one channel of several systems; ``curves`` are ``(label, system)`` pairs."""
+    """Bode plot of one channel of several systems.
+
+    Parameters
+    ----------
+    curves : list of (str, control.LTI)
+        ``(legend label, system)`` pairs; each system has the signal names ``inp``
+        and ``out``.
+    freqs_hz : ndarray
+        Frequencies, Hz.
+    title : str
+        Title of the magnitude plot.
+    inp, out : str
+        Input and output signal names of the plotted channel.
+    phase : bool
+        Add the phase plot (unwrapped, deg) below the magnitude.
+    ylabel : str
+        Label of the magnitude axis (the magnitude is ``20 log10 |G|``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, axes = plt.subplots(
         2 if phase else 1, 1, figsize=(7, 5.2 if phase else 3.4), sharex=True, squeeze=False
     )
@@ -54,7 +79,24 @@ def bode_figure(
 def pole_map_figure(
     pole_sets: list[tuple[str, np.ndarray]], *, title: str, xlim=None, ylim_hz=None
 ):
-    """Closed-loop pole map: real part (rad/s) against frequency (Hz) of each pole set."""
+    """Closed-loop pole map: real part (rad/s) against frequency (Hz) of each pole set.
+
+    Parameters
+    ----------
+    pole_sets : list of (str, ndarray)
+        ``(legend label, complex poles in rad/s)`` pairs; the imaginary part is
+        plotted in Hz.
+    title : str
+        Plot title.
+    xlim : (float, float), optional
+        Real-axis limits, rad/s (default: matplotlib's).
+    ylim_hz : (float, float), optional
+        Imaginary-axis limits, Hz (default: matplotlib's).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, ax = plt.subplots(figsize=(7, 4.2))
     markers = "xo+sd^v"
     for i, (label, p) in enumerate(pole_sets):
@@ -77,7 +119,25 @@ def pole_map_figure(
 
 
 def time_response_figure(with_bdft, without_bdft, *, title: str, signal: str = "y"):
-    """Cylinder position with and without BDFT against time (the paper's Figures 11-12)."""
+    """Cylinder position with and without BDFT against time (the paper's Figures 11-12).
+
+    The top plot is the intended motion ``u`` of ``with_bdft``; the bottom plot
+    switches to a symlog scale when the response with BDFT exceeds 20 times the one
+    without (an unstable loop).
+
+    Parameters
+    ----------
+    with_bdft, without_bdft : robust.analysis.simulation.TimeResponse
+        The same intended motion simulated with and without the feedthrough path.
+    title : str
+        Title of the top plot.
+    signal : str
+        Output plotted (default ``"y"``, the cylinder position).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     axes[0].plot(with_bdft.t, with_bdft.u, color="0.4", lw=0.8)
     axes[0].set_ylabel("intended u")
@@ -105,7 +165,23 @@ def time_response_figure(with_bdft, without_bdft, *, title: str, signal: str = "
 
 
 def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
-    """|Y_bdft / Y_nobdft| in dB versus frequency for each workspace factor (Figure 13)."""
+    """|Y_bdft / Y_nobdft| in dB versus frequency for each workspace factor (Figure 13).
+
+    Parameters
+    ----------
+    freqs_hz : ndarray, shape (F,)
+        Frequency grid of the study, Hz.
+    study : dict
+        Workspace factor to a row with ``ratio_db`` (shape (F,)) and ``stable``, as
+        :func:`robust.analysis.claims.ratio_study` returns; unstable members are
+        dotted.
+    title : str
+        Plot title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     cmap = plt.get_cmap("viridis")
     facs = sorted(study)
@@ -132,7 +208,24 @@ def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
 def loop_gain_figure(
     freqs_hz: np.ndarray, curves: list[tuple[str, np.ndarray]], *, title: str, mark_hz=()
 ):
-    """Magnitude of the BDFT loop gain (broken at the handle) for several models."""
+    """Magnitude of the BDFT loop gain (broken at the handle) for several models.
+
+    Parameters
+    ----------
+    freqs_hz : ndarray
+        Frequencies, Hz.
+    curves : list of (str, ndarray)
+        ``(legend label, complex loop gain at freqs_hz)`` pairs, e.g. the ``"loop"``
+        entry of :func:`robust.analysis.loops.bdft_loop_gain`.
+    title : str
+        Plot title.
+    mark_hz : sequence of float
+        Frequencies marked by dashed vertical lines, Hz.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig, ax = plt.subplots(figsize=(7.5, 4.0))
     for label, L in curves:
         ax.loglog(freqs_hz, np.abs(L), label=label)

@@ -8,6 +8,8 @@ For each human variant the loop is built with the calibration of
 from __future__ import annotations
 
 import dataclasses
+import html as _html
+import json
 import math
 import platform
 from pathlib import Path
@@ -15,6 +17,7 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
+from reports import figures as plots
 from reports.html import HtmlPage, fmt, write_report_dir
 from robust import __version__
 from robust.analysis.calibration import K_PSF_STABLE, CalibrationResult, calibrate
@@ -25,12 +28,14 @@ from robust.analysis.claims import (
     evaluate_claims,
     ratio_study,
 )
-from robust.analysis.loops import PoleSet, loop_poles
+from robust.analysis.loops import PoleSet, bdft_loop_gain, loop_poles
 from robust.analysis.simulation import SweptSine, TimeResponse, simulate_swept_sine
 from robust.errors import InfeasibleError
+from robust.jsonio import to_jsonable
 from robust.model.components import K_PSF_NOMINAL, structure, valve_cylinder
 from robust.model.human import HumanModel, LiteralHuman, human_variant
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
+from robust.model.physical import fit_summary
 
 __all__ = [
     "VariantResult",
@@ -43,7 +48,33 @@ __all__ = [
 
 @dataclasses.dataclass(frozen=True)
 class VariantResult:
-    """Claims and supporting computations for one human variant and calibration."""
+    """Claims and supporting computations for one human variant and calibration.
+
+    Parameters
+    ----------
+    label : str
+        Row label, e.g. ``"physical human, default calibration"``.
+    human : HumanModel
+        The human variant.
+    calibration : LoopCalibration
+        PI gains, junction sign and loop scale of the loop.
+    claims : dict of str to ClaimResult
+        Claims ``"C1"`` to ``"C5"`` and their verdicts.
+    study : dict
+        The workspace study (:func:`robust.analysis.claims.ratio_study`): workspace
+        factor to the with/without-BDFT ratio in dB and the member's stability.
+    poles_nominal, poles_stable : PoleSet
+        Closed-loop poles at ``K_PSF = 0.1097`` (nominal) and ``K_PSF = 0.055`` (the
+        doubled workspace of claim C2).
+    responses : dict of float to (TimeResponse, TimeResponse)
+        ``K_PSF`` (the same two values) to the swept-sine simulations with and
+        without BDFT.
+
+    Attributes
+    ----------
+    loop : BDFTLoop
+        The loop of this variant and calibration at the nominal ``K_PSF``.
+    """
 
     label: str
     human: HumanModel
@@ -56,11 +87,32 @@ class VariantResult:
 
     @property
     def loop(self) -> BDFTLoop:
+        """The loop of this variant and calibration at the nominal ``K_PSF`` (0.1097)."""
         return BDFTLoop(human=self.human, calibration=self.calibration)
 
 
 @dataclasses.dataclass(frozen=True)
 class ReproductionResult:
+    """Everything the reproduction report shows.
+
+    Parameters
+    ----------
+    search : CalibrationResult
+        A fresh calibration search on the literal human.
+    matches_default : bool
+        Whether that search agrees with :data:`DEFAULT_CALIBRATION`.
+    variants : tuple of VariantResult
+        One entry per evaluated variant and calibration; the first is the primary
+        one (``bdft reproduce --json`` reports its claims at the top level).
+    unavailable : dict of str to str
+        Variants (or their own calibrations) that could not be evaluated, with why.
+    physical_fit : dict or None
+        The physical human's fit to Eqn 5 (:func:`robust.model.physical.fit_summary`),
+        when the physical variant was evaluated.
+    sweep : SweptSine
+        The intended motion of the time simulations.
+    """
+
     search: CalibrationResult
     matches_default: bool
     variants: tuple[VariantResult, ...]
@@ -109,6 +161,21 @@ def reproduce(
     calibration, because the PI gains, junction sign and unit scale belong to the
     machine, not to the operator; if C1-C3 then fail, the variant is also shown
     with a calibration searched for it, labelled as such.
+
+    Parameters
+    ----------
+    variants : sequence of str
+        Human variants to evaluate, among ``"literal"`` and ``"physical"``; an
+        unknown name is listed in ``unavailable``, not raised.
+    sweep : SweptSine, optional
+        Intended motion of the time simulations (default ``SweptSine()``: 0.1-8 Hz
+        over 20 s at 1 kHz, unit amplitude).
+    progress : callable, optional
+        Called with a short message (str) before each step.
+
+    Returns
+    -------
+    ReproductionResult
     """
     sweep = sweep or SweptSine()
     step = progress or (lambda msg: None)
@@ -148,10 +215,6 @@ def reproduce(
 
 
 def _physical_fit_summary() -> dict | None:
-    try:
-        from robust.model.physical import fit_summary
-    except ImportError:
-        return None
     return fit_summary()
 
 
@@ -160,7 +223,21 @@ def _cal_json(cal: LoopCalibration) -> dict:
 
 
 def result_to_json(res: ReproductionResult) -> dict:
-    """The ``bdft reproduce --json`` object."""
+    """The ``bdft reproduce --json`` object.
+
+    Parameters
+    ----------
+    res : ReproductionResult
+        The reproduction.
+
+    Returns
+    -------
+    dict
+        ``claims`` and ``variant`` of the primary variant, ``calibration`` (with the
+        search's outcome), every variant's human, calibration and claims,
+        ``unavailable_variants``, ``physical_fit`` and the software ``versions``;
+        numpy values are converted by :func:`robust.jsonio.to_jsonable` on output.
+    """
     primary = res.variants[0]
     chosen = res.search.chosen
     return {
@@ -199,19 +276,28 @@ def result_to_json(res: ReproductionResult) -> dict:
 
 # ---------------------------------------------------------------------------------------------
 def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
-    """Write the reproduction report (``index.html`` + PNG figures + ``claims.json``) atomically."""
-    import json
+    """Write the reproduction report (``index.html`` + PNG figures + ``claims.json``) atomically.
 
-    from reports import figures as plots
-    from robust.jsonio import to_jsonable
+    Parameters
+    ----------
+    res : ReproductionResult
+        The reproduction.
+    out_dir : path-like
+        The report folder (replaced as a whole, :func:`reports.html.write_report_dir`).
 
+    Returns
+    -------
+    pathlib.Path
+        The page's ``index.html``.
+    """
     page = HtmlPage(
         "Biodynamic feedthrough in backhoe operation: reproduction of the paper's claims"
     )
     page.p(
-        "Model: the paper's valve/cylinder (Eqn 3), structure (Eqn 4) and human (Eqn 5) blocks in its Figure 5 "
-        "loop, with the PI gains, handle-junction sign and loop-scale factor the paper does not print made "
-        "explicit and found by a calibration search (below). Each claim is checked for each human variant."
+        "Model: the paper's valve/cylinder (Eqn 3), structure (Eqn 4) and human (Eqn 5) "
+        "blocks in its Figure 5 loop, with the PI gains, handle-junction sign and loop-scale "
+        "factor the paper does not print made explicit and found by a calibration search "
+        "(below). Each claim is checked for each human variant."
     )
     # claims table ------------------------------------------------------------------------
     page.h2("Claims C1-C5")
@@ -265,8 +351,6 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
     )
 
     # where the feedthrough acts ------------------------------------------------------------
-    from robust.analysis.loops import bdft_loop_gain
-
     page.h2("Where the feedthrough acts: BDFT loop gain")
     fl = np.geomspace(0.1, 20, 500)
     curves = [
@@ -281,8 +365,9 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
             mark_hz=(1.0, 6.4),
         ),
         "loop_gain",
-        "Magnitude of the BDFT loop broken at the handle (human x structure x closed cylinder loop x scale). "
-        "Claim C4 needs it to peak near the 6.3-6.5 Hz structure modes; dashed lines at 1 Hz and 6.4 Hz.",
+        "Magnitude of the BDFT loop broken at the handle (human x structure x closed cylinder "
+        "loop x scale). Claim C4 needs it to peak near the 6.3-6.5 Hz structure modes; dashed "
+        "lines at 1 Hz and 6.4 Hz.",
     )
 
     # per variant ---------------------------------------------------------------------------
@@ -300,7 +385,8 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
                 ylim_hz=(-0.5, 12),
             ),
             f"poles_{tag}",
-            "Closed-loop poles (minimal realisation; hidden modes listed in C1), zoomed on the slow poles.",
+            "Closed-loop poles (minimal realisation; hidden modes listed in C1), zoomed on the "
+            "slow poles.",
         )
         for k in (K_PSF_NOMINAL, K_PSF_STABLE):
             w, wo = v.responses[k]
@@ -309,16 +395,18 @@ def write_reproduction_report(res: ReproductionResult, out_dir) -> Path:
                 plots.time_response_figure(
                     w,
                     wo,
-                    title=f"Swept sine {res.sweep.f0_hz:g}-{res.sweep.f1_hz:g} Hz, K_PSF={k} ({state})",
+                    title=f"Swept sine {res.sweep.f0_hz:g}-{res.sweep.f1_hz:g} Hz, "
+                    f"K_PSF={k} ({state})",
                 ),
                 f"time_{tag}_{str(k).replace('.', 'p')}",
-                f"Cylinder position for a swept-sine intended motion, with and without BDFT, K_PSF={k} "
-                "(the paper's Figures 11-12); nothing is clipped.",
+                "Cylinder position for a swept-sine intended motion, with and without BDFT, "
+                f"K_PSF={k} (the paper's Figures 11-12); nothing is clipped.",
             )
         page.figure(
             plots.ratio_figure(RATIO_FREQS_HZ, v.study, title=f"Workspace study ({v.label})"),
             f"ratio_{tag}",
-            "Ratio of cylinder output with to without BDFT for workspace factors 2-10 (the paper's Figure 13).",
+            "Ratio of cylinder output with to without BDFT for workspace factors 2-10 "
+            "(the paper's Figure 13).",
         )
     page.h2("Provenance")
     page.p(
@@ -338,11 +426,14 @@ def _calibration_section(page: HtmlPage, res: ReproductionResult) -> None:
     page.h2("Calibration: what the paper leaves out")
     page.p(
         f"Search over {len(s.candidates)} candidates (kp in {s.settings['kp_grid']}, ki/kp in "
-        f"{s.settings['ki_ratio_grid']} 1/s, junction sign +-1); a candidate is admissible when the cylinder loop has "
-        f"gain margin >= {s.settings['min_gain_margin_db']} dB and phase margin >= {s.settings['min_phase_margin_deg']} deg. "
-        "For each, the BDFT loop's unstable-pole count is traced along g = kappa*K_PSF; kappa centres the first "
-        "loss of stability between K_PSF = 0.055 and 0.1097 (C1-C3), and among candidates within 1 % of the best "
-        "claim margin the fastest cylinder loop is kept."
+        f"{s.settings['ki_ratio_grid']} 1/s, junction sign +-1); a candidate is admissible "
+        "when the cylinder loop has "
+        f"gain margin >= {s.settings['min_gain_margin_db']} dB and phase margin >= "
+        f"{s.settings['min_phase_margin_deg']} deg. "
+        "For each, the BDFT loop's unstable-pole count is traced along g = kappa*K_PSF; "
+        "kappa centres the first loss of stability between K_PSF = 0.055 and 0.1097 (C1-C3), "
+        "and among candidates within 1 % of the best claim margin the fastest cylinder loop "
+        "is kept."
     )
     page.table(
         ["quantity", "value"],
@@ -371,7 +462,8 @@ def _calibration_section(page: HtmlPage, res: ReproductionResult) -> None:
         key=lambda x: (-x.reproduces_c1_c3, -x.crossover_hz),
     )
     page.p(
-        f"The {min(12, len(adm))} best of {len(adm)} admissible candidates (every candidate is in claims.json):",
+        f"The {min(12, len(adm))} best of {len(adm)} admissible candidates "
+        "(every candidate is in claims.json):",
         cls="note",
     )
     page.table(
@@ -419,8 +511,6 @@ def _fit_section(page: HtmlPage, fit: dict) -> None:
 
 def _claim_matrix(page: HtmlPage, res: ReproductionResult) -> None:
     """One row per claim, one column per variant, each cell coloured by its status."""
-    import html as _html
-
     cls = {"holds": "holds", "fails": "fails"}
     header = (
         "<tr><th>claim</th>"
@@ -430,7 +520,8 @@ def _claim_matrix(page: HtmlPage, res: ReproductionResult) -> None:
     body = []
     for key, text in CLAIM_TEXT.items():
         cells = "".join(
-            f'<td class="{cls.get(v.claims[key].status, "nt")}">{_html.escape(v.claims[key].status)}</td>'
+            f'<td class="{cls.get(v.claims[key].status, "nt")}">'
+            f"{_html.escape(v.claims[key].status)}</td>"
             for v in res.variants
         )
         body.append(f"<tr><td>{key}: {_html.escape(text)}</td>{cells}</tr>")

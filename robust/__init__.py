@@ -100,8 +100,7 @@ from robust.synthesis import (
     solve_problem,
 )
 from robust.synthesis.forcefb import handle_units_per_m
-
-__version__ = "0.1.0"
+from robust.version import __version__
 
 __all__ = [
     # the paper's model

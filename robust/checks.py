@@ -38,6 +38,7 @@ class Spec:
     high_open: bool = False
 
     def describe(self) -> str:
+        """The accepted range in words, e.g. ``"a finite value in (0, inf]"``."""
         lo = "(" if self.low_open else "["
         hi = ")" if self.high_open else "]"
         a = "-inf" if self.low is None else f"{self.low:g}"
@@ -52,6 +53,23 @@ FINITE = Spec()
 
 def check_scalar(name: str, value: Any, spec: Spec = FINITE, *, owner: str = "") -> float:
     """Return ``value`` as a float after checking it against ``spec``.
+
+    Parameters
+    ----------
+    name : str
+        Name of the parameter, used in the error message.
+    value : int or float
+        The value to check: a real Python or numpy number (``bool`` is rejected).
+    spec : Spec, optional
+        Bounds the value must satisfy; by default any finite value.
+    owner : str, optional
+        Name of the object the parameter belongs to (e.g. a dataclass name); the
+        message then names ``owner.name``.
+
+    Returns
+    -------
+    float
+        ``value`` converted to a Python float.
 
     Raises
     ------
@@ -80,6 +98,20 @@ def validate_fields(obj: Any, specs: Mapping[str, Spec]) -> None:
 
     Values are normalised to ``float`` in place (through ``object.__setattr__``,
     as frozen dataclasses require).
+
+    Parameters
+    ----------
+    obj : dataclass instance
+        The (usually frozen) dataclass being constructed; error messages name its
+        type.
+    specs : mapping of str to Spec
+        Field name to the bounds its value must satisfy. Fields not named here are
+        left alone.
+
+    Raises
+    ------
+    ParameterError
+        On the first field (in ``specs`` order) that fails :func:`check_scalar`.
     """
     owner = type(obj).__name__
     for name, spec in specs.items():
@@ -89,7 +121,31 @@ def validate_fields(obj: Any, specs: Mapping[str, Spec]) -> None:
 def check_finite_array(
     name: str, value: Any, *, ndim: int | None = None, error=DataError
 ) -> np.ndarray:
-    """Return ``value`` as a float array, rejecting NaN/inf and a wrong number of dimensions."""
+    """Return ``value`` as a float array, rejecting NaN/inf and a wrong number of dimensions.
+
+    Parameters
+    ----------
+    name : str
+        Name of the array, used in the error message.
+    value : array_like
+        Anything :func:`numpy.asarray` converts to a float array.
+    ndim : int, optional
+        Required number of dimensions; any number when None.
+    error : type of Exception, optional
+        Exception class raised on failure, :class:`DataError` by default (pass
+        :class:`ParameterError` for arrays that are parameters rather than data).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``value`` as a float array (not copied when it already is one).
+
+    Raises
+    ------
+    DataError
+        (or ``error``) If ``value`` is not numeric, has the wrong number of
+        dimensions or contains NaN or inf.
+    """
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -22,6 +22,8 @@ import numpy as np
 
 from robust.errors import ArtifactError, ModelStructureError
 from robust.jsonio import atomic_write, atomic_write_json, to_jsonable
+from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+from robust.version import __version__
 
 __all__ = [
     "ControllerArtifact",
@@ -34,7 +36,8 @@ __all__ = [
 
 FORMAT_VERSION = 1
 
-#: Units of the signals a controller can measure or drive (paper's units where it gives none).
+#: Units of the signals a controller can measure or drive (paper's units where it gives
+#: none).
 SIGNAL_UNITS = {
     "x": "handle position, handle units (the paper's u/x units)",
     "c": "cab acceleration, the paper's Eqn 4 output units",
@@ -45,7 +48,29 @@ SIGNAL_UNITS = {
 
 
 def discretize(K: ct.StateSpace, dt: float, *, prewarp_hz: float | None = None) -> ct.StateSpace:
-    """Tustin (bilinear) discretisation, prewarped at ``prewarp_hz`` if given."""
+    """Tustin (bilinear) discretisation, prewarped at ``prewarp_hz`` if given.
+
+    Parameters
+    ----------
+    K : control.StateSpace
+        Continuous-time controller (or any continuous-time system).
+    dt : float
+        Sample time, s (0.001 for the 1 kHz rig).
+    prewarp_hz : float, optional
+        Frequency in Hz at which the discrete response matches the continuous one
+        exactly (the structure mode, for the designs); plain Tustin when None.
+
+    Returns
+    -------
+    control.StateSpace
+        Discrete system with sample time ``dt``, the same number of states and the
+        same input and output names, named ``<K.name>_d``.
+
+    Raises
+    ------
+    ModelStructureError
+        If ``K`` is not continuous-time.
+    """
     if not K.isctime():
         raise ModelStructureError(f"discretize needs a continuous-time controller; got dt={K.dt}")
     kw = {}
@@ -66,7 +91,34 @@ def discretize(K: ct.StateSpace, dt: float, *, prewarp_hz: float | None = None) 
 
 @dataclasses.dataclass(frozen=True)
 class ControllerArtifact:
-    """A controller ready for export, and everything needed to trust it."""
+    """A controller ready for export, and everything needed to trust it.
+
+    Write it with :func:`write_artifact`; :func:`load_artifact` returns one.
+
+    Parameters
+    ----------
+    name : str
+        Name of the design (the file name stem when loaded from a file without one).
+    continuous : control.StateSpace
+        Continuous-time controller; its input names are among ``x, c, y`` and its
+        output names among ``f, r_corr`` (see :data:`SIGNAL_UNITS`).
+    discrete : control.StateSpace
+        Its Tustin discretisation (:func:`discretize`), same signals, sample time
+        ``discrete.dt`` in s.
+    prewarp_hz : float or None
+        Prewarping frequency of the discretisation, Hz; None for plain Tustin.
+    weights : dict, optional
+        The design's weights and tuning options, JSON-ready (free form).
+    solver : dict, optional
+        Information about the synthesis solver, JSON-ready (free form).
+    family : dict, optional
+        The uncertainty family the design was validated on (the designs store its
+        name, sampling seed and method, number of samples and ``k_psf``).
+    validation : dict, optional
+        Results of that validation, JSON-ready (free form).
+    extra : dict, optional
+        Anything else worth keeping with the controller, JSON-ready.
+    """
 
     name: str
     continuous: ct.StateSpace
@@ -80,13 +132,23 @@ class ControllerArtifact:
 
     @property
     def inputs(self) -> list[str]:
+        """Names of the measured signals (the continuous controller's inputs)."""
         return list(self.continuous.input_labels)
 
     @property
     def outputs(self) -> list[str]:
+        """Names of the driven signals (the continuous controller's outputs)."""
         return list(self.continuous.output_labels)
 
     def to_dict(self) -> dict:
+        """The JSON document of the artifact (as written by :func:`write_artifact`).
+
+        Holds kind and format version, name, signal names and units, both sets of
+        matrices (the discrete ones with ``dt``, method and ``prewarp_hz``), order,
+        the free-form sections, the software versions and the creation time (UTC),
+        all converted by :func:`robust.jsonio.to_jsonable`.
+        """
+
         def mats(s):
             return {"A": s.A, "B": s.B, "C": s.C, "D": s.D}
 
@@ -121,8 +183,6 @@ def _versions() -> dict:
     import cvxpy
     import scipy
 
-    from robust import __version__
-
     return {
         "bdft-workbench": __version__,
         "python": platform.python_version(),
@@ -140,6 +200,21 @@ def write_artifact(
 
     The ``.mat`` holds ``Ac, Bc, Cc, Dc`` (continuous), ``Ad, Bd, Cd, Dd, Ts``
     (discrete), ``inputs``, ``outputs`` (cell arrays of names) and ``meta_json``.
+
+    Parameters
+    ----------
+    art : ControllerArtifact
+        The controller and its provenance.
+    path : str or pathlib.Path
+        The JSON file to write (:meth:`ControllerArtifact.to_dict`); parent
+        directories are created, an existing file is replaced.
+    mat : bool, optional
+        Also write the MATLAB file ``path.with_suffix(".mat")`` (default True).
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        ``"json"`` and, with ``mat=True``, ``"mat"``: the files written.
     """
     import scipy.io
 
@@ -203,13 +278,30 @@ def _ss(d: dict, where: str, inputs, outputs, dt=0):
     for key, mat in zip("ABCD", (A, B, C, D)):
         if mat.shape != expected[key]:
             raise ArtifactError(
-                f"{where}.{key}: expected shape {expected[key]} for {n} states, {m} inputs, {p} outputs; got {mat.shape}"
+                f"{where}.{key}: expected shape {expected[key]} for {n} states, "
+                f"{m} inputs, {p} outputs; got {mat.shape}"
             )
     return ct.ss(A, B, C, D, dt, inputs=list(inputs), outputs=list(outputs))
 
 
 def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact:
     """Load and validate a controller artifact written by :func:`write_artifact`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The artifact's JSON file (the ``.mat`` file is not read).
+    rtol : float, optional
+        Not used: the check that the discrete matrices are the Tustin transform
+        of the continuous ones compares frequency responses at 0.5, 2, 6 and 20 Hz
+        with a fixed relative tolerance of 1e-6 (and an absolute one of 1e-9 times
+        the largest gain). Kept for compatibility.
+
+    Returns
+    -------
+    ControllerArtifact
+        The controller, rebuilt from the file; the free-form sections are as
+        stored (numbers in JSON form).
 
     Raises
     ------
@@ -218,8 +310,6 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
         non-finite matrices, inconsistent shapes, a non-positive sample time, or
         discrete matrices that are not the Tustin transform of the continuous ones.
     """
-    from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
-
     path = Path(path)
     try:
         d = json.loads(path.read_text())
@@ -229,7 +319,8 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
         raise ArtifactError(f"controller artifact {path} is not valid JSON: {exc}") from None
     if not isinstance(d, dict) or d.get("kind") != "bdft-controller":
         raise ArtifactError(
-            f"{path}: 'kind' must be 'bdft-controller'; got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}"
+            f"{path}: 'kind' must be 'bdft-controller'; "
+            f"got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}"
         )
     if d.get("format_version") != FORMAT_VERSION:
         raise ArtifactError(
@@ -245,7 +336,8 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     ]
     if bad:
         raise ArtifactError(
-            f"{path}: unknown signal name(s) {bad}; inputs must be among {CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}"
+            f"{path}: unknown signal name(s) {bad}; inputs must be among "
+            f"{CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}"
         )
     for sec in ("continuous", "discrete"):
         if not isinstance(d.get(sec), dict):
@@ -263,7 +355,8 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     g2 = np.asarray(again(z, squeeze=False))
     if not np.allclose(g1, g2, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(g2).max())):
         raise ArtifactError(
-            f"{path}: the discrete controller is not the Tustin transform (dt={dt}, prewarp={prewarp} Hz) of the continuous one"
+            f"{path}: the discrete controller is not the Tustin transform "
+            f"(dt={dt}, prewarp={prewarp} Hz) of the continuous one"
         )
     return ControllerArtifact(
         name=str(d.get("name", path.stem)),

@@ -66,7 +66,8 @@ def test_calibration_search_reproduces_the_defaults():
 
 
 def test_calibration_with_positive_sign_only_cannot_reproduce_c1():
-    # positive feedback at the handle loses stability through a real pole: never "two unstable poles"
+    # positive feedback at the handle loses stability through a real pole: never "two
+    # unstable poles"
     with pytest.raises(InfeasibleError, match="no PI gains x junction sign .* reproduce C1-C3"):
         calibrate(
             LiteralHuman(), signs=(1,), kp_grid=(0.1, 0.3), ki_ratio_grid=(0.0, 1.0), g_points=60

@@ -56,7 +56,7 @@ def test_unknown_design(capsys):
     assert "unknown design 'magic'" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("script", ["workspace", "virtual_damping", "cancellation"])
+@pytest.mark.parametrize("script", ["workspace", "virtual-damping", "cancellation"])
 def test_design_scripts_run(script, tmp_path, capsys, monkeypatch):
     import runpy
     import sys
@@ -64,11 +64,11 @@ def test_design_scripts_run(script, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(
         sys,
         "argv",
-        [f"designs/{script}.py", "--samples", "150", "--seed", "2", "--out", str(tmp_path)],
+        ["designs", script, "--samples", "150", "--seed", "2", "--out", str(tmp_path)],
     )
     with pytest.raises(SystemExit) as exc:
-        runpy.run_path(f"designs/{script}.py", run_name="__main__")
+        runpy.run_module("designs", run_name="__main__")
     assert exc.value.code == 0
     obj = json.loads(capsys.readouterr().out)
-    assert obj["name"] == script.replace("_", "-") and obj["samples"] == 150 and obj["seed"] == 2
+    assert obj["name"] == script and obj["samples"] == 150 and obj["seed"] == 2
     assert 0.0 <= obj["fraction_stable"] <= 1.0

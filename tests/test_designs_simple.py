@@ -1,13 +1,10 @@
 import numpy as np
 import pytest
 
+from designs.cancellation import cancellation_controller
 from designs.evaluate import evaluate_design, frequency_metrics, intended_motion
-from designs.simple import (
-    cancellation_controller,
-    design_workspace,
-    signed_handle_units_per_m,
-    virtual_damping_controller,
-)
+from designs.virtual_damping import virtual_damping_controller
+from designs.workspace import design_workspace
 from robust.analysis.loops import loop_poles
 from uncertainty import default_family, sample
 
@@ -38,7 +35,7 @@ def test_virtual_damping_damps_the_arm(family):
     nominal = family.member(family.nominal_values())
     p = nominal.human.params
     H = nominal.human.system()
-    per_m = signed_handle_units_per_m(nominal)
+    per_m = nominal.handle_units_per_m(signed=True)
     K = virtual_damping_controller(nominal, 20.0, 0.0, rolloff_hz=1e4)
     # close f = K(x) with x = per_m * h_m = per_m * h / h_gain on the human alone
     hx = ct.ss([], [], [], [[per_m / p.h_gain]], inputs="h", outputs="x")

@@ -1,4 +1,4 @@
-"""Multi-model tuning pieces: exact eigenvalue and force-response gradients, the sampled-data check."""
+"""Multi-model tuning pieces: exact eigenvalue and force-response gradients, sampled-data check."""
 
 import math
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
-from designs.simple import virtual_damping_controller
+from designs.virtual_damping import virtual_damping_controller
 from robust.analysis.sampled import sampled_data_check
 from robust.errors import ModelStructureError
 from robust.export import discretize

@@ -99,7 +99,7 @@ def test_badly_scaled_realization_gives_the_same_norm():
     # imaginary-axis crossings (it used to return a value below the grid's lower bound).
     from robust import BDFTLoop, human_variant
     from robust.synthesis.forcefb import force_feedback_plant
-    from robust.synthesis.hinfsyn import hinfsyn_lmi
+    from robust.synthesis.nominal import hinfsyn_lmi
 
     gp = force_feedback_plant(BDFTLoop(human=human_variant("physical")))
     cl = gp.closed_loop(hinfsyn_lmi(gp).K)

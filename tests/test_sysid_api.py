@@ -1,4 +1,7 @@
-"""The public API of robust.sysid documents itself: every name has a docstring naming its arguments."""
+"""The public API of robust.sysid documents itself.
+
+Every public name has a docstring naming its arguments.
+"""
 
 import inspect
 

@@ -1,4 +1,4 @@
-"""Structured fits: exact recovery on exact data, stated tolerances on simulated noisy chirp data."""
+"""Structured fits: exact recovery on exact data, stated tolerances on noisy simulated chirps."""
 
 import dataclasses
 
@@ -230,7 +230,8 @@ def test_single_mode_structure_is_reported_as_merged_modes():
 
 @pytest.mark.parametrize("form", list(TRUTH), ids=list(TRUTH))
 def test_inverted_sensor_is_reported(form):
-    # a backwards-mounted sensor: the physical form (positive gain) cannot fit a sign flip and says so
+    # a backwards-mounted sensor: the physical form (positive gain) cannot fit a sign flip
+    # and says so
     f = np.arange(0, 50.0001, 0.05)
     est = _exact_estimate(SYSTEMS[form](TRUTH[form]), f)
     est = dataclasses.replace(est, h1=-est.h1)

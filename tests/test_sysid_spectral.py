@@ -1,4 +1,4 @@
-"""H1, coherence and confidence bounds against the theory they come from (Bendat & Piersol, Ch. 9)."""
+"""H1, coherence and confidence bounds against their theory (Bendat & Piersol, Ch. 9)."""
 
 import control as ct
 import numpy as np
@@ -79,7 +79,8 @@ def test_coherence_falls_with_noise_as_theory_says():
         theory = g2 / (g2 + s * s)
         nd = est.n_effective
         expected = theory + (1 - theory) ** 2 / nd
-        # random error of one bin: sqrt(2) (1 - g^2) |g| / sqrt(n_d) (absolute, from the normalised error)
+        # random error of one bin: sqrt(2) (1 - g^2) |g| / sqrt(n_d)
+        # (absolute, from the normalised error)
         sd = np.sqrt(2.0) * (1 - theory) * np.sqrt(theory) / np.sqrt(nd)
         z = (est.coherence[band] - expected) / sd
         # neighbouring Hann bins are correlated, so the mean's spread is wider than 1/sqrt(n)

@@ -34,8 +34,9 @@ Realisations (fixed, as functions of the parameters):
   :mod:`robust.model.loop`).
 
 Static relations (intended motion ``u = 0`` and external hand force ``f_ext = 0``,
-which do not affect poles): ``x = sigma kappa h``, ``err = K_PSF x + r_corr - y``,
-``f = f_controller``.
+which do not affect poles), from the junction table of
+:func:`robust.model.wiring.figure5_junctions`: ``x = sigma kappa h``,
+``err = K_PSF x + r_corr - y``, ``f = f_controller``.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
+from robust.model.wiring import CONTROLLER_FORCE, expand, figure5_junctions
 from uncertainty.family import Family
 from uncertainty.sampling import SampleSet
 
@@ -83,8 +85,31 @@ DEFAULT_CHUNK = 20_000
 class Block:
     """One block of the loop for a batch of members.
 
-    ``A, B, C, D`` have shapes (N or 1, n, m_in...) as usual with a leading member
-    axis; ``inputs`` and ``outputs`` name the signals.
+    The matrices have a leading member axis of length ``N``, or 1 for a block that
+    is the same for every member (it broadcasts).
+
+    Parameters
+    ----------
+    name : str
+        Block name (``"pi"``, ``"valve"``, ``"structure"``, ``"human"``,
+        ``"controller"``).
+    A : ndarray, shape (N or 1, n, n)
+        State matrices (``n`` states, possibly 0).
+    B : ndarray, shape (N or 1, n, n_in)
+        Input matrices.
+    C : ndarray, shape (N or 1, n_out, n)
+        Output matrices.
+    D : ndarray, shape (N or 1, n_out, n_in)
+        Feedthrough matrices.
+    inputs : tuple of str
+        Names of the ``n_in`` input signals (the loop's signal names).
+    outputs : tuple of str
+        Names of the ``n_out`` output signals.
+
+    Attributes
+    ----------
+    nstates : int
+        Number of states ``n``.
     """
 
     name: str
@@ -97,6 +122,7 @@ class Block:
 
     @property
     def nstates(self) -> int:
+        """Number of states of the block."""
         return self.A.shape[-1]
 
 
@@ -120,7 +146,24 @@ def _section(z, w):
 
 
 def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
-    """Structure (Eqn 4) for arrays of parameters: input ``y``, outputs ``v`` (= c/s^2) and ``c``."""
+    """Structure (Eqn 4) for arrays of parameters: input ``y``, outputs ``v`` and ``c``.
+
+    ``v = c / s^2`` is the cab displacement, ``c`` the cab acceleration; 4 states
+    (see the module notes).
+
+    Parameters
+    ----------
+    k_s : ndarray, shape (N,)
+        Gain ``K_s``.
+    zeta1, zeta2 : ndarray, shape (N,)
+        Damping ratios of the two modes.
+    f1_hz, f2_hz : ndarray, shape (N,)
+        Natural frequencies of the two modes, Hz.
+
+    Returns
+    -------
+    Block
+    """
     w1, w2 = 2 * math.pi * np.asarray(f1_hz, float), 2 * math.pi * np.asarray(f2_hz, float)
     A1, B1, C1 = _section(np.asarray(zeta1, float), w1)
     A2, B2, C2 = _section(np.asarray(zeta2, float), w2)
@@ -140,7 +183,24 @@ def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
 
 
 def literal_human_cancelled(k_h, z1, p1) -> Block:
-    """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v`` (cab displacement), output ``h``."""
+    """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v``, output ``h``.
+
+    Driven by the cab displacement ``v`` instead of the acceleration, so the double
+    pole at ``s = 0`` of Eqn 5 is cancelled (2 states; see the module notes).
+
+    Parameters
+    ----------
+    k_h : ndarray, shape (N,)
+        Gain ``K_H``.
+    z1 : ndarray, shape (N,)
+        Double real zero, rad/s.
+    p1 : ndarray, shape (N,)
+        Double real pole, rad/s.
+
+    Returns
+    -------
+    Block
+    """
     k_h, z1, p1 = (np.asarray(x, float) for x in (k_h, z1, p1))
     n = k_h.shape[0]
     A = np.zeros((n, 2, 2))
@@ -178,14 +238,39 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     for label, x in zip("ABCD", mats):
         if not np.all(np.isfinite(x)):
             raise ModelStructureError(f"controller.{label} contains non-finite entries")
-    renamed = ["f_ctrl" if s == "f" else s for s in outs]
-    return _const("controller", *mats, ins, renamed)
+    internal = [CONTROLLER_FORCE if s == "f" else s for s in outs]
+    return _const("controller", *mats, ins, internal)
 
 
 def loop_blocks(
     family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
 ) -> list[Block]:
-    """The dynamic blocks of the loop for members ``values`` (shape (N, d))."""
+    """The dynamic blocks of the loop for members ``values``.
+
+    In order: the PI controller (one state, or none when ``ki = 0``), the
+    valve/cylinder, the structure, the human and, if given, the controller.
+
+    Parameters
+    ----------
+    family : Family
+        The family (its calibration, ``K_PSF``, valve and human variant).
+    values : ndarray, shape (N, d)
+        Uncertain-parameter values (columns in ``family.names`` order).
+    controller : control.StateSpace, optional
+        Continuous-time compensator, inputs among ``x, c, y`` and outputs among
+        ``f, r_corr``.
+
+    Returns
+    -------
+    list of Block
+
+    Raises
+    ------
+    ModelStructureError
+        If the controller is not a continuous-time ``control.StateSpace`` with
+        distinct, known signal names and finite matrices, or drives ``f`` with the
+        literal human (which has no force port).
+    """
     p = family.model_arrays(values)
     cal = family.calibration
     blocks = []
@@ -219,29 +304,35 @@ def loop_blocks(
     return blocks
 
 
-def _interconnection(family: Family, blocks: list[Block]) -> np.ndarray:
-    """Constant ``M`` with ``u = M y`` (block inputs from block outputs), by signal name."""
+def _interconnection(family: Family, blocks: list[Block], controller) -> np.ndarray:
+    """Constant ``M`` with ``u = M y`` (block inputs from block outputs).
+
+    Every block input is expanded through the Figure 5 junction table
+    (:func:`robust.model.wiring.figure5_junctions`, the same table
+    :class:`robust.model.loop.BDFTLoop` is built from) with the exogenous inputs
+    ``u`` and ``f_ext`` at zero.
+    """
     outs = [s for b in blocks for s in b.outputs]
     ins = [s for b in blocks for s in b.inputs]
     col = {s: j for j, s in enumerate(outs)}
+    ctrl_outs = () if controller is None else tuple(controller.output_labels)
+    force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
     cal = family.calibration
-    gain = cal.handle_sign * cal.loop_scale
-    # each block input as {block output: coefficient}
-    x = {"h": gain}
-    rules = {
-        "err": {"h": family.k_psf * gain, "r_corr": 1.0, "y": -1.0},
-        "e": {"e": 1.0},
-        "y": {"y": 1.0},
-        "v": {"v": 1.0},
-        "c": {"c": 1.0},
-        "f": {"f_ctrl": 1.0},
-        "x": x,
-    }
+    junctions = figure5_junctions(
+        k_psf=family.k_psf,
+        handle_gain=cal.handle_sign * cal.loop_scale,
+        reference_correction="r_corr" in ctrl_outs,
+        force_terms=force if family.human == "physical" else (),
+    )
     M = np.zeros((len(ins), len(outs)))
     for i, s in enumerate(ins):
-        for src, coef in rules[s].items():
-            if src in col:  # r_corr and f_ctrl exist only with a controller that drives them
-                M[i, col[src]] += coef
+        for src, coef in expand(s, junctions).items():
+            if src not in col:
+                raise ModelStructureError(
+                    f"batched loop: block input {s!r} needs the signal {src!r}, which no block "
+                    f"provides (block outputs: {outs})"
+                )
+            M[i, col[src]] += coef
     return M
 
 
@@ -253,6 +344,7 @@ def closed_loop_matrices(
     Parameters
     ----------
     family : Family
+        The family the members belong to.
     values : ndarray, shape (N, d)
         Uncertain-parameter values (columns in ``family.names`` order).
     controller : control.StateSpace, optional
@@ -272,7 +364,7 @@ def closed_loop_matrices(
     values = np.asarray(values, float)
     N = values.shape[0]
     blocks = loop_blocks(family, values, controller=controller)
-    M = _interconnection(family, blocks)
+    M = _interconnection(family, blocks, controller)
     ns = [b.nstates for b in blocks]
     ni = [len(b.inputs) for b in blocks]
     no = [len(b.outputs) for b in blocks]
@@ -296,7 +388,10 @@ def closed_loop_matrices(
 
 
 def _nilpotent(pattern: np.ndarray) -> bool:
-    """Whether every matrix with this sparsity pattern is nilpotent (the pattern's graph has no cycle)."""
+    """Whether every matrix with this sparsity pattern is nilpotent.
+
+    That is, whether the pattern's graph has no cycle.
+    """
     P = pattern.astype(np.int64)
     Q = P.copy()
     for _ in range(P.shape[0]):
@@ -336,7 +431,23 @@ def _solve_algebraic_loop(DM: np.ndarray, C: np.ndarray) -> np.ndarray:
 def batched_poles(
     family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
 ) -> np.ndarray:
-    """Closed-loop poles of members ``values``, shape (N, n), complex (rad/s)."""
+    """Closed-loop poles of members ``values``.
+
+    Parameters
+    ----------
+    family : Family
+        The family the members belong to.
+    values : ndarray, shape (N, d)
+        Uncertain-parameter values (columns in ``family.names`` order).
+    controller : control.StateSpace, optional
+        Compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
+
+    Returns
+    -------
+    ndarray of complex, shape (N, n)
+        Every member's closed-loop poles, rad/s (one batch: for large ``N`` see
+        :func:`member_metrics`, which works chunk by chunk).
+    """
     return np.linalg.eigvals(closed_loop_matrices(family, values, controller=controller))
 
 
@@ -436,6 +547,7 @@ def member_metrics(
     Parameters
     ----------
     family : Family
+        The family the members belong to.
     values : ndarray, shape (N, d)
         Uncertain-parameter values (columns in ``family.names`` order).
     controller, chunk, band_hz, progress
@@ -482,6 +594,7 @@ def validate_family(
     Parameters
     ----------
     family : Family
+        The family the members belong to.
     samples : SampleSet
         Members; its names must equal ``family.names``.
     controller : control.StateSpace, optional
@@ -498,6 +611,14 @@ def validate_family(
     Returns
     -------
     ValidationResult
+
+    Raises
+    ------
+    ParameterError
+        If the sample's names differ from the family's, ``chunk`` is not a positive
+        integer or ``band_hz`` is not ``0 <= low < high``.
+    ModelStructureError
+        For an invalid controller, an ill-posed loop or non-finite poles.
     """
     if tuple(samples.names) != family.names:
         raise ParameterError(

@@ -4,7 +4,7 @@ A :class:`Family` is the fixed part of the loop (valve/cylinder, calibration,
 position scale factor, human variant) plus a tuple of
 :class:`~uncertainty.parameters.UncertainParameter`. Parameters the family does
 not vary stay at the nominal values the family holds, so a fitted component
-(:mod:`uncertainty.plant_file`) changes the family by changing its nominals.
+(:mod:`uncertainty.files`) changes the family by changing its nominals.
 
 Parameter names:
 
@@ -114,9 +114,22 @@ class Family:
     # -- views -------------------------------------------------------------------------------
     @property
     def names(self) -> tuple[str, ...]:
+        """Names of the uncertain parameters, in order (the columns of member values)."""
         return tuple(p.name for p in self.parameters)
 
     def parameter(self, name: str) -> UncertainParameter:
+        """The uncertain parameter called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A name of :attr:`names`, e.g. ``"struct.f1_hz"``.
+
+        Raises
+        ------
+        ParameterError
+            If the family does not vary a parameter of that name.
+        """
         for p in self.parameters:
             if p.name == name:
                 return p
@@ -127,10 +140,23 @@ class Family:
         return np.array([p.nominal for p in self.parameters])
 
     def replace(self, **changes) -> Family:
+        """A copy with the given fields changed (validated again).
+
+        Parameters
+        ----------
+        **changes
+            Field names and new values, as for :func:`dataclasses.replace`.
+        """
         return dataclasses.replace(self, **changes)
 
     def with_workspace_factor(self, factor: float) -> Family:
-        """The same family with ``K_PSF`` divided by ``factor`` (workspace multiplied)."""
+        """The same family with ``K_PSF`` divided by ``factor`` (workspace multiplied).
+
+        Parameters
+        ----------
+        factor : float
+            Workspace factor, > 0 (2 doubles the handle workspace).
+        """
         f = check_scalar("factor", factor, POSITIVE)
         return self.replace(k_psf=self.k_psf / f)
 
@@ -238,7 +264,8 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             "loguniform",
             "-",
             # the paper: on its wheels the cab moves with larger amplitude than on stilts
-            "Eqn 4 gain on stilts (lower bound); softer support on tyres gives larger cab motion, up to 3x",
+            "Eqn 4 gain on stilts (lower bound); softer support on tyres gives larger cab "
+            "motion, up to 3x",
         ),
         UncertainParameter(
             "struct.zeta1",
@@ -265,8 +292,10 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             s.f1_hz,
             "uniform",
             "Hz",
-            # tyre-supported machines have rigid-body cab modes near 2.5-3 Hz; stilts are stiffer
-            "stilts value (paper, stiffest case) down to x0.4 (about 2.5 Hz), a machine rocking on its tyres",
+            # tyre-supported machines have rigid-body cab modes near 2.5-3 Hz; stilts are
+            # stiffer
+            "stilts value (paper, stiffest case) down to x0.4 (about 2.5 Hz), a machine "
+            "rocking on its tyres",
         ),
         UncertainParameter(
             "struct.f2_hz",
@@ -275,7 +304,8 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             s.f2_hz,
             "uniform",
             "Hz",
-            "stilts value (paper, stiffest case) down to x0.4 (about 2.6 Hz), a machine rocking on its tyres",
+            "stilts value (paper, stiffest case) down to x0.4 (about 2.6 Hz), a machine "
+            "rocking on its tyres",
         ),
     ]
 
@@ -298,7 +328,8 @@ def _physical_parameters(p: PhysicalHumanParams, body_mass: float) -> list[Uncer
             max(110.0, body_mass),
             "uniform",
             "kg",
-            "small (about 5th percentile female, 50 kg) to large (about 95th percentile male, 110 kg) operator",
+            "small (about 5th percentile female, 50 kg) to large (about 95th percentile "
+            "male, 110 kg) operator",
         ),
         _spread("human.k_trunk", p.k_trunk, "N/m", note),
         _spread("human.c_trunk", p.c_trunk, "N s/m", note),
@@ -358,6 +389,17 @@ def default_family(
         Body mass (kg) the physical nominal masses belong to.
     calibration : LoopCalibration
         Loop calibration (default :data:`robust.model.loop.DEFAULT_CALIBRATION`).
+
+    Returns
+    -------
+    Family
+        Named ``"default-<human>"``; five structure parameters plus five
+        (physical) or two (literal) human parameters.
+
+    Raises
+    ------
+    ParameterError
+        If ``human`` is not a known variant.
     """
     struct = struct or StructureParams()
     literal = literal or LiteralHumanParams()

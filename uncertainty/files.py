@@ -29,6 +29,8 @@ import control as ct
 import numpy as np
 
 from robust.errors import ArtifactError, BDFTError
+from robust.export import load_artifact
+from robust.sysid import read_component_fit
 
 __all__ = ["load_controller", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
 
@@ -106,8 +108,6 @@ def load_controller(path) -> ct.StateSpace:
     where = f"controller file {str(path)!r}"
     obj = _read_json(path, "controller file")
     if obj.get("kind") == "bdft-controller":
-        from robust.export import load_artifact
-
         try:
             return load_artifact(path).continuous
         except BDFTError as exc:
@@ -119,7 +119,8 @@ def load_controller(path) -> ct.StateSpace:
         )
     if obj.get("dt") not in (None, 0, 0.0):
         raise ArtifactError(
-            f"{where}: the controller must be continuous-time (dt 0 or absent); got dt={obj['dt']!r}"
+            f"{where}: the controller must be continuous-time (dt 0 or absent); "
+            f"got dt={obj['dt']!r}"
         )
     inputs, outputs = _labels(obj, "inputs", where), _labels(obj, "outputs", where)
     A = _matrix(obj, "A", where, (None, None))
@@ -137,8 +138,13 @@ def load_controller(path) -> ct.StateSpace:
 def load_component_fit(path):
     """Read and validate a ``bdft-component-fit`` file (the format :mod:`robust.sysid` writes).
 
-    One reader serves the whole workbench: this is
-    :func:`robust.sysid.read_component_fit`, re-exported for the family code.
+    One reader serves the whole workbench: this calls
+    :func:`robust.sysid.read_component_fit`, for the family code.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The JSON file of the fit.
 
     Returns
     -------
@@ -152,7 +158,6 @@ def load_component_fit(path):
         Unreadable file, wrong ``kind``, unknown ``form``, ``params_class`` not
         matching the form, missing or unexpected parameter names, invalid values.
     """
-    from robust.sysid import read_component_fit
 
     return read_component_fit(path)
 
@@ -173,6 +178,12 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
     -------
     dict
         ``valve=...``, ``struct=...``, ``literal=...`` as given by the fits.
+
+    Raises
+    ------
+    ArtifactError
+        If two fits have the same form, or a ``human`` fit is given for a family
+        whose variant is not ``"literal"``.
     """
     out = {}
     keys = {"valve": "valve", "structure": "struct", "human": "literal"}
@@ -184,8 +195,10 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
             )
         if fit.form == "human" and human != "literal":
             raise ArtifactError(
-                f"the component fit of {fit.source or 'unknown data'!r} is a fit of the paper's Eqn 5 (LiteralHumanParams), which "
-                f"replaces the literal human; the family uses the {human!r} human. Use --human literal."
+                f"the component fit of {fit.source or 'unknown data'!r} is a fit of the "
+                "paper's Eqn 5 (LiteralHumanParams), which "
+                f"replaces the literal human; the family uses the {human!r} human. "
+                "Use --human literal."
             )
         out[key] = fit.params
     return out

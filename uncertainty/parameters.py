@@ -84,7 +84,8 @@ class UncertainParameter:
             )
         if not self.low <= self.nominal <= self.high:
             raise ParameterError(
-                f"{owner}: nominal must lie in [low, high] = [{self.low!r}, {self.high!r}]; got {self.nominal!r}"
+                f"{owner}: nominal must lie in [low, high] = [{self.low!r}, {self.high!r}]; "
+                f"got {self.nominal!r}"
             )
         if self.distribution == "loguniform" and self.low <= 0.0:
             raise ParameterError(
@@ -104,7 +105,20 @@ class UncertainParameter:
         return self.std if self.std is not None else (self.high - self.low) / 4.0
 
     def ppf(self, u) -> np.ndarray:
-        """Values at unit-interval quantiles ``u`` (array, any shape, entries in [0, 1])."""
+        """Values at unit-interval quantiles ``u`` (the inverse distribution function).
+
+        Parameters
+        ----------
+        u : array_like
+            Quantiles, any shape, entries in [0, 1] (0 maps to ``low``, 1 to
+            ``high``).
+
+        Returns
+        -------
+        numpy.ndarray
+            Parameter values in the parameter's units, the shape of ``u``, clipped
+            to ``[low, high]``.
+        """
         u = np.asarray(u, float)
         if self.distribution == "uniform":
             x = self.low + u * (self.high - self.low)
@@ -118,7 +132,7 @@ class UncertainParameter:
         return np.clip(x, self.low, self.high)
 
     def describe(self) -> dict:
-        """JSON-ready description."""
+        """JSON-ready description: every field, with ``std`` resolved for ``"truncnormal"``."""
         d = dataclasses.asdict(self)
         if self.distribution == "truncnormal":
             d["std"] = self.sigma

@@ -1,11 +1,16 @@
-"""Parameter sweeps across a family: workspace factor, human stiffness x damping, structure frequency.
+"""Parameter sweeps across a family: workspace factor, human stiffness x damping, structure mode.
 
 Each sweep fixes one or two quantities on a grid and, at every grid point,
 validates the same base sample of the family's other parameters (common random
 numbers, so differences between grid points are not sampling noise). It returns
 a :class:`SweepResult`: the table behind the plots (one row per grid point) and
-functions that draw the figures. Library code returns matplotlib figures; the
-``bdft sweep`` command saves them.
+how it was made. The figures and the page are drawn by :mod:`reports.sweeps`;
+the ``bdft sweep`` command writes them.
+
+Every table has the columns ``fraction_stable``, ``max_real_pole`` (worst real part
+over the members, 1/s), ``min_damping`` (smallest damping ratio in the BDFT band),
+``n_unstable`` and ``nominal_max_real`` (largest real part with every other
+parameter nominal, 1/s), after the swept quantities.
 """
 
 from __future__ import annotations
@@ -67,10 +72,6 @@ class SweepResult:
             lines.append(",".join(f"{self.columns[k][i]:.10g}" for k in keys))
         return "\n".join(lines) + "\n"
 
-    def figures(self) -> list:
-        """``[(name, matplotlib Figure, caption), ...]`` for the sweep."""
-        return _FIGURES[self.name](self)
-
 
 def _metrics_on_grid(
     family: Family,
@@ -83,7 +84,11 @@ def _metrics_on_grid(
     progress: Callable[[int], None] | None,
     band_hz=BDFT_BAND_HZ,
 ):
-    """Validate the base sample at every grid point; per-point fraction stable, worst real part, min damping."""
+    """Validate the base sample at every grid point.
+
+    Returns the per-point fraction stable, worst real part and minimum damping, and
+    the settings.
+    """
     fixed = set().union(*(g.keys() for g in grid_values))
     base_params = [p for p in family.parameters if p.name not in fixed]
     S = sample(base_params, members, method=method, seed=seed)
@@ -153,11 +158,17 @@ def workspace_sweep(
     members : int
         Family members validated at each factor (the same members at every factor).
     method, seed : str, int
-        Sampling of the members.
+        Sampling of the members: method of :func:`uncertainty.sample` and seed.
     chunk : int
         Members per batch.
     progress : callable, optional
         Called with the number of members finished.
+
+    Returns
+    -------
+    SweepResult
+        Named ``"workspace"``; columns ``workspace_factor`` and ``k_psf``, then the
+        metrics.
     """
     _check_members(members)
     f = np.asarray(np.arange(1.0, 10.01, 0.5) if factors is None else factors, float)
@@ -174,8 +185,9 @@ def workspace_sweep(
         name="workspace",
         title=f"Workspace factor sweep ({family.human} human)",
         description=(
-            "Handle workspace multiplied by each factor (K_PSF divided by it), the same family members at "
-            "every factor. The paper's study (C2, C3) is factors 2 to 10 for the nominal loop."
+            "Handle workspace multiplied by each factor (K_PSF divided by it), the same family "
+            "members at every factor. The paper's study (C2, C3) is factors 2 to 10 for the "
+            "nominal loop."
         ),
         columns=cols,
         settings=settings,
@@ -204,14 +216,28 @@ def stiffness_damping_sweep(
     pair : {"arm", "trunk"}
         Which spring-damper of the chain to sweep.
     n_k, n_c : int
-        Grid points (log-spaced over the parameters' ranges).
+        Grid points (log-spaced over the parameters' ranges), at least 2 each.
     members : int
         Members (the other parameters) validated at each grid point.
+    method, seed : str, int
+        Sampling of the members: method of :func:`uncertainty.sample` and seed.
+    chunk : int
+        Members per batch.
+    progress : callable, optional
+        Called with the number of members finished.
+
+    Returns
+    -------
+    SweepResult
+        Named ``"stiffness-damping"``, grid shape ``(n_k, n_c)``; columns
+        ``human.k_<pair>`` (N/m) and ``human.c_<pair>`` (N s/m), then the metrics;
+        ``settings["nominal"]`` holds the two nominal values.
     """
     _check_members(members)
     if family.human != "physical":
         raise ParameterError(
-            f"the stiffness x damping sweep needs the physical human; the family uses {family.human!r}"
+            "the stiffness x damping sweep needs the physical human; "
+            f"the family uses {family.human!r}"
         )
     if pair not in ("arm", "trunk"):
         raise ParameterError(f"pair must be 'arm' or 'trunk'; got {pair!r}")
@@ -233,9 +259,10 @@ def stiffness_damping_sweep(
         name="stiffness-damping",
         title=f"Human {pair} stiffness x damping ({family.human} human)",
         description=(
-            f"Worst (largest) real part of the closed-loop poles over {settings['members_per_point']} members of "
-            f"the family's other parameters, at each {pk.name} x {pc.name} grid point (log-spaced over the "
-            "family's order-of-magnitude ranges)."
+            "Worst (largest) real part of the closed-loop poles over "
+            f"{settings['members_per_point']} members of the family's other parameters, at each "
+            f"{pk.name} x {pc.name} grid point (log-spaced over the family's order-of-magnitude "
+            "ranges)."
         ),
         columns=cols,
         settings=settings,
@@ -253,10 +280,32 @@ def structure_frequency_sweep(
     chunk: int = DEFAULT_CHUNK,
     progress=None,
 ) -> SweepResult:
-    """Fraction stable, worst real part and minimum damping versus the structure's natural frequencies.
+    """Fraction stable, worst real part and minimum damping versus the structure's frequencies.
 
     Both modes are scaled together, ``f_i = scale * f_i(nominal)``, from the
     family's lowest ``struct.f1_hz`` (a machine on its tyres) to the stilts values.
+
+    Parameters
+    ----------
+    family : Family
+        A family containing ``struct.f1_hz`` and ``struct.f2_hz``.
+    scales : array_like, optional
+        Scale factors of both natural frequencies (default: 13 points from the
+        family's lowest ``struct.f1_hz`` over the nominal, to 1).
+    members : int
+        Members (the other parameters) validated at each frequency.
+    method, seed : str, int
+        Sampling of the members: method of :func:`uncertainty.sample` and seed.
+    chunk : int
+        Members per batch.
+    progress : callable, optional
+        Called with the number of members finished.
+
+    Returns
+    -------
+    SweepResult
+        Named ``"structure-frequency"``; columns ``scale``, ``f1_hz`` and ``f2_hz``
+        (Hz), then the metrics.
     """
     _check_members(members)
     f1n, f2n = family.struct.f1_hz, family.struct.f2_hz
@@ -282,130 +331,11 @@ def structure_frequency_sweep(
         name="structure-frequency",
         title=f"Structure natural frequency sweep ({family.human} human)",
         description=(
-            "Both structure modes scaled together from a machine on its tyres up to the paper's stilts values "
-            "(6.3 and 6.5 Hz); the same members of the family's other parameters at each frequency."
+            "Both structure modes scaled together from a machine on its tyres up to the paper's "
+            "stilts values (6.3 and 6.5 Hz); the same members of the family's other parameters at "
+            "each frequency."
         ),
         columns=cols,
         settings=settings,
         grid_shape=(len(s),),
     )
-
-
-# -- figures ----------------------------------------------------------------------------------
-def _figure(nrows=1, ncols=1, size=(7.0, 4.5)):
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=size, constrained_layout=True)
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    return fig, axes
-
-
-def _line_figures(res: SweepResult, xkey: str, xlabel: str):
-    x = res.columns[xkey]
-    fig, ax = _figure(2, 1, (7.0, 6.0))
-    a, b = ax[0, 0], ax[1, 0]
-    a.plot(x, res.columns["fraction_stable"], "o-")
-    a.set_ylabel("fraction stable")
-    a.set_ylim(-0.02, 1.02)
-    a.grid(True, alpha=0.3)
-    a.set_title(res.title)
-    b.plot(x, res.columns["max_real_pole"], "o-", color="C3")
-    b.axhline(0.0, color="k", lw=0.8)
-    b.set_ylabel("worst real part of a pole [1/s]")
-    b.set_xlabel(xlabel)
-    b.grid(True, alpha=0.3)
-    fig2, ax2 = _figure(1, 1, (7.0, 3.5))
-    md = np.where(np.isfinite(res.columns["min_damping"]), res.columns["min_damping"], np.nan)
-    ax2[0, 0].plot(x, md, "o-", color="C2")
-    ax2[0, 0].axhline(0.0, color="k", lw=0.8)
-    ax2[0, 0].set_xlabel(xlabel)
-    ax2[0, 0].set_ylabel("minimum damping ratio")
-    ax2[0, 0].set_title(
-        f"Minimum damping of poles in {res.settings['band_hz'][0]:g}-{res.settings['band_hz'][1]:g} Hz"
-    )
-    ax2[0, 0].grid(True, alpha=0.3)
-    n = res.settings["members_per_point"]
-    return [
-        (
-            "stability",
-            fig,
-            f"Fraction of the {n} members stable and the worst real part, versus {xlabel}.",
-        ),
-        (
-            "damping",
-            fig2,
-            f"Minimum damping ratio of the poles in the BDFT band over the {n} members.",
-        ),
-    ]
-
-
-def _map_figures(res: SweepResult):
-    kname, cname = list(res.columns)[:2]
-    nk, nc = res.grid_shape
-    K = res.columns[kname].reshape(nk, nc)
-    C = res.columns[cname].reshape(nk, nc)
-    Z = res.columns["max_real_pole"].reshape(nk, nc)
-    fig, ax = _figure(1, 1, (7.0, 5.5))
-    a = ax[0, 0]
-    lim = float(np.max(np.abs(Z))) or 1.0
-    mesh = a.pcolormesh(K, C, Z, shading="nearest", cmap="RdBu_r", vmin=-lim, vmax=lim)
-    if Z.min() < 0.0 < Z.max():
-        a.contour(K, C, Z, levels=[0.0], colors="k", linewidths=1.2)
-    nom = res.settings["nominal"]
-    a.plot(nom[kname], nom[cname], "k*", ms=12, label="nominal (fit to Eqn 5)")
-    a.set_xscale("log")
-    a.set_yscale("log")
-    a.set_xlabel(f"{kname} [N/m]")
-    a.set_ylabel(f"{cname} [N s/m]")
-    a.set_title(res.title)
-    a.legend(loc="upper right")
-    fig.colorbar(mesh, ax=a, label="worst real part of a pole [1/s] (black: 0)")
-    fig2, ax2 = _figure(1, 1, (7.0, 5.5))
-    F = res.columns["fraction_stable"].reshape(nk, nc)
-    m2 = ax2[0, 0].pcolormesh(K, C, F, shading="nearest", cmap="viridis", vmin=0, vmax=1)
-    ax2[0, 0].set_xscale("log")
-    ax2[0, 0].set_yscale("log")
-    ax2[0, 0].set_xlabel(f"{kname} [N/m]")
-    ax2[0, 0].set_ylabel(f"{cname} [N s/m]")
-    ax2[0, 0].set_title("Fraction of members stable")
-    fig2.colorbar(m2, ax=ax2[0, 0], label="fraction stable")
-    fig3, ax3 = _figure(1, 1, (7.0, 5.5))
-    Zn = res.columns["nominal_max_real"].reshape(nk, nc)
-    lim3 = float(np.max(np.abs(Zn))) or 1.0
-    m3 = ax3[0, 0].pcolormesh(K, C, Zn, shading="nearest", cmap="RdBu_r", vmin=-lim3, vmax=lim3)
-    if Zn.min() < 0.0 < Zn.max():
-        ax3[0, 0].contour(K, C, Zn, levels=[0.0], colors="k", linewidths=1.2)
-    ax3[0, 0].plot(nom[kname], nom[cname], "k*", ms=12)
-    ax3[0, 0].set_xscale("log")
-    ax3[0, 0].set_yscale("log")
-    ax3[0, 0].set_xlabel(f"{kname} [N/m]")
-    ax3[0, 0].set_ylabel(f"{cname} [N s/m]")
-    ax3[0, 0].set_title("Largest real part, other parameters nominal")
-    fig3.colorbar(m3, ax=ax3[0, 0], label="largest real part of a pole [1/s] (black: 0)")
-    n = res.settings["members_per_point"]
-    return [
-        (
-            "nominal_real_part",
-            fig3,
-            "Largest real part of the poles with every other parameter at its nominal value; "
-            "black line: stability boundary.",
-        ),
-        (
-            "worst_real_part",
-            fig,
-            f"Worst real part over {n} members at each grid point; black line: 0 (stability "
-            "boundary of the worst member).",
-        ),
-        ("fraction_stable", fig2, f"Fraction of the {n} members stable at each grid point."),
-    ]
-
-
-_FIGURES = {
-    "workspace": lambda r: _line_figures(
-        r, "workspace_factor", "workspace factor (K_PSF = 0.1097 / factor)"
-    ),
-    "stiffness-damping": _map_figures,
-    "structure-frequency": lambda r: _line_figures(
-        r, "f1_hz", "structure mode 1 frequency [Hz] (mode 2 scaled alike)"
-    ),
-}

@@ -19,8 +19,10 @@ result is reproducible and nothing is tuned by hand:
    ``K_PSF = 0.1097`` and C2/C3 stability at ``K_PSF <= 0.055``: a pair of complex
    poles must cross at ``g1`` and ``0.055*kappa < g1 < 0.1097*kappa < g2``.
    ``kappa`` is set to centre ``g1`` between the two (geometric mean), which makes
-   the log-margin ``m = min(ln(g1/(0.055 kappa)), ln(0.1097 kappa/g1), ln(g2/(0.1097 kappa)))``
-   as large as the claims allow; ``kappa`` is then rounded to three significant digits.
+   the log-margin
+   ``m = min(ln(g1/(0.055 kappa)), ln(0.1097 kappa/g1), ln(g2/(0.1097 kappa)))``
+   as large as the claims allow; ``kappa`` is then rounded to three significant
+   digits.
 4. **Selection.** Among candidates whose margin ``m`` is within 1 % of the best,
    the one with the highest inner-loop crossover frequency (the fastest, hence
    best-tracking, cylinder loop the margins admit) is chosen.
@@ -40,7 +42,13 @@ import numpy as np
 from robust.analysis.realization import minimal_realization
 from robust.analysis.stability import poles_stable, unstable_mask
 from robust.errors import InfeasibleError
-from robust.model.components import K_PSF_NOMINAL, PIParams, pi_controller, valve_cylinder
+from robust.model.components import (
+    K_PSF_NOMINAL,
+    PIParams,
+    pi_controller,
+    structure,
+    valve_cylinder,
+)
 from robust.model.human import HumanModel, LiteralHuman
 from robust.model.loop import BDFTLoop, LoopCalibration
 
@@ -58,7 +66,46 @@ K_PSF_STABLE = 0.055
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationCandidate:
-    """One row of the calibration search (one PI and one junction sign)."""
+    """One row of the calibration search (one PI and one junction sign).
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain of the PI tried (valve command per unit position error).
+    ki : float
+        Integral gain tried, 1/s (``kp`` times a ratio of the grid).
+    handle_sign : int
+        Junction sign ``sigma`` tried, +1 or -1.
+    inner_stable : bool
+        Whether the cylinder position loop closed by this PI is stable.
+    gain_margin_db : float
+        Gain margin of the cylinder loop, dB (inf when the phase never crosses
+        -180 degrees).
+    phase_margin_deg : float
+        Phase margin of the cylinder loop, degrees.
+    crossover_hz : float
+        Gain-crossover frequency of the cylinder loop, Hz.
+    admissible : bool
+        Whether the cylinder loop is stable with at least the required margins.
+    g1 : float
+        Loop gain ``kappa*K_PSF`` at which the BDFT loop first loses stability;
+        inf if it never does on the traced grid, nan if the cylinder loop is
+        unstable.
+    g2 : float
+        Loop gain above ``g1`` at which more than two closed-loop poles are
+        unstable; inf if none on the grid, nan if the cylinder loop is unstable.
+    pair_crossing : bool
+        Whether stability is lost at ``g1`` by one complex pair (claim C1 needs
+        exactly two unstable poles).
+    crossing_hz : float
+        Frequency of the unstable pair just above ``g1``, Hz (nan if none).
+    kappa : float
+        Loop scale that centres ``g1`` between ``0.055 kappa`` and ``0.1097 kappa``,
+        rounded to 3 significant digits; nan if the candidate is unusable.
+    margin : float
+        Log-margin ``m`` of claims C1-C3 at that ``kappa`` (positive when they
+        hold; -inf if they cannot).
+    """
 
     kp: float
     ki: float
@@ -77,12 +124,27 @@ class CalibrationCandidate:
 
     @property
     def reproduces_c1_c3(self) -> bool:
+        """Admissible, loses stability by a complex pair, and has a positive margin."""
         return self.admissible and self.pair_crossing and self.margin > 0
 
 
 @dataclasses.dataclass(frozen=True)
 class CalibrationResult:
-    """Outcome of :func:`calibrate`: the chosen calibration and every candidate."""
+    """Outcome of :func:`calibrate`: the chosen calibration and every candidate.
+
+    Parameters
+    ----------
+    calibration : LoopCalibration
+        PI gains, loop scale ``kappa`` and junction sign of the chosen candidate,
+        ready for :class:`robust.model.loop.BDFTLoop`.
+    chosen : CalibrationCandidate
+        The selected row of the search.
+    candidates : tuple of CalibrationCandidate
+        Every candidate searched, in grid order (``kp``, then ``ki/kp``, then sign).
+    settings : dict
+        The search settings (grids, required margins, gain grid, human variant and
+        the two ``K_PSF`` values), JSON-ready, for reproducing the search.
+    """
 
     calibration: LoopCalibration
     chosen: CalibrationCandidate
@@ -90,6 +152,7 @@ class CalibrationResult:
     settings: dict
 
     def table(self) -> list[dict]:
+        """Every candidate as a dict of its fields plus ``reproduces_c1_c3``."""
         return [
             dataclasses.asdict(c) | {"reproduces_c1_c3": c.reproduces_c1_c3}
             for c in self.candidates
@@ -101,6 +164,24 @@ def open_bdft_path(human: HumanModel, pi: PIParams, loop: BDFTLoop | None = None
 
     ``K_PSF = 1`` and no loop-scale: closing it with ``x = u + sign*g*h`` gives the
     Figure 5 loop with ``g = kappa*K_PSF``.
+
+    Parameters
+    ----------
+    human : HumanModel
+        Human variant at the end of the path (its input ``c``; a force port, if
+        any, is left unconnected).
+    pi : PIParams
+        Gains of the cylinder position loop, closed inside the path.
+    loop : BDFTLoop, optional
+        Loop whose valve/cylinder and structure parameters are used (its human is
+        replaced by ``human``; its calibration is ignored); ``BDFTLoop(human=human)``
+        when omitted.
+
+    Returns
+    -------
+    A, B, C, D : numpy.ndarray
+        Minimal realisation (:func:`robust.analysis.realization.minimal_realization`)
+        of the SISO path ``x -> h``; shapes (n, n), (n, 1), (1, n), (1, 1).
     """
     base = loop or BDFTLoop(human=human)
     base = base.replace(human=human)
@@ -109,8 +190,6 @@ def open_bdft_path(human: HumanModel, pi: PIParams, loop: BDFTLoop | None = None
         pi_controller(pi),
         valve_cylinder(base.valve),
     ]
-    from robust.model.components import structure
-
     blocks += [structure(base.struct), human.system()]
     sys = ct.interconnect(blocks, inputs=["x"], outputs=["h"])
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
@@ -258,6 +337,8 @@ def calibrate(
     Returns
     -------
     CalibrationResult
+        The chosen calibration, the chosen candidate, every candidate and the
+        settings.
 
     Raises
     ------

@@ -42,12 +42,31 @@ RATIO_FREQS_HZ = np.geomspace(0.05, 20.0, 600)
 #: C4 thresholds: "no significant effect" below 1 Hz means within this many dB of 1.
 C4_LOW_BAND_HZ = 1.0
 C4_LOW_TOL_DB = 1.0
-#: C4: "near the structure's natural frequencies" means the peak deviation lies in this band (Hz).
+#: C4: "near the structure's natural frequencies" means the peak deviation lies in this
+#: band (Hz).
 C4_PEAK_BAND_HZ = (4.0, 9.0)
 
 
 @dataclasses.dataclass(frozen=True)
 class ClaimResult:
+    """Verdict on one of the paper's claims, with the numbers behind it.
+
+    Parameters
+    ----------
+    claim : str
+        Claim label, ``"C1"`` to ``"C5"`` (its statement is ``CLAIM_TEXT[claim]``).
+    status : {"holds", "fails", "not testable"}
+        The verdict; ``"not testable"`` when the model variant lacks what the claim
+        needs (e.g. C5 without a handle-position parameter).
+    detail : str
+        One paragraph explaining the verdict in words and numbers, for reports.
+    numbers : dict
+        The quantities the verdict rests on (pole locations in rad/s, frequencies
+        in Hz, deviations in dB, keyed by name; per workspace factor where the
+        claim sweeps it); empty when there are none. Values may be numpy or complex
+        numbers (convert with :func:`robust.jsonio.to_jsonable`).
+    """
+
     claim: str
     status: str  # "holds" | "fails" | "not testable"
     detail: str
@@ -55,9 +74,11 @@ class ClaimResult:
 
     @property
     def holds(self) -> bool:
+        """Whether ``status`` is ``"holds"``."""
         return self.status == "holds"
 
     def to_json(self) -> dict:
+        """``holds``, ``status``, ``detail`` and ``numbers`` as a dict (``claim`` omitted)."""
         return {
             "holds": self.holds,
             "status": self.status,
@@ -71,7 +92,28 @@ def _hz(p) -> float:
 
 
 def ratio_study(loop: BDFTLoop, factors=WORKSPACE_FACTORS, freqs_hz=RATIO_FREQS_HZ) -> dict:
-    """Figure 13: |Y_bdft / Y_nobdft| in dB for each workspace factor, with stability."""
+    """Figure 13: |Y_bdft / Y_nobdft| in dB for each workspace factor, with stability.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The loop at its own ``k_psf``; each member has ``K_PSF = loop.k_psf / factor``.
+    factors : iterable of float, optional
+        Workspace factors; :data:`WORKSPACE_FACTORS` (2 to 10) by default.
+    freqs_hz : numpy.ndarray, optional
+        Frequency grid in Hz, shape (F,); :data:`RATIO_FREQS_HZ` (600 log-spaced
+        points over 0.05-20 Hz) by default. Must include frequencies below 1 Hz.
+
+    Returns
+    -------
+    dict
+        Workspace factor to a dict with ``k_psf``, ``stable`` (bool),
+        ``max_real_pole`` (rad/s), ``ratio_db`` (shape (F,)), ``peak_dev_db`` (the
+        largest ``|ratio_db|``), ``peak_freq_hz`` (where it occurs) and
+        ``low_band_dev_db`` (the largest ``|ratio_db|`` below 1 Hz). The ratio is
+        computed whether or not the member is stable; it is only meaningful when it
+        is.
+    """
     rows = {}
     for fac in factors:
         member = loop.with_workspace_factor(fac)
@@ -92,7 +134,24 @@ def ratio_study(loop: BDFTLoop, factors=WORKSPACE_FACTORS, freqs_hz=RATIO_FREQS_
 
 
 def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, ClaimResult]:
-    """Check C1-C5 on ``loop`` (its ``k_psf`` is ignored: the claims fix their own)."""
+    """Check C1-C5 on ``loop`` (its ``k_psf`` is ignored: the claims fix their own).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The model variant: components, human and calibration. C1 is checked at
+        ``K_PSF = 0.1097``, C2 and C4's loop gain at ``K_PSF = 0.055``, C3 and C4 on
+        the workspace factors of ``study``; C5 needs a human with a
+        ``with_handle_offset`` method and is "not testable" otherwise.
+    study : dict, optional
+        The output of :func:`ratio_study` on ``loop``, to reuse one already
+        computed; computed with the default factors and grid when omitted.
+
+    Returns
+    -------
+    dict of str to ClaimResult
+        ``"C1"`` to ``"C5"`` in order.
+    """
     res = {}
     nominal = loop.replace(k_psf=K_PSF_NOMINAL)
     ps = loop_poles(nominal)
@@ -103,13 +162,15 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         "holds" if ps.n_unstable == 2 else "fails",
         f"{ps.n_unstable} unstable pole(s) at K_PSF={K_PSF_NOMINAL}"
         + (
-            f": {', '.join(f'{p.real:+.3f}{p.imag:+.3f}j' for p in unst)} rad/s ({_hz(unst[0]):.2f} Hz)"
+            f": {', '.join(f'{p.real:+.3f}{p.imag:+.3f}j' for p in unst)} rad/s "
+            f"({_hz(unst[0]):.2f} Hz)"
             if unst.size
             else ""
         )
         + f"; stability is lost at K_PSF={k_crit:.4g}"
         + (
-            f"; {ps.hidden.size} hidden mode(s) at |s|<={np.abs(ps.hidden).max():.1e} removed (Eqn 4 s^2 x Eqn 5 1/s^2)"
+            f"; {ps.hidden.size} hidden mode(s) at |s|<={np.abs(ps.hidden).max():.1e} removed "
+            "(Eqn 4 s^2 x Eqn 5 1/s^2)"
             if ps.hidden.size
             else ""
         ),
@@ -125,7 +186,8 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
     res["C2"] = ClaimResult(
         "C2",
         "holds" if ps2.stable else "fails",
-        f"max real part of the closed-loop poles at K_PSF={K_PSF_STABLE}: {ps2.max_real:+.4f} rad/s "
+        f"max real part of the closed-loop poles at K_PSF={K_PSF_STABLE}: "
+        f"{ps2.max_real:+.4f} rad/s "
         f"({'stable' if ps2.stable else f'{ps2.n_unstable} unstable'})",
         dict(max_real_pole=ps2.max_real, n_unstable=ps2.n_unstable),
     )
@@ -138,7 +200,8 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         "C3",
         "holds" if stable_all and shrinking else "fails",
         f"factors {facs[0]}..{facs[-1]}: {'all stable' if stable_all else 'NOT all stable'}; "
-        f"peak |ratio| deviation {peaks[0]:.2f} dB (x{facs[0]}) -> {peaks[-1]:.2f} dB (x{facs[-1]}), "
+        f"peak |ratio| deviation {peaks[0]:.2f} dB (x{facs[0]}) -> "
+        f"{peaks[-1]:.2f} dB (x{facs[-1]}), "
         f"{'monotonically shrinking' if shrinking else 'not monotonic'}",
         dict(
             stable={f: study[f]["stable"] for f in facs},
@@ -160,7 +223,8 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
         low_ok = [study[f]["low_band_dev_db"] <= C4_LOW_TOL_DB for f in stable_facs]
         worst_low = max(study[f]["low_band_dev_db"] for f in stable_facs)
         ok = all(in_band) and all(low_ok)
-        # diagnosis: where is the loop gain of the BDFT path largest? (at the workspace-doubled K_PSF)
+        # diagnosis: where is the loop gain of the BDFT path largest? (at the
+        # workspace-doubled K_PSF)
         diag_f = np.array([0.5, 1.0, 2.0, np.sqrt(loop.struct.f1_hz * loop.struct.f2_hz)])
         lg = np.abs(bdft_loop_gain(loop.replace(k_psf=K_PSF_STABLE), diag_f)["loop"])
         why = []
@@ -171,22 +235,26 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
                 if not b
             ]
             why.append(
-                f"peak deviation outside {C4_PEAK_BAND_HZ[0]:g}-{C4_PEAK_BAND_HZ[1]:g} Hz ({', '.join(bad[:3])})"
+                f"peak deviation outside {C4_PEAK_BAND_HZ[0]:g}-{C4_PEAK_BAND_HZ[1]:g} Hz "
+                f"({', '.join(bad[:3])})"
             )
         if not all(low_ok):
             why.append(
-                f"deviation below {C4_LOW_BAND_HZ:g} Hz reaches {worst_low:.2f} dB (> {C4_LOW_TOL_DB:g} dB)"
+                f"deviation below {C4_LOW_BAND_HZ:g} Hz reaches {worst_low:.2f} dB "
+                f"(> {C4_LOW_TOL_DB:g} dB)"
             )
         res["C4"] = ClaimResult(
             "C4",
             "holds" if ok else "fails",
             (
                 f"over stable factors {stable_facs[0]}..{stable_facs[-1]} the ratio peaks at "
-                f"{study[stable_facs[0]]['peak_freq_hz']:.2f} Hz (x{stable_facs[0]}) and deviates at most "
+                f"{study[stable_facs[0]]['peak_freq_hz']:.2f} Hz (x{stable_facs[0]}) "
+                "and deviates at most "
                 f"{worst_low:.2f} dB below {C4_LOW_BAND_HZ:g} Hz"
             )
             + ("" if ok else "; fails: " + "; ".join(why))
-            + f"; BDFT loop gain at K_PSF={K_PSF_STABLE}: {lg[1]:.3g} at 1 Hz vs {lg[3]:.3g} at the "
+            + f"; BDFT loop gain at K_PSF={K_PSF_STABLE}: {lg[1]:.3g} at 1 Hz "
+            f"vs {lg[3]:.3g} at the "
             f"structure mode ({diag_f[3]:.2f} Hz)",
             dict(
                 loop_gain_at_hz={float(f): float(g) for f, g in zip(diag_f, lg)},
@@ -207,9 +275,9 @@ def _claim_c5(loop: BDFTLoop) -> ClaimResult:
         return ClaimResult(
             "C5",
             "not testable",
-            f"the {human.variant!r} human model has no handle-position parameter, so the effect of moving the "
-            "Omni +-4 in cannot be computed; the paper's evidence (its Figure 10) is a LifeMOD simulation "
-            "that is not available here",
+            f"the {human.variant!r} human model has no handle-position parameter, so the "
+            "effect of moving the Omni +-4 in cannot be computed; the paper's evidence (its "
+            "Figure 10) is a LifeMOD simulation that is not available here",
             {},
         )
     freqs = np.geomspace(1.0, 10.0, 200)
@@ -223,7 +291,8 @@ def _claim_c5(loop: BDFTLoop) -> ClaimResult:
     return ClaimResult(
         "C5",
         "holds" if worst <= 3.0 else "fails",
-        f"moving the handle +-4 in changes |H/C| over 1-10 Hz by at most {worst:.2f} dB (threshold 3 dB)",
+        f"moving the handle +-4 in changes |H/C| over 1-10 Hz by at most {worst:.2f} dB "
+        "(threshold 3 dB)",
         dict(max_change_db=devs, threshold_db=3.0),
     )
 

@@ -13,8 +13,11 @@ import dataclasses
 import control as ct
 import numpy as np
 
+from robust.analysis.norms import hinf_norm
 from robust.analysis.realization import minimal_realization
+from robust.analysis.reduction import balanced_truncation
 from robust.analysis.stability import poles_stable, unstable_mask
+from robust.model.components import pi_controller, structure, valve_cylinder
 from robust.model.loop import BDFTLoop
 
 __all__ = [
@@ -25,7 +28,9 @@ __all__ = [
     "frequency_response",
     "critical_k_psf",
     "bdft_loop_gain",
+    "reduce_controller",
 ]
+
 
 @dataclasses.dataclass(frozen=True)
 class PoleSet:
@@ -47,6 +52,7 @@ class PoleSet:
 
     @property
     def n_unstable(self) -> int:
+        """Number of poles in the open right half-plane (:mod:`robust.analysis.stability`)."""
         return int(np.count_nonzero(unstable_mask(self.poles)))
 
     @property
@@ -56,10 +62,12 @@ class PoleSet:
 
     @property
     def max_real(self) -> float:
+        """Largest real part of the poles, rad/s (``-inf`` without poles)."""
         return float(self.poles.real.max()) if self.poles.size else -np.inf
 
     @property
     def unstable_poles(self) -> np.ndarray:
+        """The poles in the open right half-plane."""
         return self.poles[unstable_mask(self.poles)]
 
     def damping(self) -> np.ndarray:
@@ -71,7 +79,16 @@ class PoleSet:
 
 
 def closed_loop_poles(sys: ct.StateSpace, *, rtol: float = 1e-9) -> PoleSet:
-    """Poles of a minimal realisation of ``sys`` and the hidden modes removed to get it."""
+    """Poles of a minimal realisation of ``sys`` and the hidden modes removed to get it.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous-time system.
+    rtol : float
+        Relative rank tolerance of the minimal realisation
+        (:func:`robust.analysis.realization.minimal_realization`).
+    """
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D, rtol=rtol)
     p = np.linalg.eigvals(m.A) if m.nstates else np.zeros(0, complex)
     order = np.lexsort((p.imag, -p.real))
@@ -81,14 +98,34 @@ def closed_loop_poles(sys: ct.StateSpace, *, rtol: float = 1e-9) -> PoleSet:
 
 
 def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet:
-    """Closed-loop poles of the Figure 5 loop (minimal realisation, all inputs and outputs)."""
+    """Closed-loop poles of the Figure 5 loop (minimal realisation, all inputs and outputs).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The loop.
+    bdft : bool
+        With the feedthrough path.
+    controller : control.StateSpace, optional
+        Compensator in the loop's convention.
+    """
     return closed_loop_poles(loop.system(bdft=bdft, controller=controller))
 
 
 def frequency_response(
     sys: ct.StateSpace, freqs_hz: np.ndarray, *, inp: str = "u", out: str = "y"
 ) -> np.ndarray:
-    """Complex frequency response of one channel of ``sys`` at ``freqs_hz`` (Hz)."""
+    """Complex frequency response of one channel of ``sys`` at ``freqs_hz`` (Hz).
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Named-signal system.
+    freqs_hz : array_like
+        Frequencies, Hz.
+    inp, out : str
+        Input and output signal names.
+    """
     w = 2.0 * np.pi * np.asarray(freqs_hz, float)
     i = sys.input_labels.index(inp)
     o = sys.output_labels.index(out)
@@ -101,6 +138,15 @@ def bdft_ratio(loop: BDFTLoop, freqs_hz: np.ndarray, *, controller=None) -> np.n
 
     The paper's Figure 13 plots its magnitude; 1 means the feedthrough has no
     effect at that frequency. Only meaningful where the BDFT loop is stable.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The loop.
+    freqs_hz : array_like
+        Frequencies, Hz.
+    controller : control.StateSpace, optional
+        Compensator in the BDFT loop (the reference has none).
     """
     with_b = frequency_response(loop.system(bdft=True, controller=controller), freqs_hz)
     without = frequency_response(loop.system(bdft=False), freqs_hz)
@@ -119,6 +165,17 @@ def critical_k_psf(
 
     Scans ``K_PSF`` on a log grid from ``k_min`` to ``k_max`` and refines the first
     stable-to-unstable transition by bisection in log space to relative tolerance ``xtol``.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The loop (its ``k_psf`` is replaced).
+    k_min, k_max : float
+        Range of ``K_PSF`` scanned.
+    n_grid : int
+        Points of the log grid.
+    xtol : float
+        Relative tolerance of the bisection.
     """
     grid = np.geomspace(k_min, k_max, n_grid)
 
@@ -146,8 +203,14 @@ def bdft_loop_gain(loop: BDFTLoop, freqs_hz: np.ndarray) -> dict[str, np.ndarray
     (``H = h/c``), ``structure`` (``S = c/y``) and ``cylinder_loop`` (``T = y/r``, the
     closed cylinder loop). Where ``|loop|`` is largest is where the feedthrough
     matters most.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The loop.
+    freqs_hz : array_like
+        Frequencies, Hz.
     """
-    from robust.model.components import pi_controller, structure, valve_cylinder
 
     cal = loop.calibration
     inner = ct.feedback(pi_controller(cal.pi) * valve_cylinder(loop.valve), 1)
@@ -156,5 +219,45 @@ def bdft_loop_gain(loop: BDFTLoop, freqs_hz: np.ndarray) -> dict[str, np.ndarray
     H = frequency_response(loop.human.system(), freqs_hz, inp="c", out="h")
     S = np.asarray(structure(loop.struct)(s, squeeze=False))[0, 0]
     T = np.asarray(inner(s, squeeze=False))[0, 0]
-    L = cal.handle_sign * cal.loop_scale * loop.k_psf * H * S * T
+    L = loop.handle_gain * loop.k_psf * H * S * T
     return {"loop": L, "human": H, "structure": S, "cylinder_loop": T}
+
+
+def reduce_controller(K: ct.StateSpace, loops, *, rtol: float = 0.01):
+    """Balanced truncation of ``K`` to the smallest order that keeps every loop stable.
+
+    Orders are tried downwards from ``K.nstates - 1``; the search stops at the first
+    order whose balanced-truncation error bound exceeds ``rtol * ||K||_inf`` or that
+    leaves a loop of ``loops`` unstable (:func:`loop_poles`). An unstable ``K`` is
+    not reduced.
+
+    Parameters
+    ----------
+    K : control.StateSpace
+        The controller (loop convention).
+    loops : sequence of BDFTLoop
+        Loops that must stay stable with the reduced controller.
+    rtol : float
+        Allowed error bound relative to ``||K||_inf``.
+
+    Returns
+    -------
+    (control.StateSpace, float)
+        The reduced controller and its error bound (``K`` itself and 0.0 if no smaller
+        order qualifies).
+    """
+    if K.nstates <= 1:
+        return K, 0.0
+    size = hinf_norm(K) if poles_stable(K.poles()) else np.inf
+    best = (K, 0.0)
+    for order in range(K.nstates - 1, 0, -1):
+        try:
+            red = balanced_truncation(K, order=order)
+        except ValueError:
+            break
+        if not np.isfinite(size) or red.error_bound > rtol * size:
+            break
+        if not all(loop_poles(m, controller=red.sys).stable for m in loops):
+            break
+        best = (red.sys, red.error_bound)
+    return best

@@ -39,7 +39,8 @@ from robust.errors import ModelStructureError, ParameterError
 
 __all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
 
-#: number of local maxima of the Bruinsma-Steinbuch start grid refined before the first Hamiltonian test
+#: number of local maxima of the Bruinsma-Steinbuch start grid refined before the first
+#: Hamiltonian test
 N_REFINE = 5
 
 
@@ -62,7 +63,23 @@ def _abcd(sys):
 
 
 def spectral_abscissa(sys) -> float:
-    """Largest real part of the poles (eigenvalues of A), in rad/s; ``-inf`` for a static gain."""
+    """Largest real part of the poles (eigenvalues of A), in rad/s.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous-time system (anything with ``A, B, C, D`` and ``isctime()``).
+
+    Returns
+    -------
+    float
+        ``max Re(eig(A))`` in rad/s; ``-inf`` for a static gain (no states).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``sys`` is not a continuous-time state-space system.
+    """
     A = _abcd(sys)[0]
     if A.shape[0] == 0:
         return -np.inf
@@ -74,12 +91,50 @@ def is_stable(sys, *, margin: float = 0.0) -> bool:
 
     The definition of :mod:`robust.analysis.stability`: with ``margin=0`` a pole is
     stable when its real part is below ``-STABILITY_TOL``.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous-time system; a static gain is stable.
+    margin : float, optional
+        Required decay rate, rad/s (0, the default: plain stability).
+
+    Returns
+    -------
+    bool
+        True when :func:`spectral_abscissa` is below ``-max(margin, STABILITY_TOL)``
+        (:func:`robust.analysis.stability.stability_bound`).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``sys`` is not a continuous-time state-space system.
     """
     return spectral_abscissa(sys) < stability_bound(margin)
 
 
 def sigma_max(sys, omega) -> np.ndarray:
-    """Largest singular value of G(j*omega) for each frequency in ``omega`` (rad/s), shape (len(omega),)."""
+    """Largest singular value of ``G(j*omega)`` for each frequency in ``omega``.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous-time system (any object with ``A, B, C, D`` and ``isctime()``).
+        Stability is not required.
+    omega : float or array_like
+        Frequencies in rad/s, scalar or shape (F,).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``sigma_max(G(j omega))``, shape (F,) (shape (1,) for a scalar), in the
+        system's output units per input unit.
+
+    Raises
+    ------
+    ModelStructureError
+        If ``sys`` is not a continuous-time state-space system.
+    """
     A, B, C, D = _abcd(sys)
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     n = A.shape[0]
@@ -136,9 +191,9 @@ def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: 
     if A.shape[0] == 0 or B.shape[1] == 0 or C.shape[0] == 0:
         val = float(np.linalg.norm(D, 2)) if D.size else 0.0
         return (val, np.inf) if return_frequency else val
-    # exact (power-of-2) diagonal state scaling: the transfer function is unchanged, and the
-    # Hamiltonian and the resolvents are far better conditioned for interconnections whose
-    # blocks carry state scales over many decades
+    # exact (power-of-2) diagonal state scaling: the transfer function is unchanged, and
+    # the Hamiltonian and the resolvents are far better conditioned for interconnections
+    # whose blocks carry state scales over many decades
     A, B, C = _balance_states(A, B, C)
     if method == "slicot":
         import control
@@ -301,7 +356,10 @@ def _bb_iteration(A, B, C, D, sys, rtol, start=None):
 
 
 def _imaginary_eigenvalues(A, B, C, D, g, scale):
-    """Nonnegative imaginary parts of the (numerically) imaginary eigenvalues of the Hamiltonian H(g)."""
+    """Nonnegative imaginary parts of the (numerically) imaginary eigenvalues of H(g).
+
+    ``H(g)`` is the Hamiltonian of the Bruinsma-Steinbuch iteration at level ``g``.
+    """
     R = D.T @ D - g * g * np.eye(D.shape[1])
     S = D @ D.T - g * g * np.eye(D.shape[0])
     Ri_DtC = np.linalg.solve(R, D.T @ C)

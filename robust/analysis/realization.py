@@ -30,7 +30,23 @@ __all__ = ["MinimalRealization", "minimal_realization", "controllable_part"]
 
 @dataclasses.dataclass(frozen=True)
 class MinimalRealization:
-    """A minimal ``(A, B, C, D)`` and the eigenvalues of the modes removed to get it."""
+    """A minimal ``(A, B, C, D)`` and the eigenvalues of the modes removed to get it.
+
+    Parameters
+    ----------
+    A, B, C, D : numpy.ndarray
+        Minimal state-space matrices, shapes (r, r), (r, m), (p, r), (p, m) with
+        ``r`` the minimal order. The states are in
+        a transformed (balanced, orthogonally reduced) basis with no physical
+        meaning; ``D`` is the original feedthrough.
+    removed_eigenvalues : numpy.ndarray
+        Complex eigenvalues (rad/s) of the removed modes, uncontrollable ones first,
+        shape (n - r,).
+    n_uncontrollable : int
+        Number of states removed as uncontrollable.
+    n_unobservable : int
+        Number of states then removed as unobservable.
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -42,6 +58,7 @@ class MinimalRealization:
 
     @property
     def nstates(self) -> int:
+        """The minimal order ``r`` (number of rows of ``A``)."""
         return self.A.shape[0]
 
 
@@ -68,8 +85,24 @@ def _krylov_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
 def controllable_part(A, B, C, *, rtol: float = 1e-9):
     """Return ``(Ac, Bc, Cc, removed_eigs)``: the controllable part of ``(A, B, C)``.
 
-    ``rtol`` scales with the balanced system's norm: a direction is controllable when
-    its Krylov singular value exceeds ``rtol * max(||A||, ||B||, 1)``.
+    Parameters
+    ----------
+    A, B, C : array_like
+        State-space matrices, shapes (n, n), (n, m), (p, n). Applied to
+        ``(A.T, C.T, B.T)`` it gives the observable part instead.
+    rtol : float, optional
+        Relative rank tolerance. It scales with the balanced system's norm: a
+        direction is controllable when its Krylov singular value exceeds
+        ``rtol * max(||A||, ||B||, 1)``.
+
+    Returns
+    -------
+    Ac, Bc, Cc : numpy.ndarray
+        Controllable part, shapes (r, r), (r, m), (p, r), in a balanced and
+        orthogonally transformed basis (balanced only, when nothing is removed).
+    removed_eigs : numpy.ndarray
+        Complex eigenvalues (rad/s) of the removed uncontrollable modes, shape
+        (n - r,).
     """
     A = np.asarray(A, float)
     B = np.asarray(B, float)

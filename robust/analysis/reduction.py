@@ -22,7 +22,12 @@ import scipy.linalg as sla
 
 from robust.errors import ModelStructureError, ParameterError
 
-__all__ = ["ReducedModel", "balanced_truncation", "hankel_singular_values", "stable_unstable_split"]
+__all__ = [
+    "ReducedModel",
+    "balanced_truncation",
+    "hankel_singular_values",
+    "stable_unstable_split",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,6 +43,7 @@ class ReducedModel:
     error_bound : float
         ``2 * sum(truncated hsv)``: bound on the H-infinity norm of the error.
     order_before, order_after : int
+        Number of states of the original and of the reduced system.
     n_unstable : int
         Number of unstable (kept) states.
     """
@@ -51,11 +57,26 @@ class ReducedModel:
 
 
 def stable_unstable_split(A, B, C):
-    """Additive split ``G = G_s + G_u``; returns ``(As, Bs, Cs), (Au, Bu, Cu)``.
+    """Additive split ``G = G_s + G_u`` of a strictly proper system.
 
     Poles with ``Re < 0`` go to the stable part. Uses a real Schur form ordered with
     the stable eigenvalues first and the Sylvester equation ``As X - X Au + A12 = 0``
-    to decouple the blocks.
+    to decouple the blocks. A feedthrough ``D`` is not involved; add it to either
+    part.
+
+    Parameters
+    ----------
+    A, B, C : array_like
+        State-space matrices, shapes (n, n), (n, m), (p, n).
+
+    Returns
+    -------
+    (As, Bs, Cs) : tuple of numpy.ndarray
+        Stable part, shapes (k, k), (k, m), (p, k), with ``k`` the number of poles
+        with negative real part; ``As`` is quasi-upper-triangular (real Schur).
+    (Au, Bu, Cu) : tuple of numpy.ndarray
+        Part with the other poles (``Re >= 0``), shapes (n - k, n - k),
+        (n - k, m), (p, n - k).
     """
     A = np.asarray(A, float)
     T, Z, k = sla.schur(A, output="real", sort="lhp")
@@ -73,7 +94,21 @@ def stable_unstable_split(A, B, C):
 
 
 def hankel_singular_values(A, B, C) -> np.ndarray:
-    """Hankel singular values of a stable ``(A, B, C)``, decreasing."""
+    """Hankel singular values of a stable ``(A, B, C)``, decreasing.
+
+    Parameters
+    ----------
+    A, B, C : numpy.ndarray
+        State-space matrices of a stable system, shapes (n, n), (n, m), (p, n)
+        (``D`` plays no part). Stability is not checked; for an unstable ``A`` the
+        Lyapunov solutions are not Gramians and the values are meaningless.
+
+    Returns
+    -------
+    numpy.ndarray
+        The n Hankel singular values (square roots of the eigenvalues of the product
+        of the Gramians), in the system's output units per input unit, decreasing.
+    """
     P = sla.solve_continuous_lyapunov(A, -B @ B.T)
     Q = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
     # singular values of the product of Gramian factors (square-root method), more
@@ -100,6 +135,22 @@ def balanced_truncation(
         Total order wanted (unstable states count and are all kept).
     tol : float, optional
         Instead of ``order``: keep the smallest order whose error bound is <= ``tol``.
+
+    Returns
+    -------
+    ReducedModel
+        The reduced system (named ``<name>_red``, same signals and ``D``), the
+        Hankel singular values and the error bound. The order kept is further
+        capped at the numerical rank of the stable part (Hankel singular values
+        above ``1e-14`` times the largest).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``sys`` is not a continuous-time :class:`control.StateSpace`.
+    ParameterError
+        If both or neither of ``order`` and ``tol`` are given, or ``order`` is
+        below the number of unstable states or above the order of ``sys``.
     """
     if not isinstance(sys, ct.StateSpace) or not sys.isctime():
         raise ModelStructureError("balanced_truncation needs a continuous-time control.StateSpace")
@@ -122,7 +173,8 @@ def balanced_truncation(
     else:
         if not (nu <= order <= n):
             raise ParameterError(
-                f"balanced_truncation: order must be in [{nu}, {n}] (unstable states are kept); got {order}"
+                f"balanced_truncation: order must be in [{nu}, {n}] "
+                f"(unstable states are kept); got {order}"
             )
         k = order - nu
     k = min(k, int(np.count_nonzero(hsv > hsv[0] * 1e-14)) if hsv.size else 0)

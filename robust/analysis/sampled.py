@@ -26,7 +26,9 @@ import control as ct
 import numpy as np
 
 from robust.analysis.loops import loop_poles
+from robust.analysis.stability import poles_stable
 from robust.errors import ModelStructureError
+from robust.model.wiring import connect
 
 __all__ = ["SampledDataCheck", "sampled_data_check", "open_plant", "CHECK_BAND_HZ"]
 
@@ -35,7 +37,19 @@ CHECK_BAND_HZ = (0.05, 10.0)
 
 @dataclasses.dataclass(frozen=True)
 class SampledDataCheck:
-    """Continuous vs discrete closed loop of one member (see the module notes)."""
+    """Continuous vs discrete closed loop of one member (see the module notes).
+
+    Parameters
+    ----------
+    max_real_continuous : float
+        Largest real part of the continuous closed-loop poles, rad/s.
+    max_real_discrete : float
+        Largest real part of the discrete poles mapped by ``s = ln(z) / T``, rad/s.
+    max_response_deviation_db : float
+        Largest deviation of ``|u -> y|`` between the two loops over the check band, dB.
+    stable_continuous, stable_discrete : bool
+        Stability of each loop (:mod:`robust.analysis.stability`).
+    """
 
     max_real_continuous: float  # rad/s
     max_real_discrete: float  # rad/s, discrete poles mapped by s = ln(z)/T
@@ -49,14 +63,32 @@ class SampledDataCheck:
         return self.stable_continuous == self.stable_discrete
 
     def to_json(self) -> dict:
+        """The fields and :attr:`agree` as a JSON-able dict."""
         return dict(dataclasses.asdict(self), agree=self.agree)
 
 
 def open_plant(loop, K):
-    """The member's loop with the controller removed: inputs ``u`` and K's outputs, outputs ``y`` and K's inputs."""
-    blocks = [b for b in loop.blocks(bdft=True, controller=K) if b is not K]
-    return ct.interconnect(
-        blocks, inputs=["u", *K.output_labels], outputs=["y", *K.input_labels], name="open_plant"
+    """The member's loop with the controller removed.
+
+    Inputs ``u`` and K's outputs, outputs ``y`` and K's inputs; a human force port
+    that K does not drive is held at zero.
+
+    Parameters
+    ----------
+    loop : robust.model.loop.BDFTLoop
+        One family member.
+    K : control.StateSpace
+        The controller whose signals are cut open (loop convention).
+    """
+    outs = list(K.output_labels)
+    blocks = loop.blocks(bdft=True, reference_correction="r_corr" in outs)
+    ignore = ["f"] if loop.human.has_force_port and "f" not in outs else []
+    return connect(
+        blocks,
+        inputs=["u", *outs],
+        outputs=["y", *K.input_labels],
+        name="open_plant",
+        ignore_inputs=ignore,
     )
 
 
@@ -68,9 +100,12 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
     loop : robust.model.loop.BDFTLoop
         One family member.
     K : control.StateSpace
-        Continuous controller (loop convention: inputs among ``x, c, y``, outputs among ``f, r_corr``).
+        Continuous controller (loop convention: inputs among ``x, c, y``, outputs among
+        ``f, r_corr``).
     Kd : control.StateSpace
         Its discrete equivalent, same signal names, ``dt > 0``.
+    n_freq : int
+        Frequencies of the response comparison over :data:`CHECK_BAND_HZ`.
     """
     if not (Kd.isdtime(strict=True) and Kd.dt > 0):
         raise ModelStructureError(
@@ -112,7 +147,7 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
         max_real_discrete=max_re_d,
         max_response_deviation_db=dev,
         stable_continuous=bool(poles_c.stable),
-        stable_discrete=bool(np.all(np.abs(z) < 1.0)),
+        stable_discrete=poles_stable(s_d),
     )
 
 

@@ -54,10 +54,16 @@ class SweptSine:
             )
         if self.f1_hz >= self.fs_hz / 2:
             raise ParameterError(
-                f"SweptSine.f1_hz must be below the Nyquist frequency {self.fs_hz / 2}; got {self.f1_hz}"
+                f"SweptSine.f1_hz must be below the Nyquist frequency {self.fs_hz / 2}; "
+                f"got {self.f1_hz}"
             )
 
     def signal(self) -> tuple[np.ndarray, np.ndarray]:
+        """Sampled sweep: times ``t`` (s, from 0 to ``duration_s`` inclusive) and ``u``.
+
+        ``u`` is a linear chirp starting at a zero crossing (``phi=-90`` degrees, a
+        sine), in handle units; both arrays have shape (round(duration_s * fs_hz) + 1,).
+        """
         t = np.arange(int(round(self.duration_s * self.fs_hz)) + 1) / self.fs_hz
         u = self.amplitude * chirp(
             t, f0=self.f0_hz, t1=self.duration_s, f1=self.f1_hz, method="linear", phi=-90
@@ -66,12 +72,43 @@ class SweptSine:
 
 
 def swept_sine(**kwargs) -> SweptSine:
+    """Build a :class:`SweptSine` from keyword arguments.
+
+    Parameters
+    ----------
+    **kwargs
+        Any of the :class:`SweptSine` fields (``f0_hz``, ``f1_hz``, ``duration_s``,
+        ``amplitude``, ``fs_hz``); the others keep their defaults.
+
+    Returns
+    -------
+    SweptSine
+        The validated sweep.
+    """
     return SweptSine(**kwargs)
 
 
 @dataclasses.dataclass(frozen=True)
 class TimeResponse:
-    """Time histories of one simulation: ``t`` (s), input ``u`` and named outputs."""
+    """Time histories of one simulation: ``t`` (s), input ``u`` and named outputs.
+
+    Index it by signal name (``response["y"]``) for ``outputs[name]``.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times, s, shape (N,).
+    u : numpy.ndarray
+        Intended handle motion, handle units, shape (N,).
+    outputs : dict of str to numpy.ndarray
+        Each output of the simulated loop (``y, c, h, x, e`` with BDFT, ``y, x, e``
+        without; ``f`` and ``r_corr`` when a controller drives them), in the
+        paper's units, shape (N,) each.
+    bdft : bool
+        Whether the feedthrough path was closed.
+    k_psf : float
+        Position scale factor ``K_PSF`` of the simulated loop.
+    """
 
     t: np.ndarray
     u: np.ndarray
@@ -86,7 +123,31 @@ class TimeResponse:
 def simulate(
     loop: BDFTLoop, t: np.ndarray, u: np.ndarray, *, bdft: bool = True, controller=None
 ) -> TimeResponse:
-    """Response of the loop outputs to intended motion ``u(t)`` from rest."""
+    """Response of the loop outputs to intended motion ``u(t)`` from rest.
+
+    Computed on a minimal realisation of the loop; a force input ``f_ext`` of a
+    human with a force port is held at zero.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The Figure 5 loop (components, human, calibration and ``k_psf``).
+    t : numpy.ndarray
+        Sample times, s, shape (N,), increasing and equally spaced (as
+        :func:`control.forced_response` requires).
+    u : numpy.ndarray
+        Intended handle motion at the times ``t``, handle units, shape (N,).
+    bdft : bool, optional
+        Close the feedthrough path (default) or remove it (``x = u``).
+    controller : control.StateSpace, optional
+        Compensator wired into the loop (see
+        :meth:`robust.model.loop.BDFTLoop.system`); none by default.
+
+    Returns
+    -------
+    TimeResponse
+        ``t``, ``u`` and every loop output over ``t``.
+    """
     sys = loop.system(bdft=bdft, controller=controller)
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
     # only the input u is driven here
@@ -101,7 +162,27 @@ def simulate(
 def simulate_swept_sine(
     loop: BDFTLoop, sweep: SweptSine | None = None, *, controller=None
 ) -> tuple[TimeResponse, TimeResponse]:
-    """Cylinder response to a swept sine with and without BDFT (Figures 11 and 12)."""
+    """Cylinder response to a swept sine with and without BDFT (Figures 11 and 12).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The Figure 5 loop.
+    sweep : SweptSine, optional
+        The intended handle motion; ``SweptSine()`` (0.1-8 Hz over 20 s at 1 kHz,
+        unit amplitude) when omitted.
+    controller : control.StateSpace, optional
+        Compensator wired into the run with BDFT only; the run without BDFT is the
+        uncompensated reference.
+
+    Returns
+    -------
+    with_bdft, without_bdft : TimeResponse
+        The two simulations, on the same time grid.
+    """
     sweep = sweep or SweptSine()
     t, u = sweep.signal()
-    return simulate(loop, t, u, bdft=True, controller=controller), simulate(loop, t, u, bdft=False)
+    return (
+        simulate(loop, t, u, bdft=True, controller=controller),
+        simulate(loop, t, u, bdft=False),
+    )

@@ -24,7 +24,13 @@ NOMINAL_BODY_MASS = 75.0
 
 
 def segment_masses(body_mass):
-    """Lumped masses of the chain for an operator of ``body_mass`` kg (scalar or array).
+    """Lumped masses of the chain for an operator of ``body_mass`` kg.
+
+    Parameters
+    ----------
+    body_mass : float or array_like
+        Total body mass in kg; an array gives arrays of the same shape (one
+        operator per element).
 
     Returns
     -------

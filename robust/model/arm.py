@@ -1,4 +1,4 @@
-"""Arm geometry: how the arm's fore-aft stiffness changes when the handle moves fore-aft.
+"""Arm geometry: how the arm's fore-aft stiffness changes as the handle moves fore-aft.
 
 The physical human (:mod:`robust.model.physical`) lumps the operating arm into one
 fore-aft spring-damper ``k_arm, c_arm`` at the nominal handle position. Moving
@@ -70,7 +70,24 @@ class ArmGeometry:
         return 0.186 * self.height, (0.146 + 0.5 * 0.108) * self.height
 
     def joint_angles(self, dx: float = 0.0) -> tuple[float, float]:
-        """Shoulder and elbow angles (rad) with the grip moved ``dx`` m forward of nominal."""
+        """Shoulder and elbow angles (rad) with the grip moved ``dx`` m forward of nominal.
+
+        Parameters
+        ----------
+        dx : float, optional
+            Fore-aft grip offset from ``(hand_x, hand_y)``, m, forward positive.
+
+        Returns
+        -------
+        q1, q2 : float
+            Shoulder angle from the forward horizontal and elbow flexion (positive:
+            elbow below the shoulder-grip line), rad.
+
+        Raises
+        ------
+        robust.errors.ParameterError
+            If the grip is out of the arm's reach.
+        """
         L1, L2 = self.lengths
         x, y = self.hand_x + dx, self.hand_y
         r2 = x * x + y * y
@@ -85,7 +102,13 @@ class ArmGeometry:
         return q1, q2
 
     def fore_aft_compliance(self, dx: float = 0.0) -> float:
-        """Fore-aft compliance at the grip per unit shoulder compliance, m^2 (times rad/(N m))."""
+        """Fore-aft compliance at the grip per unit shoulder compliance, m^2 (times rad/(N m)).
+
+        Parameters
+        ----------
+        dx : float, optional
+            Fore-aft grip offset from nominal, m, forward positive.
+        """
         L1, L2 = self.lengths
         q1, q2 = self.joint_angles(dx)
         J = np.array(
@@ -98,7 +121,22 @@ class ArmGeometry:
         return float((J @ Kq_inv @ J.T)[0, 0])
 
     def stiffness_scale(self, dx: float, *, from_dx: float = 0.0) -> float:
-        """Fore-aft arm stiffness at offset ``dx`` over that at ``from_dx`` (both m, forward positive)."""
+        """Fore-aft arm stiffness at offset ``dx`` over that at ``from_dx``.
+
+        Parameters
+        ----------
+        dx : float
+            Grip offset from nominal at which the stiffness is wanted, m, forward
+            positive.
+        from_dx : float, optional
+            Grip offset of the reference stiffness, m; 0 (the nominal grip) by
+            default.
+
+        Returns
+        -------
+        float
+            Dimensionless ratio; > 1 means the arm is stiffer fore-aft at ``dx``.
+        """
         dx = check_scalar("dx", dx)
         from_dx = check_scalar("from_dx", from_dx)
         return self.fore_aft_compliance(from_dx) / self.fore_aft_compliance(dx)

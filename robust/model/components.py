@@ -136,10 +136,25 @@ def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFuncti
 def valve_cylinder(
     params: ValveCylinderParams | None = None, *, name: str = "valve_cylinder"
 ) -> ct.StateSpace:
-    """Valve/cylinder, Eqn 3: ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)``.
+    """Valve/cylinder of the paper's Eqn 3, valve command ``e`` -> cylinder position ``y``.
 
-    Input ``e``: valve command (paper's units). Output ``y``: cylinder position
-    (paper's units). Order 4, with a free integrator.
+    ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)``, with
+    ``wn = 2 pi wn_hz``. Order 4, with a free integrator.
+
+    Parameters
+    ----------
+    params : ValveCylinderParams, optional
+        Gain, pole, valve natural frequency and damping; the paper's values
+        (``ValveCylinderParams()``) when omitted.
+    name : str, optional
+        System name given to the python-control system, ``"valve_cylinder"`` by
+        default.
+
+    Returns
+    -------
+    control.StateSpace
+        SISO system, input ``e`` (valve command) and output ``y`` (cylinder
+        position), both in the paper's units.
     """
     p = params or ValveCylinderParams()
     wn = TWO_PI * p.wn_hz
@@ -150,9 +165,24 @@ def valve_cylinder(
 def structure(params: StructureParams | None = None, *, name: str = "structure") -> ct.StateSpace:
     """Structure, Eqn 4: cylinder position ``y`` -> cab acceleration ``c``.
 
-    ``C/Y = K_s s^2 * prod_i (2 z_i w_i s + w_i^2) / (s^2 + 2 z_i w_i s + w_i^2)``.
-    Two derivative terms turn the input position into the output acceleration,
-    so the block has a double zero at the origin. Order 4, biproper.
+    ``C/Y = K_s s^2 * prod_i (2 z_i w_i s + w_i^2) / (s^2 + 2 z_i w_i s + w_i^2)``,
+    with ``w_i = 2 pi f_i_hz``. Two derivative terms turn the input position into
+    the output acceleration, so the block has a double zero at the origin. Order 4,
+    biproper.
+
+    Parameters
+    ----------
+    params : StructureParams, optional
+        Gain, damping ratios and natural frequencies of the two structural modes;
+        the paper's steel-stilts values (``StructureParams()``) when omitted.
+    name : str, optional
+        System name given to the python-control system, ``"structure"`` by default.
+
+    Returns
+    -------
+    control.StateSpace
+        SISO system, input ``y`` (cylinder position) and output ``c`` (cab
+        acceleration), in the paper's units.
     """
     p = params or StructureParams()
     w1, w2 = TWO_PI * p.f1_hz, TWO_PI * p.f2_hz
@@ -163,7 +193,22 @@ def structure(params: StructureParams | None = None, *, name: str = "structure")
 
 
 def pi_controller(params: PIParams, *, name: str = "pi") -> ct.StateSpace:
-    """PI controller of the cylinder loop: input ``err`` (reference minus position), output ``e``."""
+    """PI controller of the cylinder position loop, ``e = kp err + ki integral(err)``.
+
+    Parameters
+    ----------
+    params : PIParams
+        Proportional and integral gains. With ``ki == 0`` the controller is a static
+        gain (order 0); otherwise it has one integrator state.
+    name : str, optional
+        System name given to the python-control system, ``"pi"`` by default.
+
+    Returns
+    -------
+    control.StateSpace
+        SISO system, input ``err`` (cylinder reference minus cylinder position) and
+        output ``e`` (valve command).
+    """
     if params.ki > 0.0:
         g = ct.tf([params.kp, params.ki], [1.0, 0.0])
     else:
@@ -176,6 +221,24 @@ def position_scale(k_psf: float, *, name: str = "k_psf") -> ct.StateSpace:
 
     ``K_PSF`` is the ratio of the Omni's fore-aft workspace to the cylinder travel
     (nominal 0.1097 for 71 mm); halving it doubles the workspace.
+
+    Parameters
+    ----------
+    k_psf : float
+        The scale factor ``K_PSF`` (cylinder reference per unit handle position,
+        dimensionless), > 0; see :data:`K_PSF_NOMINAL`.
+    name : str, optional
+        System name given to the python-control system, ``"k_psf"`` by default.
+
+    Returns
+    -------
+    control.StateSpace
+        Static (order 0) SISO gain, input ``x`` and output ``r``.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``k_psf`` is not a finite positive number.
     """
     k = check_scalar("k_psf", k_psf, POSITIVE)
     return ct.ss([], [], [], np.array([[k]]), inputs="x", outputs="r", name=name)

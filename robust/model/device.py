@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from robust.checks import POSITIVE, validate_fields
+from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
 
 __all__ = ["DeviceLimits", "ForceCheck", "check_force"]
 
@@ -47,12 +47,44 @@ class DeviceLimits:
 
     @property
     def sample_time_s(self) -> float:
+        """Servo period, s."""
         return 1.0 / self.servo_rate_hz
+
+    def intended_amplitude_m(self, fraction: float, *, workspace_factor: float = 1.0) -> float:
+        """Amplitude of the operator's intended handle motion, m.
+
+        ``fraction`` of half the handle's fore-aft travel, the travel being the
+        workspace times ``workspace_factor`` (the loop's ``K_PSF_NOMINAL / K_PSF``).
+        The one definition of the intended-motion amplitude: loops convert it to
+        handle units with :meth:`robust.model.loop.BDFTLoop.intended_amplitude`.
+
+        Parameters
+        ----------
+        fraction : float
+            Fraction of the half-travel, in (0, 1].
+        workspace_factor : float
+            Workspace scaling of the loop (> 0).
+        """
+        frac = check_scalar("fraction", fraction, Spec(low=0.0, high=1.0, low_open=True))
+        factor = check_scalar("workspace_factor", workspace_factor, POSITIVE)
+        return frac * (self.workspace_mm * factor / 2.0) * 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
 class ForceCheck:
-    """Peak and RMS force of a force history against the device limits."""
+    """Peak and RMS force of a force history against the device limits.
+
+    Parameters
+    ----------
+    peak_force_n : float
+        Largest absolute force of the history, N.
+    rms_force_n : float
+        Root-mean-square force, N.
+    peak_limit_n : float
+        The device's peak force, N.
+    continuous_limit_n : float
+        The device's continuous force, N (compared with the RMS).
+    """
 
     peak_force_n: float
     rms_force_n: float
@@ -61,20 +93,31 @@ class ForceCheck:
 
     @property
     def within_limits(self) -> bool:
+        """Peak and RMS both within their limits."""
         return (
             self.peak_force_n <= self.peak_limit_n and self.rms_force_n <= self.continuous_limit_n
         )
 
     def describe(self) -> str:
+        """One sentence: peak, RMS, limits and the verdict."""
         verdict = "within limits" if self.within_limits else "OVER the device limits"
         return (
-            f"peak {self.peak_force_n:.3g} N (limit {self.peak_limit_n:g}), RMS {self.rms_force_n:.3g} N "
+            f"peak {self.peak_force_n:.3g} N (limit {self.peak_limit_n:g}), "
+            f"RMS {self.rms_force_n:.3g} N "
             f"(continuous limit {self.continuous_limit_n:g}): {verdict}"
         )
 
 
 def check_force(force_n: np.ndarray, limits: DeviceLimits | None = None) -> ForceCheck:
-    """Peak and RMS of a force history ``force_n`` (N) against ``limits``."""
+    """Peak and RMS of a force history ``force_n`` (N) against ``limits``.
+
+    Parameters
+    ----------
+    force_n : array_like
+        Force samples, N (a non-finite sample makes both figures infinite).
+    limits : DeviceLimits, optional
+        Device limits (default: the Omni's).
+    """
     limits = limits or DeviceLimits()
     f = np.asarray(force_n, float)
     if f.size == 0:

@@ -73,12 +73,24 @@ class LiteralHumanParams:
 
 @dataclasses.dataclass(frozen=True)
 class LiteralHuman:
-    """The paper's Eqn 5 as printed: seat acceleration ``c`` -> hand motion ``h`` relative to the seat.
+    """The paper's Eqn 5 as printed: seat acceleration ``c`` -> hand motion ``h``.
 
-    Taken literally the model has a double integrator: between ``p1`` (0.25 Hz)
-    and ``z1`` (8 Hz) its gain falls like 1/omega^4, and below ``p1`` like
-    1/omega^2, so a slow cab motion produces an unbounded relative hand motion.
-    It has no force port.
+    The hand motion is relative to the seat. Taken literally the model has a double
+    integrator: between ``p1`` (0.25 Hz) and ``z1`` (8 Hz) its gain falls like
+    1/omega^4, and below ``p1`` like 1/omega^2, so a slow cab motion produces an
+    unbounded relative hand motion. It has no force port.
+
+    Parameters
+    ----------
+    params : LiteralHumanParams, optional
+        Gain, double zero and double pole of Eqn 5; the paper's values when omitted.
+
+    Attributes
+    ----------
+    variant : str
+        Always ``"literal"`` (not a constructor argument).
+    has_force_port : bool
+        Always False (not a constructor argument).
     """
 
     params: LiteralHumanParams = dataclasses.field(default_factory=LiteralHumanParams)
@@ -86,15 +98,24 @@ class LiteralHuman:
     has_force_port: bool = dataclasses.field(default=False, init=False)
 
     def transfer_function(self) -> ct.TransferFunction:
+        """Eqn 5 as a transfer function ``H/C`` (order 4: double pole at 0 and at ``-p1``)."""
         p = self.params
         num = [p.k_h, 2.0 * p.k_h * p.z1, p.k_h * p.z1 * p.z1]
         den = [1.0, 2.0 * p.p1, p.p1 * p.p1, 0.0, 0.0]
         return ct.tf(num, den)
 
     def system(self, *, name: str = "human") -> ct.StateSpace:
+        """Named state-space system, input ``c`` (seat acceleration), output ``h``.
+
+        Parameters
+        ----------
+        name : str, optional
+            System name given to the python-control system, ``"human"`` by default.
+        """
         return ct.ss(self.transfer_function(), inputs="c", outputs="h", name=name)
 
     def describe(self) -> dict:
+        """Variant, equation and the Eqn 5 parameters, as a JSON-ready dict."""
         return {
             "variant": self.variant,
             "equation": "paper Eqn 5",
@@ -103,7 +124,25 @@ class LiteralHuman:
 
 
 def human_variant(name: str) -> HumanModel:
-    """Return the nominal human variant called ``name`` (``"literal"`` or ``"physical"``)."""
+    """Return the nominal human variant called ``name``.
+
+    Parameters
+    ----------
+    name : {"literal", "physical"}
+        ``"literal"`` for :class:`LiteralHuman` (Eqn 5 as printed) or
+        ``"physical"`` for :class:`~robust.model.physical.PhysicalHuman` (the
+        mass-spring-damper chain with a force port), each with default parameters.
+
+    Returns
+    -------
+    HumanModel
+        A new instance of the variant.
+
+    Raises
+    ------
+    ValueError
+        If ``name`` is neither ``"literal"`` nor ``"physical"``.
+    """
     if name == "literal":
         return LiteralHuman()
     if name == "physical":

@@ -40,6 +40,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from robust.jsonio import atomic_write_text
+from robust.model.anthropometry import NOMINAL_BODY_MASS, segment_masses
 from robust.model.human import LiteralHumanParams
 
 __all__ = [
@@ -61,7 +63,8 @@ FIT_BAND_HZ = (1.0, 10.0)
 N_FREQ = 120
 #: Seed of the multi-start draws (the fit is deterministic given it).
 FIT_SEED = 20240
-#: Number of optimiser starts (2-DOF; the 3-DOF exploration has more local minima and uses more).
+#: Number of optimiser starts (2-DOF; the 3-DOF exploration has more local minima and
+#: uses more).
 N_STARTS = 24
 N_STARTS_3DOF = 96
 #: Search bounds for every stiffness (N/m) and damping (N s/m): wide, physical.
@@ -70,23 +73,61 @@ C_BOUNDS = (1.0, 3.0e3)
 
 
 def fit_frequencies(band_hz=FIT_BAND_HZ, n: int = N_FREQ) -> np.ndarray:
-    """Log-spaced fit frequencies in Hz, shape (n,)."""
+    """Log-spaced fit frequencies in Hz, shape (n,).
+
+    Parameters
+    ----------
+    band_hz : (float, float), optional
+        First and last frequency, Hz; :data:`FIT_BAND_HZ` by default.
+    n : int, optional
+        Number of frequencies; :data:`N_FREQ` by default.
+    """
     return np.geomspace(band_hz[0], band_hz[1], n)
 
 
 def eqn5_response(f_hz: np.ndarray, params: LiteralHumanParams | None = None) -> np.ndarray:
-    """Frequency response of the paper's Eqn 5, ``K_H (s+z1)^2 / (s^2 (s+p1)^2)`` at ``s = j 2 pi f``."""
+    """Frequency response of the paper's Eqn 5, ``K_H (s+z1)^2 / (s^2 (s+p1)^2)``.
+
+    Parameters
+    ----------
+    f_hz : array_like
+        Frequencies in Hz (nonzero: Eqn 5 has a double pole at the origin).
+    params : LiteralHumanParams, optional
+        Gain, double zero and double pole of Eqn 5; the paper's values when omitted.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex response ``H/C`` at ``s = j 2 pi f``, the shape of ``f_hz``, in the
+        paper's units of ``h`` per unit of ``c``.
+    """
     p = params or LiteralHumanParams()
     s = 2j * np.pi * np.asarray(f_hz, float)
     return p.k_h * (s + p.z1) ** 2 / (s**2 * (s + p.p1) ** 2)
 
 
 def chain_response(f_hz, masses, stiffnesses, dampings) -> np.ndarray:
-    """Relative motion of the last mass of a seated chain per unit seat acceleration, m/(m/s^2).
+    """Relative motion of the last mass of a seated chain per unit seat acceleration.
 
     The chain is seat - (k0, c0) - m0 - (k1, c1) - m1 - ...; in coordinates relative
-    to the seat, ``M z'' + C z' + K z = -M 1 a``. Returns ``z_last / a`` at
-    ``s = j 2 pi f``, shape (len(f_hz),).
+    to the seat, ``M z'' + C z' + K z = -M 1 a``.
+
+    Parameters
+    ----------
+    f_hz : array_like
+        Frequencies in Hz, shape (F,).
+    masses : array_like
+        Masses from the seat outward, kg, shape (n,).
+    stiffnesses : array_like
+        Stiffness of the spring below each mass (``k0`` between seat and ``m0``),
+        N/m, shape (n,).
+    dampings : array_like
+        Damping of the damper below each mass, N s/m, shape (n,).
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex ``z_last / a`` at ``s = j 2 pi f``, in m/(m/s^2), shape (F,).
     """
     m = np.asarray(masses, float)
     k = np.asarray(stiffnesses, float)
@@ -214,8 +255,6 @@ def run_fit() -> dict:
     dict
         ``{"two_dof": fit_chain(...), "three_dof": fit_chain(...), "settings": {...}}``.
     """
-    from robust.model.anthropometry import NOMINAL_BODY_MASS, segment_masses
-
     seg = segment_masses(NOMINAL_BODY_MASS)
     two = fit_chain([seg["trunk"], seg["arm"]])
     three = fit_chain([seg["trunk"], seg["upper_arm"], seg["forearm_hand"]], n_starts=N_STARTS_3DOF)
@@ -235,17 +274,16 @@ def run_fit() -> dict:
     }
 
 
-_DATA_HEADER = '''"""Stored result of :func:`robust.model.human_fit.run_fit` (generated; do not edit by hand).
-
-Regenerate with ``python -m robust.model.human_fit --write``.
-"""
-
-'''
+_DATA_HEADER = (
+    '"""Stored result of :func:`robust.model.human_fit.run_fit` (generated; do not edit by hand).\n'
+    "\n"
+    "Regenerate with ``python -m robust.model.human_fit --write``.\n"
+    '"""\n'
+    "\n"
+)
 
 
 def _write_data(result: dict) -> Path:
-    from robust.jsonio import atomic_write_text
-
     path = Path(__file__).with_name("_human_fit_data.py")
     text = (
         _DATA_HEADER + "FIT_RESULT = " + pprint.pformat(result, width=100, sort_dicts=True) + "\n"

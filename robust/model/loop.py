@@ -11,7 +11,9 @@
 
 ``u`` is the operator's intended handle motion, ``h`` the hand's motion relative
 to the seat caused by cab acceleration ``c``. Without BDFT the outer path is
-removed (``x = u``).
+removed (``x = u``). The static junctions come from the one table of
+:mod:`robust.model.wiring`, which the force-feedback plant and the batched family
+assembly consume too.
 
 The paper leaves three things out, made explicit here as :class:`LoopCalibration`:
 the PI gains, the sign ``sigma`` at the handle junction, and one loop-scale
@@ -28,18 +30,19 @@ import control as ct
 
 from robust.checks import NONNEGATIVE as NONNEG
 from robust.checks import POSITIVE, check_scalar, validate_fields
-from robust.errors import ParameterError
+from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import (
     K_PSF_NOMINAL,
     PIParams,
     StructureParams,
     ValveCylinderParams,
     pi_controller,
-    position_scale,
     structure,
     valve_cylinder,
 )
+from robust.model.device import DeviceLimits
 from robust.model.human import HumanModel, LiteralHuman
+from robust.model.wiring import CONTROLLER_FORCE, Junction, connect, figure5_junctions, renamed
 
 __all__ = [
     "LoopCalibration",
@@ -86,6 +89,7 @@ class LoopCalibration:
 
     @property
     def pi(self) -> PIParams:
+        """The PI gains as :class:`robust.model.components.PIParams`."""
         return PIParams(kp=self.kp, ki=self.ki)
 
 
@@ -126,47 +130,155 @@ class BDFTLoop:
         validate_fields(self, {"k_psf": POSITIVE})
         if not isinstance(self.human, HumanModel):
             raise ParameterError(
-                f"BDFTLoop.human must implement robust.model.human.HumanModel; got {type(self.human).__name__}"
+                "BDFTLoop.human must implement robust.model.human.HumanModel; "
+                f"got {type(self.human).__name__}"
             )
 
     def replace(self, **changes) -> BDFTLoop:
+        """A copy with ``changes`` applied (``dataclasses.replace``).
+
+        Parameters
+        ----------
+        **changes
+            Field values to change.
+        """
         return dataclasses.replace(self, **changes)
 
     def with_workspace_factor(self, factor: float) -> BDFTLoop:
-        """The same loop with the handle workspace multiplied by ``factor`` (``K_PSF / factor``)."""
+        """The same loop with the handle workspace multiplied by ``factor`` (``K_PSF / factor``).
+
+        Parameters
+        ----------
+        factor : float
+            Workspace factor (> 0).
+        """
         f = check_scalar("factor", factor, POSITIVE)
         return self.replace(k_psf=self.k_psf / f)
 
+    @property
+    def handle_gain(self) -> float:
+        """``sigma * kappa``: handle units per unit of the human's output ``h``."""
+        return self.calibration.handle_sign * self.calibration.loop_scale
+
+    def handle_units_per_m(self, *, signed: bool = False) -> float:
+        """Handle units per metre of hand (= handle) motion: ``|sigma * kappa * h_gain|``.
+
+        Parameters
+        ----------
+        signed : bool
+            Keep the sign of the handle axis (``sigma * kappa * h_gain``).
+
+        Raises
+        ------
+        ModelStructureError
+            If the human variant has no metric unit gain ``h_gain`` (the literal Eqn 5).
+        """
+        h_gain = getattr(getattr(self.human, "params", None), "h_gain", None)
+        if h_gain is None:
+            raise ModelStructureError(
+                f"handle units need a human model with a metric unit gain (h_gain); the "
+                f"{self.human.variant!r} variant has none. Use the physical human."
+            )
+        g = self.handle_gain * h_gain
+        return g if signed else abs(g)
+
+    def intended_amplitude(self, limits: DeviceLimits, fraction: float) -> float:
+        """Amplitude of the operator's intended motion ``u``, in handle units.
+
+        ``fraction`` of half the handle workspace this loop gives the operator (the
+        device's workspace times ``K_PSF_NOMINAL / k_psf``), converted to handle units
+        (:meth:`handle_units_per_m`).
+
+        Parameters
+        ----------
+        limits : DeviceLimits
+            The device (its fore-aft workspace).
+        fraction : float
+            Fraction of the half-workspace, in (0, 1].
+        """
+        factor = K_PSF_NOMINAL / self.k_psf
+        return limits.intended_amplitude_m(fraction, workspace_factor=factor) * (
+            self.handle_units_per_m()
+        )
+
     # -- blocks ---------------------------------------------------------------------
-    def blocks(self, *, bdft: bool = True, controller: ct.StateSpace | None = None) -> list:
-        """The named blocks of the loop (see the module diagram).
+    def junctions(
+        self,
+        *,
+        bdft: bool = True,
+        reference_correction: bool = False,
+        force_terms: tuple[str, ...] = (),
+    ) -> tuple[Junction, ...]:
+        """This loop's rows of the Figure 5 junction table (:func:`figure5_junctions`).
+
+        Parameters
+        ----------
+        bdft : bool
+            With the feedthrough path.
+        reference_correction : bool
+            With a correction ``r_corr`` of the cylinder reference.
+        force_terms : tuple of str
+            Signals summed into the hand force ``f``.
+        """
+        return figure5_junctions(
+            k_psf=self.k_psf,
+            handle_gain=self.handle_gain,
+            bdft=bdft,
+            reference_correction=reference_correction,
+            force_terms=force_terms,
+        )
+
+    def blocks(
+        self,
+        *,
+        bdft: bool = True,
+        controller: ct.StateSpace | None = None,
+        reference_correction: bool = False,
+        external_force: bool = False,
+    ) -> list:
+        """The named blocks of the loop: dynamic blocks and the junction table.
 
         With a ``controller`` (inputs among ``x, c, y``; outputs among ``f, r_corr``)
-        the cylinder reference becomes ``K_PSF x + r_corr`` and ``f`` drives the
-        human's force port.
+        the cylinder reference becomes ``K_PSF x + r_corr`` and the controller's force
+        (renamed :data:`CONTROLLER_FORCE` inside the loop) drives the hand force ``f``.
+        Without a controller force and without ``external_force``, the human's force
+        input ``f`` is left open for the caller (a generalized plant's control input).
+
+        Parameters
+        ----------
+        bdft : bool
+            With the feedthrough path (structure, human, handle junction).
+        controller : control.StateSpace, optional
+            The compensator, in the loop's signal convention.
+        reference_correction : bool
+            Add ``r_corr`` to the cylinder reference even without a controller that
+            drives it (an open input for a generalized plant).
+        external_force : bool
+            Sum an external force ``f_ext`` into the hand force.
         """
-        cal = self.calibration
-        ref_terms = ["r"]
+        force_terms = []
+        rc = reference_correction
         if controller is not None:
             _check_controller(controller, self.human, bdft)
-            if "r_corr" in controller.output_labels:
-                ref_terms.append("r_corr")
-        cyl_err = ct.summing_junction(inputs=[*ref_terms, "-y"], output="err", name="cyl_err")
-        blocks = [
-            position_scale(self.k_psf),
-            cyl_err,
-            pi_controller(cal.pi),
-            valve_cylinder(self.valve),
-        ]
+            rc = rc or "r_corr" in controller.output_labels
+            if "f" in controller.output_labels:
+                force_terms.append(CONTROLLER_FORCE)
+        if external_force:
+            if not (bdft and self.human.has_force_port):
+                raise ModelStructureError(
+                    f"an external hand force needs the BDFT loop and a human with a force port; "
+                    f"got bdft={bdft}, human {self.human.variant!r}"
+                )
+            force_terms.insert(0, "f_ext")
+        blocks = [pi_controller(self.calibration.pi), valve_cylinder(self.valve)]
+        if bdft:
+            blocks += [structure(self.struct), self.human.system()]
         if controller is not None:
-            blocks.append(controller)
-        if not bdft:
-            handle = ct.summing_junction(inputs=["u"], output="x", name="handle")
-            return blocks + [handle]
-        gain = cal.handle_sign * cal.loop_scale
-        scale = ct.ss([], [], [], [[gain]], inputs="h", outputs="h_cmd", name="loop_scale")
-        handle = ct.summing_junction(inputs=["u", "h_cmd"], output="x", name="handle")
-        return blocks + [structure(self.struct), self.human.system(), scale, handle]
+            blocks.append(renamed(controller, {"f": CONTROLLER_FORCE}))
+        junctions = self.junctions(
+            bdft=bdft, reference_correction=rc, force_terms=tuple(force_terms)
+        )
+        return blocks + [j.system() for j in junctions]
 
     def system(
         self,
@@ -181,31 +293,30 @@ class BDFTLoop:
         are not available. A human variant with a force port gets the extra
         exogenous input ``f_ext`` (a force on the hand, N) added to the
         controller's force, so force disturbances can be studied.
+
+        Parameters
+        ----------
+        bdft : bool
+            With the feedthrough path.
+        controller : control.StateSpace, optional
+            The compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
+        outputs : list of str, optional
+            Output signals (default ``y, c, h, x, e``; ``y, x, e`` without BDFT); the
+            controller's ``f`` and ``r_corr`` are appended when it drives them.
         """
         outs = list(outputs or (LOOP_OUTPUTS if bdft else ["y", "x", "e"]))
         inputs = ["u"]
-        blocks = self.blocks(bdft=bdft, controller=controller)
-        if bdft and self.human.has_force_port:
-            terms = ["f_ext"]
-            if controller is not None and "f" in controller.output_labels:
-                terms.append("f_ctrl")
-                blocks = [
-                    _rename_output(b, "f", "f_ctrl") if b is controller else b for b in blocks
-                ]
-            blocks.append(ct.summing_junction(inputs=terms, output="f", name="hand_force"))
+        external = bdft and self.human.has_force_port
+        if external:
             inputs.append("f_ext")
-            if controller is not None and "f" in controller.output_labels and "f" not in outs:
-                outs.append("f")
-        if controller is not None and "r_corr" in controller.output_labels and "r_corr" not in outs:
-            outs.append("r_corr")
-        return ct.interconnect(
+        blocks = self.blocks(bdft=bdft, controller=controller, external_force=external)
+        if controller is not None:
+            for s in ("f", "r_corr"):
+                if s in controller.output_labels and s not in outs:
+                    outs.append(s)
+        return connect(
             blocks, inputs=inputs, outputs=outs, name="bdft_loop" if bdft else "no_bdft_loop"
         )
-
-
-def _rename_output(sys: ct.StateSpace, old: str, new: str) -> ct.StateSpace:
-    labels = [new if lab == old else lab for lab in sys.output_labels]
-    return ct.ss(sys.A, sys.B, sys.C, sys.D, inputs=sys.input_labels, outputs=labels, name=sys.name)
 
 
 #: Signals a controller may measure and drive.
@@ -214,8 +325,6 @@ CONTROLLER_OUTPUTS = ("f", "r_corr")
 
 
 def _check_controller(controller, human: HumanModel, bdft: bool) -> None:
-    from robust.errors import ModelStructureError
-
     if not isinstance(controller, ct.StateSpace):
         raise ModelStructureError(
             f"controller must be a control.StateSpace; got {type(controller).__name__}"
@@ -229,12 +338,14 @@ def _check_controller(controller, human: HumanModel, bdft: bool) -> None:
     bad_out = [s for s in controller.output_labels if s not in CONTROLLER_OUTPUTS]
     if bad_in or bad_out:
         raise ModelStructureError(
-            f"controller inputs must be among {CONTROLLER_INPUTS} and outputs among {CONTROLLER_OUTPUTS}; "
+            f"controller inputs must be among {CONTROLLER_INPUTS} and outputs among "
+            f"{CONTROLLER_OUTPUTS}; "
             f"got inputs {controller.input_labels}, outputs {controller.output_labels}"
         )
     if "f" in controller.output_labels and not (bdft and human.has_force_port):
         raise ModelStructureError(
-            f"controller drives the handle force 'f', but the human variant {human.variant!r} has no force port"
+            "controller drives the handle force 'f', but the human variant "
+            f"{human.variant!r} has no force port"
             + ("" if bdft else " (and the loop is built without BDFT)")
         )
     if not bdft and "c" in controller.input_labels:

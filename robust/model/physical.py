@@ -1,4 +1,6 @@
-"""Physical human model: a seated operator as a fore-aft mass-spring-damper chain with a force port.
+"""Physical human model: a seated operator as a fore-aft mass-spring-damper chain.
+
+The chain has a force port: the handle pushes on the hand.
 
 ::
 
@@ -6,7 +8,7 @@
        |---[k_trunk]---|      +-------+  ---[k_arm]---   +-------+  <--- f (N)
        |---[c_trunk]---|------| m_trunk|------------------| m_arm |
        |               |      +-------+  ---[c_arm]---   +-------+
-       ^ seat acceleration a = c_unit * c                 z_arm: hand motion relative to the seat
+       ^ seat acceleration a = c_unit * c     z_arm: hand motion relative to the seat
 
 Two degrees of freedom, in coordinates relative to the seat (``z`` positive
 forward): the upper body (trunk, head-neck and the idle arm) on the seat, and the
@@ -170,10 +172,29 @@ def physical_human_matrices(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_ga
 
 @dataclasses.dataclass(frozen=True)
 class PhysicalHuman:
-    """Physical human variant of the BDFT loop (implements :class:`robust.model.human.HumanModel`).
+    """Physical human variant of the BDFT loop.
 
-    Inputs ``c`` (seat acceleration, paper's units) and ``f`` (force of the handle
-    on the hand, N); output ``h`` (hand motion relative to the seat, paper's units).
+    Implements :class:`robust.model.human.HumanModel`. Inputs ``c`` (seat
+    acceleration, paper's units) and ``f`` (force of the handle on the hand, N);
+    output ``h`` (hand motion relative to the seat, paper's units).
+
+    Parameters
+    ----------
+    params : PhysicalHumanParams, optional
+        Masses, stiffnesses, dampings and unit conversions of the chain; the fit to
+        Eqn 5 for a 75 kg operator when omitted. For a moved handle these are the
+        already scaled values (see :meth:`with_handle_offset`).
+    handle_offset_m : float, optional
+        Fore-aft offset of the handle from the nominal grip, m (forward positive),
+        that ``params`` correspond to; 0 by default. Bookkeeping only: the system
+        is built from ``params``.
+
+    Attributes
+    ----------
+    variant : str
+        Always ``"physical"`` (not a constructor argument).
+    has_force_port : bool
+        Always True (not a constructor argument).
     """
 
     params: PhysicalHumanParams = dataclasses.field(default_factory=PhysicalHumanParams)
@@ -184,7 +205,8 @@ class PhysicalHuman:
     def __post_init__(self):
         if not isinstance(self.params, PhysicalHumanParams):
             raise ParameterError(
-                f"PhysicalHuman.params must be PhysicalHumanParams; got {type(self.params).__name__}"
+                "PhysicalHuman.params must be PhysicalHumanParams; "
+                f"got {type(self.params).__name__}"
             )
         object.__setattr__(
             self,
@@ -195,12 +217,32 @@ class PhysicalHuman:
     def with_handle_offset(
         self, dx_m: float, *, geometry: ArmGeometry | None = None
     ) -> PhysicalHuman:
-        """The same operator with the handle moved ``dx_m`` metres forward (paper's C5: +-4 in = +-0.1016 m).
+        """The same operator with the handle moved ``dx_m`` metres forward.
 
-        The arm's fore-aft stiffness and damping are scaled by the two-link arm
-        geometry of :class:`robust.model.arm.ArmGeometry` (its declared assumptions
-        apply); the masses and the trunk do not change. ``params`` hold the scaled
-        values, ``handle_offset_m`` the offset from the nominal grip.
+        The paper's claim C5 moves it by +-4 in = +-0.1016 m. The arm's fore-aft
+        stiffness and damping are scaled by the two-link arm geometry of
+        :class:`robust.model.arm.ArmGeometry` (its declared assumptions apply); the
+        masses and the trunk do not change. ``params`` hold the scaled values,
+        ``handle_offset_m`` the offset from the nominal grip.
+
+        Parameters
+        ----------
+        dx_m : float
+            Further handle displacement, m, forward positive, added to the current
+            ``handle_offset_m``.
+        geometry : ArmGeometry, optional
+            Arm geometry that gives the stiffness scale; ``ArmGeometry()`` (1.75 m
+            operator, nominal grip) when omitted.
+
+        Returns
+        -------
+        PhysicalHuman
+            A new instance; this one is unchanged.
+
+        Raises
+        ------
+        robust.errors.ParameterError
+            If ``dx_m`` is not finite or the new grip is out of the arm's reach.
         """
         dx = check_scalar("dx_m", dx_m)
         g = geometry or ArmGeometry()
@@ -212,12 +254,39 @@ class PhysicalHuman:
 
     @classmethod
     def for_body_mass(cls, body_mass: float, **changes) -> PhysicalHuman:
-        """Nominal joints with the masses of an operator of ``body_mass`` kg (Winter's fractions)."""
+        """Nominal joints with the masses of an operator of ``body_mass`` kg.
+
+        Parameters
+        ----------
+        body_mass : float
+            Body mass in kg, > 0; trunk and arm masses follow Winter's segment
+            fractions (:func:`robust.model.anthropometry.segment_masses`).
+        **changes
+            Further :class:`PhysicalHumanParams` fields to override (``k_arm=...``);
+            ``m_trunk`` and ``m_arm`` are set from ``body_mass`` and may not be
+            given.
+
+        Returns
+        -------
+        PhysicalHuman
+            The operator at the nominal handle position.
+        """
         bm = check_scalar("body_mass", body_mass, POSITIVE)
         seg = segment_masses(bm)
         return cls(PhysicalHumanParams(m_trunk=seg["trunk"], m_arm=seg["arm"], **changes))
 
     def system(self, *, name: str = "human") -> ct.StateSpace:
+        """Named state-space system of the chain.
+
+        Inputs ``c`` (seat acceleration, paper's units) and ``f`` (N); output ``h``;
+        states ``z_trunk, z_arm`` (m) and ``v_trunk, v_arm`` (m/s), relative to the
+        seat.
+
+        Parameters
+        ----------
+        name : str, optional
+            System name given to the python-control system, ``"human"`` by default.
+        """
         A, B, C, D = (x[0] for x in physical_human_matrices(**dataclasses.asdict(self.params)))
         return ct.ss(
             A,
@@ -231,9 +300,11 @@ class PhysicalHuman:
         )
 
     def describe(self) -> dict:
+        """Variant, model, parameters with their units and handle offset, JSON-ready."""
         return {
             "variant": self.variant,
-            "model": "2-DOF seated chain: seat-(k_trunk, c_trunk)-trunk-(k_arm, c_arm)-arm/hand, force port on the hand",
+            "model": "2-DOF seated chain: seat-(k_trunk, c_trunk)-trunk-(k_arm, c_arm)-arm/hand, "
+            "force port on the hand",
             **dataclasses.asdict(self.params),
             "handle_offset_m": self.handle_offset_m,
             "units": dict(_UNITS),
@@ -267,9 +338,11 @@ def fit_summary() -> dict:
     p = PhysicalHumanParams()
     modes = p.modes()
     return {
-        "model": "2-DOF seated chain (trunk on the seat, arm and hand on the trunk), force port on the hand",
+        "model": "2-DOF seated chain (trunk on the seat, arm and hand on the trunk), "
+        "force port on the hand",
         "fit band [Hz]": f"{st['band_hz'][0]:g}-{st['band_hz'][1]:g}",
-        "fitted quantity": "magnitude in dB (least squares, log-spaced grid); gain sign chosen by phase",
+        "fitted quantity": "magnitude in dB (least squares, log-spaced grid); "
+        "gain sign chosen by phase",
         "fit error, magnitude [dB]": {"max": two["err_db_max"], "rms": two["err_db_rms"]},
         "fit error, phase [deg]": {"max": two["err_deg_max"], "rms": two["err_deg_rms"]},
         "masses [kg]": {"m_trunk": p.m_trunk, "m_arm": p.m_arm, "body_mass": st["body_mass_kg"]},
@@ -286,12 +359,14 @@ def fit_summary() -> dict:
             "err_db_rms": three["err_db_rms"],
             "err_deg_rms": three["err_deg_rms"],
             "parameters at search bounds": ", ".join(three["at_bounds"]) or "none",
-            "retained": "no: the extra degree of freedom lowers the magnitude error only with a joint damping "
-            "driven to the search bound (an undamped joint), and the phase error grows",
+            "retained": "no: the extra degree of freedom lowers the magnitude error only with "
+            "a joint damping driven to the search bound (an undamped joint), and the phase "
+            "error grows",
         },
-        "masses from": "Winter, Biomechanics and Motor Control of Human Movement (2009), Table 4.1 fractions",
-        "handle position (C5)": "arm stiffness and damping scaled by a two-link sagittal arm (robust.model.arm: "
-        "equal shoulder and elbow stiffness, Winter's segment lengths, grip 0.30 m forward "
-        "and 0.35 m below the shoulder)",
+        "masses from": "Winter, Biomechanics and Motor Control of Human Movement (2009), "
+        "Table 4.1 fractions",
+        "handle position (C5)": "arm stiffness and damping scaled by a two-link sagittal arm "
+        "(robust.model.arm: equal shoulder and elbow stiffness, Winter's segment lengths, "
+        "grip 0.30 m forward and 0.35 m below the shoulder)",
         "regenerate with": "python -m robust.model.human_fit --write",
     }

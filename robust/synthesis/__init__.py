@@ -1,17 +1,25 @@
-"""H-infinity synthesis: the generalized plant, the force-feedback plant, LMI synthesis
-(nominal and multi-model) in cvxpy, and the solve wrapper.
+"""H-infinity synthesis: the generalized plant, the force-feedback plant, assumption
+checks, plant scaling, LMI synthesis (nominal and multi-model) in cvxpy, and the
+solve wrapper.
+
+Modules: :mod:`.genplant` (the plant), :mod:`.forcefb` (the force-feedback plant),
+:mod:`.assumptions` (checks before any solve), :mod:`.scaling` (apply/invert pairs),
+:mod:`.lmi` (LMI builders), :mod:`.solve` (the solver wrapper), :mod:`.nominal`
+(:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`), :mod:`.testing`
+(seeded test plants).
 """
 
+from robust.synthesis.assumptions import (
+    check_detectable,
+    check_hinf_assumptions,
+    check_regularity,
+    check_stabilisable,
+)
 from robust.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
-from robust.synthesis.hinfsyn import (
-    HinfResult,
-    LMISynthesisProblem,
-    MultiHinfResult,
-    check_hinf_assumptions,
-    hinfsyn_lmi,
-    hinfsyn_multi,
-)
+from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
+from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
+from robust.synthesis.scaling import D22Removal, PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem
 
 __all__ = [
@@ -24,8 +32,13 @@ __all__ = [
     "LMISynthesisProblem",
     "MultiHinfResult",
     "check_hinf_assumptions",
+    "check_stabilisable",
+    "check_detectable",
+    "check_regularity",
     "hinfsyn_lmi",
     "hinfsyn_multi",
+    "PlantScaling",
+    "D22Removal",
     "SolveResult",
     "solve_problem",
 ]

@@ -32,11 +32,14 @@ import dataclasses
 import math
 
 import control as ct
+import scipy.linalg as sla
 
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import ModelStructureError
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
+from robust.model.wiring import connect, renamed
+from robust.synthesis.genplant import GeneralizedPlant
 
 __all__ = [
     "ForceFeedbackWeights",
@@ -44,6 +47,8 @@ __all__ = [
     "handle_units_per_m",
     "intent_filter",
     "as_loop_controller",
+    "as_plant_controller",
+    "PLANT_MEASUREMENTS",
     "FORCE_PLANT_SIGNALS",
 ]
 
@@ -59,17 +64,14 @@ FORCE_PLANT_SIGNALS = {
 def handle_units_per_m(loop: BDFTLoop) -> float:
     """Handle units per metre of handle (= hand) motion: ``|kappa * h_gain|``.
 
-    Needs a human variant whose parameters carry the unit gain ``h_gain`` (paper's
-    ``h`` units per metre), i.e. the physical human.
+    Shorthand for :meth:`robust.model.loop.BDFTLoop.handle_units_per_m`.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        A loop whose human has a metric unit gain (the physical human).
     """
-    params = getattr(loop.human, "params", None)
-    h_gain = getattr(params, "h_gain", None)
-    if h_gain is None:
-        raise ModelStructureError(
-            f"handle units need a human model with a metric unit gain (h_gain); the {loop.human.variant!r} "
-            "variant has none. Use the physical human."
-        )
-    return abs(loop.calibration.loop_scale * h_gain)
+    return loop.handle_units_per_m()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,7 +125,17 @@ class ForceFeedbackWeights:
 
 
 def intent_filter(bandwidth_hz: float, amplitude: float, *, name: str = "intent") -> ct.StateSpace:
-    """Second-order Butterworth low-pass ``w_u -> u`` with DC gain ``amplitude``."""
+    """Second-order Butterworth low-pass ``w_u -> u`` with DC gain ``amplitude``.
+
+    Parameters
+    ----------
+    bandwidth_hz : float
+        Corner frequency, Hz.
+    amplitude : float
+        DC gain (the intended-motion amplitude in handle units).
+    name : str
+        System name.
+    """
     w = 2 * math.pi * bandwidth_hz
     g = ct.tf([amplitude * w * w], [1.0, math.sqrt(2.0) * w, w * w])
     return ct.ss(g, inputs="w_u", outputs="u", name=name)
@@ -142,6 +154,22 @@ def force_feedback_plant(
 ):
     """Generalized plant ``P`` for handle-force feedback on ``loop`` (physical human).
 
+    The Figure 5 loop comes from ``loop.blocks`` (the junction table of
+    :mod:`robust.model.wiring`) with the human's force input ``f`` (and ``r_corr``)
+    left open as control inputs; the weights and noise models are added around it.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The member (physical human with a force port).
+    weights : ForceFeedbackWeights, optional
+        Weights (default: the documented defaults).
+    limits : DeviceLimits, optional
+        Device limits: force scale, encoder resolution, workspace (default: the Omni's).
+    reference_correction : bool
+        Add the cylinder-reference correction ``r_corr`` as a second control input,
+        penalised by ``z_r``.
+
     Returns
     -------
     robust.synthesis.genplant.GeneralizedPlant
@@ -151,36 +179,22 @@ def force_feedback_plant(
         ``[x_m, c_m]`` and gives ``f``; :func:`as_loop_controller` renames it to the
         loop's ``x, c -> f``.
     """
-    from robust.model.components import pi_controller, position_scale, structure, valve_cylinder
-    from robust.synthesis.genplant import GeneralizedPlant
-
     wts = weights or ForceFeedbackWeights()
     lim = limits or DeviceLimits()
     if not loop.human.has_force_port:
         raise ModelStructureError(
             f"force feedback needs a human with a force port; {loop.human.variant!r} has none"
         )
-    upm = handle_units_per_m(loop)
-    amp = wts.intent_fraction * (lim.workspace_mm / 2) * 1e-3 * upm  # handle units
-    cal = loop.calibration
+    upm = loop.handle_units_per_m()
+    amp = loop.intended_amplitude(lim, wts.intent_fraction)  # handle units
     y_scale = loop.k_psf * amp  # intended cylinder motion amplitude
-    blocks = [
-        intent_filter(wts.intent_bandwidth_hz, amp),
-        position_scale(loop.k_psf),
-        ct.summing_junction(
-            inputs=["r", "r_corr", "-y"] if reference_correction else ["r", "-y"],
-            output="err",
-            name="cyl_err",
-        ),
-        pi_controller(cal.pi),
-        valve_cylinder(loop.valve),
-        structure(loop.struct),
-        loop.human.system(),
-        _static(cal.handle_sign * cal.loop_scale, "h", "h_cmd", "loop_scale"),
-        ct.summing_junction(inputs=["u", "h_cmd"], output="x", name="handle"),
-    ]
+    # the Figure 5 loop with the human's force input f (and r_corr) left open
+    blocks = [intent_filter(wts.intent_bandwidth_hz, amp)]
+    blocks += loop.blocks(bdft=True, reference_correction=reference_correction)
     ref = loop.system(bdft=False, outputs=["y"])
-    blocks.append(ct.ss(ref.A, ref.B, ref.C, ref.D, inputs="u", outputs="y_ref", name="reference"))
+    blocks.append(
+        ct.ss(ref.A, ref.B, ref.C, ref.D, inputs="u", outputs="y_ref", name="y_reference")
+    )
     blocks.append(ct.summing_junction(inputs=["y", "-y_ref"], output="e_trk", name="trk_err"))
     wt = 2 * math.pi * wts.tracking_bandwidth_hz
     we = ct.tf([wt / (wts.tracking_error * y_scale)], [1.0, wt])
@@ -203,9 +217,7 @@ def force_feedback_plant(
         z.append("z_r")
         u.append("r_corr")
     w, y = ["w_u", "n_x", "n_c"], ["x_m", "c_m"]
-    sys = _balanced(
-        ct.interconnect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant")
-    )
+    sys = _balanced(connect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant"))
     return GeneralizedPlant.from_system(sys, w=w, u=u, z=z, y=y)
 
 
@@ -216,8 +228,6 @@ def _balanced(sys: ct.StateSpace) -> ct.StateSpace:
     balancing makes rank decisions (stabilisability, detectability) and the LMI
     solve better conditioned without changing any input-output behaviour.
     """
-    import scipy.linalg as sla
-
     _, (scale, _) = sla.matrix_balance(sys.A, permute=False, separate=True)
     A = sys.A * (1.0 / scale)[:, None] * scale[None, :]
     return ct.ss(
@@ -231,15 +241,40 @@ def _balanced(sys: ct.StateSpace) -> ct.StateSpace:
     )
 
 
+#: Measured signals: names in the loop -> names in the generalized plant.
+PLANT_MEASUREMENTS = {"x": "x_m", "c": "c_m", "y": "y_m"}
+
+
 def as_loop_controller(K: ct.StateSpace, *, name: str = "K") -> ct.StateSpace:
-    """Rename a controller synthesised on :func:`force_feedback_plant` (``x_m, c_m -> f[, r_corr]``) to ``x, c -> ...``."""
-    rename = {"x_m": "x", "c_m": "c", "y_m": "y"}
-    ins = [rename.get(s, s) for s in K.input_labels]
-    outs = list(K.output_labels)
-    if K.noutputs == 1:
-        outs = ["f"]
-    if len(ins) != K.ninputs or outs not in (["f"], ["f", "r_corr"]):
+    """Rename a controller synthesised on :func:`force_feedback_plant` to the loop's signals.
+
+    ``x_m, c_m -> f[, r_corr]`` becomes ``x, c -> f[, r_corr]`` (a single output is
+    the force ``f``).
+
+    Parameters
+    ----------
+    K : control.StateSpace
+        Controller in the generalized plant's convention.
+    name : str
+        Name of the result.
+    """
+    outs = ["f"] if K.noutputs == 1 else list(K.output_labels)
+    if outs not in (["f"], ["f", "r_corr"]):
         raise ModelStructureError(
-            f"expected a controller x_m, c_m -> f (or f, r_corr); got {K.input_labels} -> {K.output_labels}"
+            f"expected a controller x_m, c_m -> f (or f, r_corr); got {K.input_labels} -> "
+            f"{K.output_labels}"
         )
-    return ct.ss(K.A, K.B, K.C, K.D, inputs=ins, outputs=outs, name=name)
+    inverse = {v: k for k, v in PLANT_MEASUREMENTS.items()}
+    mapping = dict(inverse, **dict(zip(K.output_labels, outs)))
+    return renamed(K, mapping, name=name)
+
+
+def as_plant_controller(K: ct.StateSpace) -> ct.StateSpace:
+    """Rename a loop controller (``x, c, y -> ...``) to the generalized plant's ``x_m, c_m, y_m``.
+
+    Parameters
+    ----------
+    K : control.StateSpace
+        Controller in the loop's convention.
+    """
+    return renamed(K, PLANT_MEASUREMENTS)

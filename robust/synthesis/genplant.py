@@ -68,17 +68,19 @@ class GeneralizedPlant:
             )
         if len(self.w) + len(self.u) != sys.ninputs or len(self.z) + len(self.y) != sys.noutputs:
             raise ModelStructureError(
-                f"partition sizes w={len(self.w)}, u={len(self.u)}, z={len(self.z)}, y={len(self.y)} "
-                f"do not match sys with {sys.ninputs} inputs and {sys.noutputs} outputs"
+                f"partition sizes w={len(self.w)}, u={len(self.u)}, z={len(self.z)}, "
+                f"y={len(self.y)} do not match sys with {sys.ninputs} inputs and "
+                f"{sys.noutputs} outputs"
             )
         if not self.u or not self.y:
             raise ModelStructureError(
-                f"a generalized plant needs at least one control input and one measurement; got u={self.u}, y={self.y}"
+                "a generalized plant needs at least one control input and one measurement; "
+                f"got u={self.u}, y={self.y}"
             )
         if not self.w or not self.z:
             raise ModelStructureError(
-                f"a generalized plant needs at least one exogenous input and one performance output; "
-                f"got w={self.w}, z={self.z}"
+                "a generalized plant needs at least one exogenous input and one performance "
+                f"output; got w={self.w}, z={self.z}"
             )
 
     # ------------------------------------------------------------------ constructors
@@ -124,9 +126,23 @@ class GeneralizedPlant:
 
     @classmethod
     def from_counts(cls, sys, *, nmeas: int, ncon: int) -> GeneralizedPlant:
-        """Partition by counts: the last ``ncon`` inputs are controls, the last ``nmeas`` outputs measurements.
+        """Partition by counts, in the calling convention of :func:`control.hinfsyn`.
 
-        This is the calling convention of :func:`control.hinfsyn`.
+        The last ``ncon`` inputs are controls and the last ``nmeas`` outputs measurements.
+
+        Parameters
+        ----------
+        sys : control.StateSpace or any LTI system python-control can convert
+            System with inputs ``w + u`` and outputs ``z + y``.
+        nmeas : int
+            Number of measurements (the last outputs), in ``[1, noutputs - 1]``.
+        ncon : int
+            Number of controls (the last inputs), in ``[1, ninputs - 1]``.
+
+        Raises
+        ------
+        ModelStructureError
+            If a count is not an integer in its range.
         """
         sys = control.ss(sys)
         for label, val, top in (("nmeas", nmeas, sys.noutputs), ("ncon", ncon, sys.ninputs)):
@@ -155,71 +171,94 @@ class GeneralizedPlant:
         missing = [s for s in available if s not in seen]
         if missing:
             raise ModelStructureError(
-                f"{kind}s {missing} are in no partition; list each {kind} in exactly one of {list(parts)}"
+                f"{kind}s {missing} are in no partition; list each {kind} in exactly one of "
+                f"{list(parts)}"
             )
 
     # ------------------------------------------------------------------ sizes and blocks
     @property
     def nx(self) -> int:
+        """Number of states."""
         return self.sys.nstates
 
     @property
     def nw(self) -> int:
+        """Number of exogenous inputs w."""
         return len(self.w)
 
     @property
     def nu(self) -> int:
+        """Number of controls u."""
         return len(self.u)
 
     @property
     def nz(self) -> int:
+        """Number of performance outputs z."""
         return len(self.z)
 
     @property
     def ny(self) -> int:
+        """Number of measurements y."""
         return len(self.y)
 
-    ncon = nu
-    nmeas = ny
+    @property
+    def ncon(self) -> int:
+        """Number of controls u (``nu``; the name of :func:`control.hinfsyn`)."""
+        return len(self.u)
+
+    @property
+    def nmeas(self) -> int:
+        """Number of measurements y (``ny``; the name of :func:`control.hinfsyn`)."""
+        return len(self.y)
 
     @property
     def dt(self):
+        """Time base of ``sys`` (0 for continuous time)."""
         return self.sys.dt
 
     @property
     def A(self) -> np.ndarray:
+        """State matrix."""
         return np.asarray(self.sys.A, dtype=float)
 
     @property
     def B1(self) -> np.ndarray:
+        """Input matrix of w."""
         return np.asarray(self.sys.B, dtype=float)[:, : self.nw]
 
     @property
     def B2(self) -> np.ndarray:
+        """Input matrix of u."""
         return np.asarray(self.sys.B, dtype=float)[:, self.nw :]
 
     @property
     def C1(self) -> np.ndarray:
+        """Output matrix of z."""
         return np.asarray(self.sys.C, dtype=float)[: self.nz, :]
 
     @property
     def C2(self) -> np.ndarray:
+        """Output matrix of y."""
         return np.asarray(self.sys.C, dtype=float)[self.nz :, :]
 
     @property
     def D11(self) -> np.ndarray:
+        """Feedthrough from w to z."""
         return np.asarray(self.sys.D, dtype=float)[: self.nz, : self.nw]
 
     @property
     def D12(self) -> np.ndarray:
+        """Feedthrough from u to z."""
         return np.asarray(self.sys.D, dtype=float)[: self.nz, self.nw :]
 
     @property
     def D21(self) -> np.ndarray:
+        """Feedthrough from w to y."""
         return np.asarray(self.sys.D, dtype=float)[self.nz :, : self.nw]
 
     @property
     def D22(self) -> np.ndarray:
+        """Feedthrough from u to y."""
         return np.asarray(self.sys.D, dtype=float)[self.nz :, self.nw :]
 
     def blocks(self) -> dict[str, np.ndarray]:
@@ -230,7 +269,19 @@ class GeneralizedPlant:
         }
 
     def with_blocks(self, **blocks) -> GeneralizedPlant:
-        """A new plant with some blocks replaced (same signal names and sizes)."""
+        """A new plant with some blocks replaced (same signal names and sizes).
+
+        Parameters
+        ----------
+        **blocks : array_like
+            Replacement blocks by name (``A``, ``B1``, ..., ``D22``), each of the
+            shape of the block it replaces.
+
+        Raises
+        ------
+        ModelStructureError
+            If a name is not a block or a shape does not match.
+        """
         b = self.blocks()
         for k, v in blocks.items():
             if k not in b:
@@ -255,7 +306,15 @@ class GeneralizedPlant:
         return GeneralizedPlant(sys, self.w, self.u, self.z, self.y)
 
     def closed_loop(self, K) -> control.StateSpace:
-        """The lower LFT ``F_l(P, K)`` from w to z with ``u = K y`` (positive feedback, as in :func:`control.hinfsyn`).
+        """The lower LFT ``F_l(P, K)`` from w to z with ``u = K y``.
+
+        Positive feedback, as in :func:`control.hinfsyn`; the closed loop's states are
+        the plant's, then the controller's.
+
+        Parameters
+        ----------
+        K : control.StateSpace or any LTI system python-control can convert
+            Controller from y (``ny`` inputs) to u (``nu`` outputs).
 
         Raises
         ------
@@ -266,7 +325,8 @@ class GeneralizedPlant:
         K = control.ss(K)
         if K.ninputs != self.ny or K.noutputs != self.nu:
             raise ModelStructureError(
-                f"K must have {self.ny} inputs (y) and {self.nu} outputs (u); got {K.ninputs} and {K.noutputs}"
+                f"K must have {self.ny} inputs (y) and {self.nu} outputs (u); "
+                f"got {K.ninputs} and {K.noutputs}"
             )
         A, B1, B2, C1, C2 = self.A, self.B1, self.B2, self.C1, self.C2
         D11, D12, D21, D22 = self.D11, self.D12, self.D21, self.D22
@@ -301,6 +361,14 @@ class GeneralizedPlant:
 def as_generalized_plant(P, nmeas: int | None = None, ncon: int | None = None) -> GeneralizedPlant:
     """Return ``P`` itself if it is a :class:`GeneralizedPlant`, else partition it by counts.
 
+    Parameters
+    ----------
+    P : GeneralizedPlant or control.StateSpace
+        The plant; a plain system is partitioned by :meth:`GeneralizedPlant.from_counts`.
+    nmeas, ncon : int, optional
+        Numbers of measurements and controls: required for a plain system, and
+        checked against the partitions of a GeneralizedPlant when given.
+
     Raises
     ------
     ModelStructureError
@@ -310,7 +378,8 @@ def as_generalized_plant(P, nmeas: int | None = None, ncon: int | None = None) -
     if isinstance(P, GeneralizedPlant):
         if (nmeas is not None and nmeas != P.ny) or (ncon is not None and ncon != P.nu):
             raise ModelStructureError(
-                f"nmeas={nmeas}, ncon={ncon} contradict the GeneralizedPlant partitions (ny={P.ny}, nu={P.nu})"
+                f"nmeas={nmeas}, ncon={ncon} contradict the GeneralizedPlant partitions "
+                f"(ny={P.ny}, nu={P.nu})"
             )
         return P
     if nmeas is None or ncon is None:

@@ -1,7 +1,8 @@
 """LMI builders for H-infinity synthesis: pure functions returning cvxpy variables and constraints.
 
 Nothing here calls a solver (that is :mod:`robust.synthesis.solve`) or decides what an
-answer means (that is :mod:`robust.synthesis.hinfsyn`).  Plant blocks follow
+answer means (that is :mod:`robust.synthesis.nominal` and :mod:`robust.synthesis.multi`).
+Plant blocks follow
 :class:`robust.synthesis.genplant.GeneralizedPlant`: ``x' = A x + B1 w + B2 u``,
 ``z = C1 x + D11 w + D12 u``, ``y = C2 x + D21 w`` (``D22 = 0`` here; the
 synthesis removes a nonzero ``D22`` by a loop transformation), ``u = K y``.
@@ -27,13 +28,12 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from robust.errors import AssumptionError, VerificationError
+from robust.errors import VerificationError
 
 __all__ = [
     "PlantBlocks",
     "ProjectionLMIs",
     "bounded_real_lmi",
-    "check_regularity",
     "closed_loop_matrices",
     "nullspace",
     "projection_lmis",
@@ -44,7 +44,27 @@ __all__ = [
 
 @dataclasses.dataclass(frozen=True)
 class PlantBlocks:
-    """The eight blocks of a generalized plant with ``D22 = 0`` (arrays, shapes as in the module doc)."""
+    """The eight blocks of a generalized plant with ``D22 = 0`` (shapes as in the module doc).
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        State matrix.
+    B1 : numpy.ndarray, shape (n, nw)
+        Input matrix of the exogenous inputs w.
+    B2 : numpy.ndarray, shape (n, nu)
+        Input matrix of the controls u.
+    C1 : numpy.ndarray, shape (nz, n)
+        Output matrix of the performance outputs z.
+    C2 : numpy.ndarray, shape (ny, n)
+        Output matrix of the measurements y.
+    D11 : numpy.ndarray, shape (nz, nw)
+        Feedthrough from w to z.
+    D12 : numpy.ndarray, shape (nz, nu)
+        Feedthrough from u to z.
+    D21 : numpy.ndarray, shape (ny, nw)
+        Feedthrough from w to y.
+    """
 
     A: np.ndarray
     B1: np.ndarray
@@ -65,6 +85,21 @@ class PlantBlocks:
             self.C1.shape[0],
             self.C2.shape[0],
         )
+
+    @classmethod
+    def from_generalized_plant(cls, gp) -> PlantBlocks:
+        """The blocks of a generalized plant, without ``D22``.
+
+        ``D22`` is not part of the LMIs: the synthesis designs for ``y0 = y - D22 u``
+        and maps the controller back
+        (:class:`robust.synthesis.scaling.D22Removal`).
+
+        Parameters
+        ----------
+        gp : robust.synthesis.genplant.GeneralizedPlant
+            The plant.
+        """
+        return cls(gp.A, gp.B1, gp.B2, gp.C1, gp.C2, gp.D11, gp.D12, gp.D21)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,7 +131,15 @@ class ProjectionLMIs:
 
 
 def nullspace(M: np.ndarray, *, rtol: float = 1e-10) -> np.ndarray:
-    """Orthonormal basis of the null space of ``M`` (columns), via the SVD."""
+    """Orthonormal basis of the null space of ``M`` (columns), via the SVD.
+
+    Parameters
+    ----------
+    M : numpy.ndarray
+        Matrix (a vector is taken as one row).
+    rtol : float
+        Singular values below ``rtol`` times the largest count as zero.
+    """
     return sla.null_space(np.atleast_2d(M), rcond=rtol)
 
 
@@ -112,6 +155,15 @@ def structured_nullspace(X: np.ndarray, D: np.ndarray, *, rtol: float = 1e-10) -
     (about nine times the nonzeros at order 32).  The projected inequality
     only depends on the span, so any basis gives the same feasible set.
     Falls back to :func:`nullspace` when ``D`` is rank deficient.
+
+    Parameters
+    ----------
+    X : numpy.ndarray, shape (m, n)
+        Left block.
+    D : numpy.ndarray, shape (m, p)
+        Right block, normally of full row rank.
+    rtol : float
+        Relative rank threshold for ``D``.
     """
     X, D = np.atleast_2d(X), np.atleast_2d(D)
     n = X.shape[1]
@@ -153,7 +205,7 @@ def projection_lmis(
     Parameters
     ----------
     blocks : PlantBlocks
-        Plant data (scaled; see :func:`robust.synthesis.hinfsyn.hinfsyn_lmi`).
+        Plant data (scaled; see :func:`robust.synthesis.nominal.hinfsyn_lmi`).
     margin : float
         Strictness margin: each strict LMI is enforced as ``<= -margin * I``.
         Tie it to the solver's feasibility tolerance.
@@ -192,8 +244,8 @@ def projection_lmis(
         )
         L2 = _sym(T2.T @ M2 @ T2)
         cons.append(L2 << -margin * np.eye(L2.shape[0]))
-    I = np.eye(n)
-    cons.append(cp.bmat([[R, I], [I, S]]) >> 0)
+    In = np.eye(n)
+    cons.append(cp.bmat([[R, In], [In, S]]) >> 0)
     cons.append(g >= gfloor)
     if gamma_cap is not None:
         cons.append(g <= gamma_cap)
@@ -203,8 +255,17 @@ def projection_lmis(
 def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):
     """Closed-loop ``(Acl, Bcl, Ccl, Dcl)``, affine in the controller data ``Omega``.
 
-    ``Omega = [[Ak, Bk], [Ck, Dk]]``, shape ``(nk + nu, nk + ny)``, numeric or a
-    cvxpy expression ([GA94] eq. (2.5)): ``Acl = A0 + Bb Omega Cb`` etc.
+    ``Acl = A0 + Bb Omega Cb`` etc. ([GA94] eq. (2.5)), with the plant states first,
+    then the controller states.
+
+    Parameters
+    ----------
+    blocks : PlantBlocks
+        Plant data (``D22 = 0``).
+    Omega : numpy.ndarray or cvxpy expression, shape (nk + nu, nk + ny)
+        Controller data ``[[Ak, Bk], [Ck, Dk]]``.
+    nk : int
+        Controller order.
     """
     A, B1, B2, C1, C2, D11, D12, D21 = (
         getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
@@ -226,7 +287,7 @@ def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):
 
 
 def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
-    """Bounded-real-lemma constraint ``||Ccl (sI-Acl)^-1 Bcl + Dcl||_inf < gamma`` with Lyapunov matrix ``P``.
+    """Bounded-real-lemma constraint ``||Ccl (sI-Acl)^-1 Bcl + Dcl||_inf < gamma``.
 
     Either ``P`` or the closed-loop matrices may be cvxpy expressions, but not
     both (the product must stay affine).  Returns one cvxpy constraint::
@@ -234,6 +295,17 @@ def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
         [Acl' P + P Acl   P Bcl    Ccl' ]
         [Bcl' P          -g I      Dcl' ]  <=  -margin I
         [Ccl              Dcl     -g I  ]
+
+    Parameters
+    ----------
+    Acl, Bcl, Ccl, Dcl : numpy.ndarray or cvxpy expression
+        Closed-loop state-space matrices (from w to z).
+    P : numpy.ndarray or cvxpy expression, shape (nx, nx)
+        Lyapunov matrix.
+    gamma : float or cvxpy expression
+        The bound ``g``.
+    margin : float
+        Strictness margin.
     """
     nx, nw, nz = Acl.shape[0], Bcl.shape[1], Ccl.shape[0]
     PA = P @ Acl
@@ -275,6 +347,19 @@ def reconstruct_controller(
        ``Phi > 0``.  Every ``mu_factor > 1`` gives a solution in exact arithmetic;
        in floating point the rounding error depends on it, so callers may try several.
 
+    Parameters
+    ----------
+    blocks : PlantBlocks
+        Plant data (``D22 = 0``), the same as given to :func:`projection_lmis`.
+    R, S : numpy.ndarray, shape (n, n)
+        Values of the variables of :func:`projection_lmis`.
+    gamma : float
+        Level at which to rebuild (at or above the LMI's gamma).
+    mu_factor : float
+        Multiple (> 1) of the smallest admissible ``mu``.
+    rank_rtol : float
+        Relative threshold below which eigenvalues of ``S - R^-1`` are dropped.
+
     Returns
     -------
     (Ak, Bk, Ck, Dk) : tuple of ndarray
@@ -305,7 +390,8 @@ def reconstruct_controller(
     scale = max(float(np.linalg.norm(S, 2)), 1.0 / float(wR.min()))
     if w.min() < -1e-7 * scale:
         raise VerificationError(
-            f"reconstruction: coupling S - R^-1 >= 0 fails (smallest eigenvalue {w.min():.3g}, largest {w.max():.3g})"
+            "reconstruction: coupling S - R^-1 >= 0 fails "
+            f"(smallest eigenvalue {w.min():.3g}, largest {w.max():.3g})"
         )
     keep = w > rank_rtol * max(w.max(), 1e-12 * scale)
     k = int(keep.sum())
@@ -367,18 +453,3 @@ def reconstruct_controller(
         "mu": float(mu),
     }
     return (Om[:k, :k], Om[:k, k:], Om[k:, :k], Om[k:, k:]), info
-
-
-def check_regularity(blocks: PlantBlocks, *, rtol: float = 1e-8) -> None:
-    """Raise :class:`AssumptionError` unless D12 has full column rank and D21 full row rank."""
-    _n, _nw, nu, _nz, ny = blocks.sizes
-    for name, M, need in (("D12", blocks.D12, nu), ("D21", blocks.D21, ny)):
-        s = np.linalg.svd(M, compute_uv=False) if M.size else np.zeros(0)
-        rank = int(np.sum(s > rtol * max(1.0, s.max() if s.size else 0.0)))
-        if rank < need:
-            kind = "column" if name == "D12" else "row"
-            raise AssumptionError(
-                f"{name} must have full {kind} rank {need} (regular H-infinity problem); got rank {rank} "
-                f"(singular values {np.array2string(s, precision=3)}). Add a control-effort penalty "
-                f"(for D12) or measurement noise (for D21) to the generalized plant"
-            )

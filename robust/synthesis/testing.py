@@ -5,6 +5,7 @@ from __future__ import annotations
 import control
 import numpy as np
 import scipy.linalg as sla
+import scipy.optimize as sopt
 
 from robust.checks import NONNEGATIVE, check_scalar
 
@@ -89,6 +90,16 @@ def dgkf_scalar_plant(a: float) -> control.StateSpace:
     IEEE TAC 34(8) (1989) 831-847 (D12' [C1 D12] = [0 1], D21 [B1' D21'] = [0 1],
     D11 = 0), so its optimal gamma follows from their Theorem 3; see
     :func:`dgkf_scalar_gamma_opt`.
+
+    Parameters
+    ----------
+    a : float
+        The open-loop pole, rad/s (unstable for ``a > 0``).
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs ``w1, w2, u``, outputs ``z1, z2, y``; use with ``nmeas=1, ncon=1``.
     """
     return control.ss(
         [[a]],
@@ -109,8 +120,12 @@ def dgkf_scalar_gamma_opt(a: float) -> float:
     and X = Y by symmetry, so the coupling condition ``rho(X Y) < g^2`` is
     ``X(g) < g``; the optimum solves ``X(g) = g``.  For ``a = 0`` this gives
     ``g^2 = 2``, i.e. ``gamma_opt = sqrt(2)``.
+
+    Parameters
+    ----------
+    a : float
+        The open-loop pole of :func:`dgkf_scalar_plant`, rad/s.
     """
-    import scipy.optimize as sopt
 
     def f(g):
         e = 1.0 - g**-2

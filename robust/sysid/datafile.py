@@ -30,6 +30,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import scipy.io
 
 from robust.checks import POSITIVE, check_scalar
 from robust.errors import DataError, ParameterError
@@ -194,8 +195,6 @@ def _record_bounds(rec: np.ndarray | None, source: str) -> list[tuple[int, int]]
 
 
 def _load_mat(path: Path) -> ChannelData:
-    import scipy.io
-
     try:
         raw = scipy.io.loadmat(str(path), squeeze_me=False)
     except Exception as exc:  # noqa: BLE001 - scipy raises several unrelated types for malformed files
@@ -298,18 +297,20 @@ def select_channels(
             bad = np.flatnonzero(~np.isfinite(rec))
             if bad.size:
                 raise DataError(
-                    f"channel {name!r} record {k} has {bad.size} NaN/inf value(s), first at sample {bad[0]} "
-                    f"(t = {bad[0] / fs:g} s); expected finite samples. Clean, interpolate or drop them first"
+                    f"channel {name!r} record {k} has {bad.size} NaN/inf value(s), first at "
+                    f"sample {bad[0]} (t = {bad[0] / fs:g} s); expected finite samples. "
+                    "Clean, interpolate or drop them first"
                 )
         if a.size != b.size:
             raise DataError(
-                f"mismatched sampling: record {k} has {a.size} samples of {input_name!r} but {b.size} of "
-                f"{output_name!r}; the channels must be sampled together at one rate"
+                f"mismatched sampling: record {k} has {a.size} samples of {input_name!r} but "
+                f"{b.size} of {output_name!r}; the channels must be sampled together at one rate"
             )
         if data.time is not None:
             if len(data.time) not in (1, len(u)):
                 raise DataError(
-                    f"the time variable holds {len(data.time)} record(s); expected 1 (shared) or {len(u)}"
+                    f"the time variable holds {len(data.time)} record(s); "
+                    f"expected 1 (shared) or {len(u)}"
                 )
             _check_time(data.time[k] if len(data.time) > 1 else data.time[0], fs, k, a.size)
         if min_duration_s is not None and a.size / fs < min_duration_s:
@@ -332,17 +333,21 @@ def _check_time(t: np.ndarray, fs: float, k: int, n: int) -> None:
     if med <= 0 or np.max(np.abs(dt - med)) > _REL_DT_TOL * med:
         j = int(np.argmax(np.abs(dt - med)))
         raise DataError(
-            f"non-uniform sampling in record {k}: sample interval should be constant ({med:g} s) but is "
-            f"{dt[j]:g} s between samples {j} and {j + 1} (t = {t[j]:g} s); resample the record first"
+            f"non-uniform sampling in record {k}: sample interval should be constant "
+            f"({med:g} s) but is {dt[j]:g} s between samples {j} and {j + 1} "
+            f"(t = {t[j]:g} s); resample the record first"
         )
     if abs(1.0 / med - fs) > _REL_FS_TOL * fs:
         raise DataError(
-            f"mismatched sampling: record {k}'s time column gives {1.0 / med:g} Hz but fs={fs:g} Hz was given"
+            f"mismatched sampling: record {k}'s time column gives {1.0 / med:g} Hz "
+            f"but fs={fs:g} Hz was given"
         )
 
 
 def save_experiment(experiment, path: str | os.PathLike, *, source: str = "") -> Path:
-    """Write an :class:`~robust.sysid.experiment.Experiment` as CSV or ``.mat`` (by suffix), atomically.
+    """Write an :class:`~robust.sysid.experiment.Experiment` as CSV or ``.mat``, atomically.
+
+    The format follows the suffix of ``path``.
 
     The seed and sampling rate are written too (a CSV comment line, or ``.mat``
     variables), so the file can be traced to the noise that made it.
@@ -383,8 +388,6 @@ def save_experiment(experiment, path: str | os.PathLike, *, source: str = "") ->
 
         return atomic_write(path, writer)
     if suffix == ".mat":
-        import scipy.io
-
         mdict = {
             "fs": float(experiment.fs),
             "t": t,

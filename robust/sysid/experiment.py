@@ -27,8 +27,18 @@ import control as ct
 import numpy as np
 import scipy.signal as sps
 
+from robust.analysis.realization import minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, check_scalar, validate_fields
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.components import (
+    StructureParams,
+    ValveCylinderParams,
+    pi_controller,
+    structure,
+    valve_cylinder,
+)
+from robust.model.human import LiteralHuman, LiteralHumanParams
+from robust.model.loop import DEFAULT_CALIBRATION
 
 __all__ = [
     "ENGINE_TONES_HZ",
@@ -103,8 +113,8 @@ class ChirpProtocol:
         )
         if self.tail_s >= self.duration:
             raise ParameterError(
-                f"ChirpProtocol.tail_s must be shorter than duration; got tail_s={self.tail_s:g} s, "
-                f"duration={self.duration:g} s"
+                "ChirpProtocol.tail_s must be shorter than duration; "
+                f"got tail_s={self.tail_s:g} s, duration={self.duration:g} s"
             )
         if (
             isinstance(self.n_records, bool)
@@ -117,12 +127,13 @@ class ChirpProtocol:
         object.__setattr__(self, "n_records", int(self.n_records))
         if self.f1_hz <= self.f0_hz:
             raise ParameterError(
-                f"ChirpProtocol.f1_hz must exceed f0_hz; got f0_hz={self.f0_hz:g}, f1_hz={self.f1_hz:g}"
+                "ChirpProtocol.f1_hz must exceed f0_hz; "
+                f"got f0_hz={self.f0_hz:g}, f1_hz={self.f1_hz:g}"
             )
         if self.f1_hz >= self.fs / 2.0:
             raise ParameterError(
-                f"ChirpProtocol.f1_hz must lie below the Nyquist frequency fs/2 = {self.fs / 2:g} Hz; "
-                f"got f1_hz={self.f1_hz:g}"
+                "ChirpProtocol.f1_hz must lie below the Nyquist frequency "
+                f"fs/2 = {self.fs / 2:g} Hz; got f1_hz={self.f1_hz:g}"
             )
         if self.method not in _CHIRP_METHODS:
             raise ParameterError(
@@ -130,7 +141,8 @@ class ChirpProtocol:
             )
         if self.n_samples < 16:
             raise ParameterError(
-                f"ChirpProtocol gives {self.n_samples} samples per record (duration*fs); need at least 16"
+                f"ChirpProtocol gives {self.n_samples} samples per record (duration*fs); "
+                "need at least 16"
             )
 
     @property
@@ -168,7 +180,9 @@ def chirp_excitation(
     amplitude: float = 1.0,
     method: str = "logarithmic",
 ) -> np.ndarray:
-    """Swept sine from ``f0_hz`` to ``f1_hz`` over the span of ``t``, built on :func:`scipy.signal.chirp`.
+    """Swept sine from ``f0_hz`` to ``f1_hz`` over the span of ``t``.
+
+    Built on :func:`scipy.signal.chirp`.
 
     The sweep starts at phase -90 degrees (a sine, so the excitation starts at
     zero and the system starts at rest without a step).
@@ -313,7 +327,18 @@ def _siso_labels(system) -> tuple[str, str]:
 
 
 def select_path(system, input: str | None = None, output: str | None = None):
-    """The SISO path ``input -> output`` of a named-signal system (the system itself if already SISO).
+    """The SISO path ``input -> output`` of a named-signal system.
+
+    The system itself if it is already SISO.
+
+    Parameters
+    ----------
+    system : control.LTI
+        System with named inputs and outputs.
+    input : str, optional
+        Input name (not needed for a SISO system).
+    output : str, optional
+        Output name (not needed for a SISO system).
 
     Raises
     ------
@@ -340,7 +365,8 @@ def select_path(system, input: str | None = None, output: str | None = None):
     )
     if i is None or o is None:
         raise ModelStructureError(
-            f"path {input!r} -> {output!r} not found in system {system.name!r}: inputs {ins}, outputs {outs}"
+            f"path {input!r} -> {output!r} not found in system {system.name!r}: "
+            f"inputs {ins}, outputs {outs}"
         )
     sub = ct.ss(system)[o, i]
     return ct.ss(
@@ -408,8 +434,6 @@ def _dlsim_rows(ad, bd, cd, dd, u2):
 
 
 def _minimal_series(first, second) -> ct.StateSpace:
-    from robust.analysis.realization import minimal_realization
-
     g = ct.series(ct.ss(first), ct.ss(second))
     m = minimal_realization(g.A, g.B, g.C, g.D)
     return ct.ss(m.A, m.B, m.C, m.D)
@@ -529,9 +553,6 @@ def simulate_experiment(
 
 
 def _pi_loop(valve_params=None):
-    from robust.model.components import pi_controller, valve_cylinder
-    from robust.model.loop import DEFAULT_CALIBRATION
-
     pi = pi_controller(DEFAULT_CALIBRATION.pi)
     valve = valve_cylinder(valve_params)
     r_to_e = ct.feedback(ct.ss(pi), ct.ss(valve))
@@ -585,14 +606,6 @@ def paper_experiment(
         With ``system`` the true component and channel names ``e``/``y``,
         ``y``/``c`` or ``c``/``h``.
     """
-    from robust.model.components import (
-        StructureParams,
-        ValveCylinderParams,
-        structure,
-        valve_cylinder,
-    )
-    from robust.model.human import LiteralHuman, LiteralHumanParams
-
     if component not in PAPER_COMPONENTS:
         raise ParameterError(f"component must be one of {PAPER_COMPONENTS}; got {component!r}")
     check_scalar("noise", noise, NONNEGATIVE)

@@ -51,6 +51,7 @@ import control as ct
 import numpy as np
 import scipy.optimize
 
+from robust.analysis.stability import unstable_mask
 from robust.errors import InfeasibleError, ParameterError, SolverError
 from robust.sysid.forms import (
     FORM_SPECS,
@@ -198,17 +199,29 @@ class FitResult:
 # The fit
 # --------------------------------------------------------------------------------------
 def coherence_threshold(n_effective: float, significance: float) -> float:
-    """Coherence an estimate from ``n_effective`` averages exceeds with probability ``significance`` when
-    the true coherence is zero: ``1 - significance^(1 / (n_d - 1))``.
+    """Coherence that a zero-coherence estimate exceeds with probability ``significance``.
+
+    For an estimate from ``n_effective`` averages of a true coherence of zero:
+    ``1 - significance^(1 / (n_d - 1))``.
 
     Under zero true coherence ``P(gamma_hat^2 > x) = (1 - x)^(n_d - 1)`` (Bendat & Piersol, Ch. 9).
+
+    Parameters
+    ----------
+    n_effective : float
+        Effective number of independent averages ``n_d`` of the estimate.
+    significance : float
+        Probability, in (0, 1), that a zero-coherence estimate exceeds the threshold.
     """
     nd = max(float(n_effective), 1.0 + 1e-9)
     return 1.0 - significance ** (1.0 / (nd - 1.0))
 
 
 def _debiased_coherence(coh: np.ndarray, n_effective: float) -> np.ndarray:
-    """``(n_d gamma_hat^2 - 1) / (n_d - 1)``, clipped to [0, 1]: removes the ``1/n_d`` floor of the estimate."""
+    """``(n_d gamma_hat^2 - 1) / (n_d - 1)``, clipped to [0, 1].
+
+    Removes the ``1/n_d`` floor of the estimate.
+    """
     nd = max(float(n_effective), 1.0 + 1e-9)
     return np.clip((nd * coh - 1.0) / (nd - 1.0), 0.0, 1.0)
 
@@ -348,8 +361,9 @@ def fit_frequency_response(
     )
     if f.size < max(n_par, 3) or np.count_nonzero(w > 0) < n_par:
         raise InfeasibleError(
-            f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz (coherence >= {threshold:.3g}); "
-            f"the {form!r} form has {n_par} parameters. Widen the band, add records or lower min_coherence"
+            f"only {f.size} usable frequencies in band [{lo:g}, {hi:g}] Hz "
+            f"(coherence >= {threshold:.3g}); the {form!r} form has {n_par} parameters. "
+            "Widen the band, add records or lower min_coherence"
         )
     omega = TWO_PI * f
     s = 1j * omega
@@ -424,7 +438,8 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
     if initial is not None:
         if not isinstance(initial, spec.params_class):
             raise ParameterError(
-                f"initial must be a {spec.params_class.__name__} for form {spec.name!r}; got {type(initial).__name__}"
+                f"initial must be a {spec.params_class.__name__} for form {spec.name!r}; "
+                f"got {type(initial).__name__}"
             )
         p0 = np.array([getattr(initial, nm) for nm in spec.names], dtype=float)
     omega_lo, omega_hi = TWO_PI * lo, TWO_PI * hi
@@ -468,8 +483,8 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
         )
         notes += (
             (
-                f"{why}: the data look inverted (check the sign of a sensor or channel; the form's gain "
-                "is positive) or the form does not match them"
+                f"{why}: the data look inverted (check the sign of a sensor or channel; "
+                "the form's gain is positive) or the form does not match them"
             ),
         )
     return _result(
@@ -494,7 +509,10 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
 
 
 def _linear_gain_sign(spec, num, den) -> float:
-    """Sign of the form's gain in the linear estimate (``R(0)``, or ``R``'s leading coefficient for the human)."""
+    """Sign of the form's gain in the linear estimate.
+
+    ``R(0)``, or ``R``'s leading coefficient for the human.
+    """
     if spec.name == "human":
         return float(np.sign(num[0]))
     return float(np.sign(num[-1] * den[-1]))
@@ -569,7 +587,10 @@ def _bound_note(spec, i: int, edge: float, side: str) -> str:
     label = spec.theta_labels[i]
     if label == "ln(f2_hz/f1_hz)":
         what = "f2_hz/f1_hz" if side == "upper" else "f2_hz/f1_hz (the modes merged into one)"
-        return f"{what} is at its {side} bound {math.exp(edge):g}: the two modes are not separated by these data"
+        return (
+            f"{what} is at its {side} bound {math.exp(edge):g}: "
+            "the two modes are not separated by these data"
+        )
     if label.startswith("ln "):
         return (
             f"{label[3:]} is at its {side} bound {math.exp(edge):.4g}: not identified by these data"
@@ -588,7 +609,8 @@ def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
     for i, nm in enumerate(names):
         if p[i] != 0 and sd[i] / abs(p[i]) > 0.25:
             notes.append(
-                f"{nm} is poorly determined: linearised relative standard error {sd[i] / abs(p[i]):.0%}"
+                f"{nm} is poorly determined: linearised relative standard error "
+                f"{sd[i] / abs(p[i]):.0%}"
             )
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
@@ -604,8 +626,9 @@ def _notes(spec, res, tlo, thi, p, cov, lo, hi) -> tuple[str, ...]:
         half_bw = max(z1, z2)
         if sep < 2.0 * half_bw:
             notes.append(
-                f"the two modes are {sep:.1%} apart, less than their half-power bandwidth (about "
-                f"{2 * half_bw:.0%}): they overlap in the response, and only the fixed form separates "
+                f"the two modes are {sep:.1%} apart, less than their half-power bandwidth "
+                f"(about {2 * half_bw:.0%}): they overlap in the response, and only the fixed "
+                "form separates "
                 "them; f1/f2 and zeta1/zeta2 trade off against each other (see correlation and "
                 "std_errors) and become unidentifiable as coherence falls"
             )
@@ -690,9 +713,9 @@ def _fit_rational(form, orders, f, s, hm, coh, w, lo, hi, n_sub) -> FitResult:
     model = np.polyval(num, s) / np.polyval(den, s)
     notes = []
     poles = np.roots(den)
-    if np.any(poles.real > 0):
+    if np.any(unstable_mask(poles)):
         notes.append(
-            f"fitted model has {int(np.sum(poles.real > 0))} pole(s) in the right half-plane"
+            f"fitted model has {int(np.sum(unstable_mask(poles)))} pole(s) in the right half-plane"
         )
     names = list(params.as_dict())
     # covariance in scaled coefficients -> natural coefficients (diagonal scaling)

@@ -59,7 +59,10 @@ class RationalParams:
         object.__setattr__(self, "den", den)
 
     def as_dict(self) -> dict[str, float]:
-        """Coefficients by name: ``b<k>`` multiplies ``s^k`` in the numerator, ``a<k>`` in the denominator."""
+        """Coefficients by name.
+
+        ``b<k>`` multiplies ``s^k`` in the numerator, ``a<k>`` in the denominator.
+        """
         out = {f"b{len(self.num) - 1 - i}": v for i, v in enumerate(self.num)}
         out.update({f"a{len(self.den) - 1 - i}": v for i, v in enumerate(self.den)})
         return out
@@ -222,6 +225,12 @@ FORM_SPECS: dict[str, _Form] = {
 def parse_form(form: str) -> str | tuple[int, int]:
     """Return a fixed form's name, or ``(M, N)`` for a rational form written ``"M/N"``.
 
+    Parameters
+    ----------
+    form : str
+        ``"valve"``, ``"structure"``, ``"human"``, or ``"M/N"`` with numerator order
+        ``M`` and denominator order ``N`` (``M <= N``).
+
     Raises
     ------
     ParameterError
@@ -234,7 +243,8 @@ def parse_form(form: str) -> str | tuple[int, int]:
     match = _ORDER_RE.match(form)
     if not match:
         raise ParameterError(
-            f"form must be one of {FORMS} or 'M/N' (numerator/denominator orders, e.g. '2/4'); got {form!r}"
+            f"form must be one of {FORMS} or 'M/N' (numerator/denominator orders, "
+            f"e.g. '2/4'); got {form!r}"
         )
     m, n = int(match.group(1)), int(match.group(2))
     if n < 1 or m > n:

@@ -98,10 +98,21 @@ def identify_records(
         ``"valve"``, ``"structure"``, ``"human"`` or ``"M/N"``.
     band_hz : (float, float)
         Fit band in Hz.
-    nperseg, window, detrend :
-        Spectral options of :func:`~robust.sysid.spectral.estimate_frequency_response`.
-    weighting, min_coherence, significance :
-        Fit options of :func:`~robust.sysid.fit.fit_frequency_response`.
+    nperseg : int, optional
+        Segment length in samples (option of
+        :func:`~robust.sysid.spectral.estimate_frequency_response`).
+    window : str, optional
+        Window name (option of :func:`~robust.sysid.spectral.estimate_frequency_response`).
+    detrend : str
+        Detrending (option of :func:`~robust.sysid.spectral.estimate_frequency_response`).
+    weighting : str
+        Fit weighting (option of :func:`~robust.sysid.fit.fit_frequency_response`).
+    min_coherence : float
+        Coherence below which frequencies are dropped (option of
+        :func:`~robust.sysid.fit.fit_frequency_response`).
+    significance : float or None
+        Significance of the zero-coherence test (option of
+        :func:`~robust.sysid.fit.fit_frequency_response`).
     input_name, output_name : str
         Channel names, kept in the result.
     seed : int or None

@@ -62,8 +62,9 @@ def levy_sk(
     w = np.ones_like(omega) if weights is None else np.asarray(weights, dtype=float)
     if n + m + 1 > 2 * omega.size:
         raise InfeasibleError(
-            f"a {m}/{n} rational model has {m + n + 1} coefficients but only {omega.size} frequencies "
-            "(2 real equations each) are available; widen the band or lower the orders"
+            f"a {m}/{n} rational model has {m + n + 1} coefficients but only "
+            f"{omega.size} frequencies (2 real equations each) are available; "
+            "widen the band or lower the orders"
         )
     w0 = float(np.exp(np.mean(np.log(omega))))
     s = 1j * omega / w0

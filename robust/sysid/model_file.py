@@ -173,7 +173,8 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     cls = _CLASSES[form]
     if obj.get("params_class") != cls.__name__:
         raise ArtifactError(
-            f"{label}: form {form!r} needs params_class {cls.__name__!r}; got {obj.get('params_class')!r}"
+            f"{label}: form {form!r} needs params_class {cls.__name__!r}; "
+            f"got {obj.get('params_class')!r}"
         )
     params = obj.get("params")
     if not isinstance(params, dict):
@@ -183,7 +184,8 @@ def read_component_fit(path: str | os.PathLike) -> ComponentFit:
     unexpected = [n for n in params if n not in expected]
     if missing or unexpected:
         raise ArtifactError(
-            f"{label}: {cls.__name__} parameters must be exactly {expected}; missing {missing}, unexpected {unexpected}"
+            f"{label}: {cls.__name__} parameters must be exactly {expected}; "
+            f"missing {missing}, unexpected {unexpected}"
         )
     values = {n: _number(params, n, f"{label} params") for n in expected}
     try:

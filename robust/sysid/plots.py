@@ -119,7 +119,10 @@ def _wrap180(x):
 
 
 def _db_limits(mag, lines_db, f, band_hz):
-    """Axis limits: the measured data's 1-99.5 % range widened to hold the model lines in the band."""
+    """Axis limits: the measured data's 1-99.5 % range, widened to hold the model lines.
+
+    Only the model lines within the band count.
+    """
     sel = np.ones_like(f, dtype=bool) if band_hz is None else (f >= band_hz[0]) & (f <= band_hz[1])
     meas = mag[np.isfinite(mag)]
     lo, hi = (np.percentile(meas, 1.0), np.percentile(meas, 99.5)) if meas.size else (-20.0, 20.0)

@@ -114,7 +114,10 @@ class FrequencyResponseEstimate:
 
     @property
     def phase_deg(self) -> np.ndarray:
-        """Unwrapped phase of H1 in degrees, shape (n_f,) (unwrapped from the first nonzero frequency)."""
+        """Unwrapped phase of H1 in degrees, shape (n_f,).
+
+        Unwrapped from the first nonzero frequency.
+        """
         ph = np.angle(self.h1)
         out = ph.copy()
         out[1:] = np.unwrap(ph[1:])
@@ -170,14 +173,15 @@ class FrequencyResponseEstimate:
             )
         if lo < df:
             raise DataError(
-                f"band lower edge {lo:g} Hz lies below the frequency resolution fs/nperseg = {df:g} Hz; "
-                f"use longer segments (nperseg) or raise the band's lower edge"
+                f"band lower edge {lo:g} Hz lies below the frequency resolution "
+                f"fs/nperseg = {df:g} Hz; use longer segments (nperseg) or raise the band's "
+                "lower edge"
             )
         mask = (self.f_hz >= lo) & (self.f_hz <= hi)
         if np.count_nonzero(mask) < 3:
             raise DataError(
-                f"band [{lo:g}, {hi:g}] Hz holds {np.count_nonzero(mask)} frequencies at resolution "
-                f"{df:g} Hz; need at least 3. Widen the band or use longer segments"
+                f"band [{lo:g}, {hi:g}] Hz holds {np.count_nonzero(mask)} frequencies at "
+                f"resolution {df:g} Hz; need at least 3. Widen the band or use longer segments"
             )
         return mask
 
@@ -385,8 +389,9 @@ def estimate_frequency_response(
     nperseg = int(nperseg)
     if shortest < nperseg:
         raise DataError(
-            f"records too short: the shortest has {shortest} samples ({shortest / fs:g} s) but a segment "
-            f"needs nperseg={nperseg} ({nperseg / fs:g} s); use shorter segments or longer records"
+            f"records too short: the shortest has {shortest} samples ({shortest / fs:g} s) "
+            f"but a segment needs nperseg={nperseg} ({nperseg / fs:g} s); "
+            "use shorter segments or longer records"
         )
     if noverlap is None:
         noverlap = 0 if all(r.size == nperseg for r in us) else nperseg // 2
@@ -429,8 +434,9 @@ def estimate_frequency_response(
         n_eff += effective_averages(win, nperseg, int(noverlap), k)
     if n_seg_total < 2:
         raise DataError(
-            f"only {n_seg_total} segment (nperseg={nperseg}, {len(us)} record(s)): coherence and confidence "
-            "bounds need at least 2 averages; give more records or a shorter nperseg"
+            f"only {n_seg_total} segment (nperseg={nperseg}, {len(us)} record(s)): "
+            "coherence and confidence bounds need at least 2 averages; "
+            "give more records or a shorter nperseg"
         )
     g_uu = acc_uu / n_seg_total
     g_yy = acc_yy / n_seg_total

@@ -1,0 +1,7 @@
+"""``python -m bdft``: the same as the ``bdft`` command."""
+
+import sys
+
+from bdft import main
+
+sys.exit(main())

@@ -1,0 +1,372 @@
+"""Multi-model H-infinity synthesis: one controller for a set of plants, verified per member.
+
+:func:`hinfsyn_multi` runs a sequential convex (analysis/synthesis, "P-K")
+iteration on the bilinear matrix inequalities of the multi-model problem and
+returns the controller with a bounded-real certificate for every member; each
+member's closed-loop norm is recomputed independently (Bruinsma-Steinbuch,
+:func:`robust.analysis.norms.hinf_norm`) before anything is returned.
+
+References: see :mod:`robust.synthesis.lmi`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import control
+import cvxpy as cp
+import numpy as np
+
+from robust.analysis.norms import hinf_norm, spectral_abscissa
+from robust.analysis.stability import stability_bound
+from robust.errors import (
+    AssumptionError,
+    InfeasibleError,
+    ModelStructureError,
+    ParameterError,
+    SolverError,
+    VerificationError,
+)
+from robust.synthesis.assumptions import check_hinf_assumptions
+from robust.synthesis.genplant import as_generalized_plant
+from robust.synthesis.lmi import PlantBlocks, bounded_real_lmi, closed_loop_matrices
+from robust.synthesis.nominal import MARGIN_FACTOR, hinfsyn_lmi
+from robust.synthesis.scaling import ControllerMatrices, PlantScaling
+from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, solve_problem
+
+__all__ = ["MultiHinfResult", "hinfsyn_multi"]
+
+
+@dataclasses.dataclass(frozen=True)
+class MultiHinfResult:
+    """A verified multi-model design: one controller, a certificate per member.
+
+    Attributes
+    ----------
+    K : control.StateSpace
+        The common controller, ``u = K y``.
+    gamma_bound : float
+        Common bound certified by the final analysis step: every member i has a
+        Lyapunov matrix ``P_i > 0`` proving ``||F_l(P_i, K)||_inf < gamma_bound``.
+    gammas : numpy.ndarray, shape (n_members,)
+        H-infinity norm of each member's closed loop, computed independently
+        (Bruinsma-Steinbuch); each ``<= gamma_bound * (1 + verify_rtol)``.
+    spectral_abscissas : numpy.ndarray, shape (n_members,)
+        Largest closed-loop pole real part of each member, rad/s (all below
+        :func:`robust.analysis.stability.stability_bound`).
+    certificates : tuple of numpy.ndarray
+        The Lyapunov matrices ``P_i`` of the closed loops ``F_l(P_i, K)`` in the
+        coordinates of :meth:`GeneralizedPlant.closed_loop` (plant states, then
+        controller states): ``[[Acl' P + P Acl, P Bcl, Ccl'], [., -g I, Dcl'],
+        [., ., -g I]] < 0`` with ``g = gamma_bound``.
+    history : tuple of float
+        Worst-member norm after the initial controller and after each accepted iteration.
+    iterations : int
+        Number of analysis/synthesis (P/K) iterations performed.
+    solve_time, wall_time : float
+        Seconds in the solvers, and for the whole call.
+    method : str
+        Short description of the method and guarantee.
+    scaling : dict
+        The common scaling used (:meth:`robust.synthesis.scaling.PlantScaling.as_dict`):
+        time scale ``w0`` (rad/s), scalars ``sw``, ``sz``
+        (gamma_scaled = gamma * sw / sz) and per-channel ``su``, ``sy``.
+    """
+
+    K: control.StateSpace
+    gamma_bound: float
+    gammas: np.ndarray
+    spectral_abscissas: np.ndarray
+    certificates: tuple
+    history: tuple
+    iterations: int
+    solve_time: float
+    wall_time: float
+    method: str
+    scaling: dict
+
+    @property
+    def gamma(self) -> float:
+        """Worst member's verified norm."""
+        return float(np.max(self.gammas))
+
+
+def _cl_norms(gps, K):
+    """Spectral abscissa and norm (``inf`` unless stable) of every member's closed loop."""
+    out = []
+    for gp in gps:
+        cl = gp.closed_loop(K)
+        sa = spectral_abscissa(cl)
+        out.append((sa, hinf_norm(cl) if sa < stability_bound() else np.inf))
+    return np.array([o[0] for o in out]), np.array([o[1] for o in out])
+
+
+def _p_step(blocks, Om, nk, margin, solvers, verbose):
+    """Analysis: min gamma s.t. a BRL certificate P_i for every member with K fixed."""
+    g = cp.Variable(name="gamma")
+    Ps, cons = [], []
+    for b in blocks:
+        Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
+        P = cp.Variable((Acl.shape[0], Acl.shape[0]), symmetric=True)
+        Ps.append(P)
+        cons += [
+            P >> margin * np.eye(Acl.shape[0]),
+            bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, g, margin=margin),
+        ]
+    prob = cp.Problem(cp.Minimize(g), cons)
+    sol = solve_problem(
+        prob, step="hinfsyn_multi: analysis (P) step", solvers=solvers, verbose=verbose
+    )
+    return float(g.value), [P.value for P in Ps], sol
+
+
+def _k_step(blocks, Ps, Om0, nk, margin, trust, solvers, verbose):
+    """Synthesis: min gamma over the controller data with every member's P_i fixed."""
+    g = cp.Variable(name="gamma")
+    Om = cp.Variable(Om0.shape, name="Omega")
+    cons = [cp.norm(Om - Om0, "fro") <= trust * max(1.0, float(np.linalg.norm(Om0)))]
+    for b, P in zip(blocks, Ps):
+        Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
+        cons.append(bounded_real_lmi(Acl, Bcl, Ccl, Dcl, _sym_np(P), g, margin=margin))
+    prob = cp.Problem(cp.Minimize(g), cons)
+    sol = solve_problem(
+        prob, step="hinfsyn_multi: synthesis (K) step", solvers=solvers, verbose=verbose
+    )
+    return float(g.value), Om.value, sol
+
+
+def _sym_np(P):
+    return (np.asarray(P) + np.asarray(P).T) / 2
+
+
+def _initial_controller(gps, solvers, log):
+    """Nominal design on the mean plant, then on each member, until one stabilises every member."""
+    mean = _mean_plant(gps)
+    tried = [("mean plant", mean)] + [(f"member {i}", gp) for i, gp in enumerate(gps)]
+    best = None
+    for label, gp in tried:
+        try:
+            K = hinfsyn_lmi(gp, solvers=solvers).K
+        except (InfeasibleError, SolverError, VerificationError, AssumptionError) as exc:
+            log.append(f"initial design on {label} failed: {exc}")
+            continue
+        sa, norms = _cl_norms(gps, K)
+        stable = sa < stability_bound()
+        if np.all(stable):
+            if best is None or norms.max() < best[1]:
+                best = (K, float(norms.max()), label)
+            if label == "mean plant":
+                break
+        else:
+            log.append(
+                f"initial design on {label} leaves {int(np.sum(~stable))} member(s) unstable"
+            )
+        if best is not None:
+            break
+    return best
+
+
+def hinfsyn_multi(
+    plants,
+    nmeas: int | None = None,
+    ncon: int | None = None,
+    *,
+    K0=None,
+    max_iter: int = 20,
+    rtol: float = 1e-3,
+    trust: float = 0.5,
+    verify_rtol: float = 1e-6,
+    solvers=DEFAULT_SOLVERS,
+    verbose: bool = False,
+) -> MultiHinfResult:
+    """One controller for a set of plants, with a per-member H-infinity certificate.
+
+    Method: a sequential convex (analysis/synthesis, "P-K") iteration on the
+    bilinear matrix inequalities of the multi-model problem, as in
+    El Ghaoui & Balakrishnan, "Synthesis of fixed-structure controllers via
+    numerical optimization", Proc. 33rd IEEE CDC (1994) 2678-2683, and the
+    survey of Goh, Safonov & Ly, "Robust synthesis via bilinear matrix
+    inequalities", Int. J. Robust Nonlinear Control 6 (1996) 1079-1095:
+
+    1. start from a controller that stabilises every member (``K0``, or a
+       nominal :func:`robust.synthesis.nominal.hinfsyn_lmi` design on the mean
+       plant, else on a member);
+    2. P-step: with K fixed, the bounded-real LMI of every member is linear in
+       its own Lyapunov matrix ``P_i``; minimise the common gamma (one SDP);
+    3. K-step: with all ``P_i`` fixed, every member's bounded-real LMI is linear
+       in the controller data ``[[Ak, Bk], [Ck, Dk]]`` ([GA94] eq. (2.5));
+       minimise gamma within a trust region around the current controller;
+    4. accept the new controller only if its verified worst-member norm
+       decreased; stop when the relative decrease is below ``rtol``.
+
+    The LMIs are solved in scaled coordinates
+    (:class:`robust.synthesis.scaling.PlantScaling`): the time, channel and
+    performance scalings are those of the mean plant, common to every member
+    so that one controller serves them all; the state transformation is each
+    member's own.
+
+    Guarantee (what is and is not claimed): the returned controller has, for
+    *every listed member*, a Lyapunov certificate ``P_i > 0`` from the final
+    P-step proving closed-loop stability and ``||T_zw,i||_inf < gamma_bound``,
+    and each member's norm has been recomputed independently.  Nothing is
+    claimed for plants between the members (members may differ in any
+    matrix, so there is no common certificate over their convex hull), and the
+    iteration is a local method: ``gamma_bound`` is not the optimum of the
+    (non-convex) multi-model problem.  The worst-member norm never increases
+    from one accepted iteration to the next.
+
+    Parameters
+    ----------
+    plants : sequence of control.StateSpace or GeneralizedPlant
+        Members, all with the same numbers of w, u, z, y (states may differ),
+        continuous time, ``D22 = 0``.
+    nmeas, ncon : int, optional
+        Partition counts for plain systems.
+    K0 : control.StateSpace, optional
+        Initial controller (must stabilise every member).
+    max_iter : int
+        Maximum number of P-K iterations.
+    rtol : float
+        Stop when the worst-member norm decreases by less than this fraction.
+    trust : float
+        Trust-region radius of the K-step, relative to ``max(1, ||Omega||_F)``.
+    verify_rtol : float
+        Allowed excess of each verified member norm over ``gamma_bound``.
+    solvers : sequence of str
+        cvxpy solvers, in order.
+    verbose : bool
+        Solver output.
+
+    Returns
+    -------
+    MultiHinfResult
+
+    Raises
+    ------
+    ModelStructureError
+        Members with different signal counts, discrete time, or an empty set.
+    AssumptionError
+        A member is not stabilisable/detectable, or has ``D22 != 0``.
+    ParameterError
+        ``max_iter`` is not a nonnegative integer.
+    InfeasibleError
+        No initial controller stabilises every member.
+    VerificationError
+        The final certificate or a member's independent norm check fails.
+    """
+    t_start = time.perf_counter()
+    gps = [as_generalized_plant(P, nmeas, ncon) for P in plants]
+    if not gps:
+        raise ModelStructureError("plants must contain at least one member; got an empty sequence")
+    sizes = {(gp.nw, gp.nu, gp.nz, gp.ny) for gp in gps}
+    if len(sizes) != 1:
+        raise ModelStructureError(
+            f"all members must have the same (nw, nu, nz, ny); got {sorted(sizes)}"
+        )
+    for i, gp in enumerate(gps):
+        try:
+            check_hinf_assumptions(gp, require_regular=False)
+        except AssumptionError as exc:
+            raise AssumptionError(f"member {i}: {exc}") from None
+        if np.any(gp.D22):
+            raise AssumptionError(
+                f"member {i}: hinfsyn_multi requires D22 = 0; "
+                f"got max |D22| = {np.abs(gp.D22).max():.3g}"
+            )
+    if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 0):
+        raise ParameterError(f"max_iter must be a nonnegative integer; got {max_iter!r}")
+    log: list[str] = []
+    if K0 is None:
+        init = _initial_controller(gps, solvers, log)
+        if init is None:
+            raise InfeasibleError(
+                "hinfsyn_multi: no initial controller stabilises every member (tried nominal "
+                "designs on the mean plant and on each member); pass K0 or split the family. "
+                + "; ".join(log)
+            )
+        K = init[0]
+    else:
+        K = control.ss(K0)
+    sa, norms = _cl_norms(gps, K)
+    if not np.all(sa < stability_bound()):
+        raise InfeasibleError(
+            f"hinfsyn_multi: K0 must stabilise every member; it leaves members "
+            f"{np.flatnonzero(~(sa < stability_bound())).tolist()} unstable "
+            f"(spectral abscissas {sa.tolist()} rad/s)"
+        )
+    common = PlantScaling.fit(PlantBlocks.from_generalized_plant(_mean_plant(gps)))
+    member_blocks = [PlantBlocks.from_generalized_plant(gp) for gp in gps]
+    scalings = [PlantScaling.fit(b, common=common) for b in member_blocks]
+    blocks = [s.apply(b) for s, b in zip(scalings, member_blocks)]
+    margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
+    nk = K.nstates
+    Om = common.apply_controller(ControllerMatrices.from_statespace(K)).omega()
+    best = float(norms.max())
+    history = [best]
+    solve_time, it = 0.0, 0
+    for it in range(1, max_iter + 1):
+        try:
+            _, Ps, s1 = _p_step(blocks, Om, nk, margin, solvers, verbose)
+            _, Om_new, s2 = _k_step(blocks, Ps, Om, nk, margin, trust, solvers, verbose)
+        except (SolverError, InfeasibleError) as exc:
+            log.append(f"iteration {it}: {exc}")
+            break
+        solve_time += s1.solve_time + s2.solve_time
+        K_new = _controller_from_omega(Om_new, nk, gps[0], common)
+        sa_new, norms_new = _cl_norms(gps, K_new)
+        if not np.all(sa_new < stability_bound()) or norms_new.max() >= best:
+            log.append(
+                f"iteration {it}: no verified improvement "
+                f"(worst norm {norms_new.max():.6g} vs {best:.6g})"
+            )
+            break
+        improvement = (best - norms_new.max()) / best
+        Om, K, best = Om_new, K_new, float(norms_new.max())
+        history.append(best)
+        if improvement < rtol:
+            break
+    gamma_bound_s, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
+    gamma_bound = common.invert_gamma(gamma_bound_s)
+    solve_time += s3.solve_time
+    sa, norms = _cl_norms(gps, K)
+    bad = [
+        i
+        for i in range(len(gps))
+        if not (sa[i] < stability_bound() and norms[i] <= gamma_bound * (1.0 + verify_rtol))
+    ]
+    if bad:
+        raise VerificationError(
+            f"hinfsyn_multi: members {bad} fail the independent check against the certified "
+            f"bound {gamma_bound:.6g} (norms {norms[bad]}, spectral abscissas {sa[bad]})"
+        )
+    return MultiHinfResult(
+        K=K,
+        gamma_bound=gamma_bound,
+        gammas=norms,
+        spectral_abscissas=sa,
+        certificates=tuple(s.invert_certificate(P) for s, P in zip(scalings, Ps)),
+        history=tuple(history),
+        iterations=it,
+        solve_time=solve_time,
+        wall_time=time.perf_counter() - t_start,
+        method=(
+            "P-K iteration (El Ghaoui & Balakrishnan 1994) "
+            "with per-member bounded-real certificates"
+        ),
+        scaling=common.as_dict(),
+    )
+
+
+def _controller_from_omega(Om, nk, gp, sc):
+    """The controller in original coordinates from scaled controller data ``Om``."""
+    Km = sc.invert_controller(ControllerMatrices.from_omega(Om, nk))
+    return control.ss(*Km, inputs=list(gp.y), outputs=list(gp.u), name="K")
+
+
+def _mean_plant(gps):
+    """Elementwise mean of the members' blocks (equal state dimensions), else the first member."""
+    if len({gp.nx for gp in gps}) != 1:
+        return gps[0]
+    keys = gps[0].blocks()
+    return gps[0].with_blocks(**{k: np.mean([gp.blocks()[k] for gp in gps], axis=0) for k in keys})

@@ -1,0 +1,1098 @@
+"""Plant scaling for H-infinity synthesis, as explicit apply/invert pairs.
+
+The LMIs of :mod:`robust.synthesis.nominal` and :mod:`robust.synthesis.multi` are
+solved for a scaled copy of the plant, and their answers are mapped back.  Each
+scaling is a small frozen dataclass with forward maps (``apply`` for the plant,
+``apply_controller``, ``apply_certificate``, ``apply_gamma``) and their inverses
+(``invert``, ``invert_controller``, ``invert_certificate``, ``invert_gamma``), after
+cvxpy's ``Reduction.apply`` / ``Reduction.invert``.  The synthesis uses ``apply`` on
+the plant and the inverse maps on its answers; the other maps exist for warm starts
+(:func:`robust.synthesis.multi.hinfsyn_multi` maps its current controller forward)
+and for round-trip tests.
+
+:class:`PlantScaling` chains four stages, in this order:
+
+1. :class:`StateScaling` -- ``x = T xs``: a diagonal balancing of ``A``, then the
+   balanced realization of the plant shifted to stability;
+2. :class:`TimeScaling` -- ``tau = w0 t``: frequencies in units of ``w0`` rad/s;
+3. :class:`ChannelScaling` -- ``u = diag(su) us``, ``ys = diag(sy)^-1 y``: unit-norm
+   control and measurement channels (the controller absorbs them);
+4. :class:`PerformanceScaling` -- ``w = sw ws``, ``zs = z / sz``: one scalar each for
+   the exogenous inputs and performance outputs, so ``gamma_s = gamma sw / sz``.
+
+Each stage is computed from the plant the previous stages produced.
+:class:`D22Removal` is the loop shift ``y0 = y - D22 u`` that takes a nonzero
+``D22`` out of the plant; it follows the same pattern.
+
+Conventions: a plant is a :class:`robust.synthesis.lmi.PlantBlocks` (``D22``
+excluded), a controller a :class:`ControllerMatrices` ``(Ak, Bk, Ck, Dk)`` for
+``u = K y``, and a certificate a bounded-real Lyapunov matrix ``P`` of the closed
+loop ``F_l(P, K)`` in the coordinates of
+:meth:`robust.synthesis.genplant.GeneralizedPlant.closed_loop` (plant states, then
+controller states)::
+
+    [Acl' P + P Acl   P Bcl   Ccl' ]
+    [Bcl' P          -g I     Dcl' ]  <  0,   P > 0.
+    [Ccl              Dcl    -g I  ]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+import scipy.linalg as sla
+
+from robust.errors import ModelStructureError, VerificationError
+from robust.synthesis.genplant import GeneralizedPlant
+from robust.synthesis.lmi import PlantBlocks
+
+__all__ = [
+    "BALANCE_MAX_COND",
+    "D22_MAX_COND",
+    "GRAMIAN_FLOOR",
+    "ChannelScaling",
+    "ControllerMatrices",
+    "D22Removal",
+    "PerformanceScaling",
+    "PlantScaling",
+    "StateScaling",
+    "TimeScaling",
+    "diagonal_balance",
+]
+
+#: largest condition number accepted for the balancing state transformation
+#: (beyond it, the diagonal balancing alone is used)
+BALANCE_MAX_COND = 1e8
+#: Gramian eigenvalues below this fraction of the largest are raised to it (keeps T invertible)
+GRAMIAN_FLOOR = 1e-14
+#: largest condition number of ``I + Dk D22`` accepted when a nonzero D22 is put back
+D22_MAX_COND = 1e10
+
+
+class ControllerMatrices(NamedTuple):
+    """State-space matrices of a controller ``u = K y`` (positive feedback).
+
+    Parameters
+    ----------
+    Ak : numpy.ndarray, shape (nk, nk)
+        State matrix.
+    Bk : numpy.ndarray, shape (nk, ny)
+        Input matrix (from the measurements y).
+    Ck : numpy.ndarray, shape (nu, nk)
+        Output matrix (to the controls u).
+    Dk : numpy.ndarray, shape (nu, ny)
+        Feedthrough.
+    """
+
+    Ak: np.ndarray
+    Bk: np.ndarray
+    Ck: np.ndarray
+    Dk: np.ndarray
+
+    @classmethod
+    def from_statespace(cls, K) -> ControllerMatrices:
+        """The matrices of a python-control state-space controller, as 2-D float arrays.
+
+        Parameters
+        ----------
+        K : control.StateSpace
+            Controller; a static gain (no states) gives empty ``Ak``, ``Bk``, ``Ck``.
+        """
+        nk = K.nstates
+        Ak = np.asarray(K.A, float).reshape(nk, nk)
+        Bk = np.asarray(K.B, float).reshape(nk, -1) if nk else np.zeros((0, K.ninputs))
+        Ck = np.asarray(K.C, float).reshape(-1, nk) if nk else np.zeros((K.noutputs, 0))
+        Dk = np.asarray(K.D, float).reshape(K.noutputs, K.ninputs)
+        return cls(Ak, Bk, Ck, Dk)
+
+    @classmethod
+    def from_omega(cls, Omega, nk: int) -> ControllerMatrices:
+        """Split the controller data ``Omega = [[Ak, Bk], [Ck, Dk]]``.
+
+        Parameters
+        ----------
+        Omega : array_like, shape (nk + nu, nk + ny)
+            Controller data as in [GA94] eq. (2.5) (see :mod:`robust.synthesis.lmi`).
+        nk : int
+            Controller order.
+        """
+        Om = np.asarray(Omega, float)
+        return cls(Om[:nk, :nk], Om[:nk, nk:], Om[nk:, :nk], Om[nk:, nk:])
+
+    def omega(self) -> np.ndarray:
+        """The controller data ``[[Ak, Bk], [Ck, Dk]]`` as one array."""
+        return np.block([[self.Ak, self.Bk], [self.Ck, self.Dk]])
+
+
+def _sym(P):
+    P = np.asarray(P, float)
+    return (P + P.T) / 2
+
+
+def diagonal_balance(A) -> np.ndarray:
+    """Diagonal ``t`` (powers of 2) that balances ``A``: ``diag(t)^-1 A diag(t)``.
+
+    Computed by ``scipy.linalg.matrix_balance`` without permutation.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        Square matrix (``n = 0`` gives an empty ``t``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+    """
+    if A.shape[0] == 0:
+        return np.ones(0)
+    _, (t, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return np.asarray(t, float)
+
+
+def _balancing_transform(A, B, C):
+    """State transformation ``x = T xs`` to a balanced realization of the shifted plant.
+
+    Balanced realization (Moore, "Principal component analysis in linear systems:
+    controllability, observability, and model reduction", IEEE TAC 26(1) (1981)
+    17-32), by the square-root method of Laub, Heath, Paige & Ward,
+    "Computation of system balancing transformations and other applications of
+    simultaneous diagonalization algorithms", IEEE TAC 32(2) (1987) 115-122,
+    applied to ``(A - alpha I, B, C)`` with ``alpha`` chosen so that the shifted
+    matrix is stable (the plant itself may be unstable; the shift only selects
+    a coordinate system, the plant is transformed unshifted).  In these
+    coordinates the controllability and observability Gramians of the shifted
+    plant are equal and diagonal, so the entries of ``B`` and ``C`` reflect the
+    input-output gains rather than the arbitrary internal scales of the
+    interconnected blocks (companion forms, physical units).
+
+    Returns ``(T, Tinv)``, or ``None`` when the Gramians cannot be computed or
+    ``T`` would be worse conditioned than ``BALANCE_MAX_COND``.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return None
+    ev = np.linalg.eigvals(A)
+    rho = float(np.max(np.abs(ev)))
+    if not rho > 0:
+        return None
+    alpha = 2.0 * max(float(ev.real.max()), 0.0) + 1e-2 * rho
+    As = A - alpha * np.eye(n)
+    try:
+        Wc = sla.solve_continuous_lyapunov(As, -B @ B.T)
+        Wo = sla.solve_continuous_lyapunov(As.T, -C.T @ C)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    roots = []
+    for W in (Wc, Wo):
+        w, V = np.linalg.eigh((W + W.T) / 2)
+        if not (np.all(np.isfinite(w)) and w.max() > 0):
+            return None
+        roots.append(V * np.sqrt(np.maximum(w, GRAMIAN_FLOOR * w.max())))
+    Lc, Lo = roots
+    U, s, Vt = np.linalg.svd(Lo.T @ Lc)
+    T = (Lc @ Vt.T) / np.sqrt(s)[None, :]
+    if not np.all(np.isfinite(T)) or np.linalg.cond(T) > BALANCE_MAX_COND:
+        return None
+    Tinv = np.linalg.inv(T)
+    return T, Tinv
+
+
+# ---------------------------------------------------------------------------------- stages
+@dataclasses.dataclass(frozen=True, eq=False)
+class StateScaling:
+    """State transformation ``x = T xs`` with ``T = diag(t) Tb``.
+
+    ``diag(t)`` balances ``A`` (:func:`diagonal_balance`); ``Tb`` then takes the
+    diagonally balanced plant to a balanced realization of the plant shifted to
+    stability (Moore 1981; square-root method of Laub, Heath, Paige & Ward 1987),
+    and is left out when it is unavailable or worse conditioned than
+    ``BALANCE_MAX_COND``.  The controller does not depend on the plant's state
+    coordinates, so only certificates (which contain plant states) are mapped.
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (n,)
+        Diagonal balancing factors.
+    Tb : numpy.ndarray, shape (n, n), optional
+        Balancing transformation after the diagonal one (``None``: none).
+    Tbi : numpy.ndarray, shape (n, n), optional
+        Inverse of ``Tb`` (given with it).
+    kind : str
+        ``"balanced"``, ``"diagonal"`` or ``"none"`` (identity), for reports.
+    """
+
+    t: np.ndarray
+    Tb: np.ndarray | None = None
+    Tbi: np.ndarray | None = None
+    kind: str = "diagonal"
+
+    def __post_init__(self):
+        if (self.Tb is None) != (self.Tbi is None):
+            raise ModelStructureError(
+                "StateScaling: Tb and Tbi must be given together; got "
+                f"Tb={'None' if self.Tb is None else 'an array'}, "
+                f"Tbi={'None' if self.Tbi is None else 'an array'}"
+            )
+
+    @classmethod
+    def fit(cls, blocks: PlantBlocks) -> StateScaling:
+        """The diagonal balancing of ``A``, then the balanced realization if well conditioned.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant to scale.
+        """
+        t = diagonal_balance(blocks.A)
+        diag = cls(t, kind="diagonal").apply(blocks)
+        bal = _balancing_transform(
+            diag.A, np.hstack([diag.B1, diag.B2]), np.vstack([diag.C1, diag.C2])
+        )
+        if bal is None:
+            return cls(t, kind="diagonal")
+        return cls(t, bal[0], bal[1], kind="balanced")
+
+    @classmethod
+    def identity(cls, n: int) -> StateScaling:
+        """No state transformation.
+
+        Parameters
+        ----------
+        n : int
+            Plant order.
+        """
+        return cls(np.ones(n), kind="none")
+
+    @property
+    def T(self) -> np.ndarray:
+        """The whole transformation ``T = diag(t) Tb`` (``x = T xs``)."""
+        T = np.diag(self.t)
+        return T if self.Tb is None else T @ self.Tb
+
+    def apply(self, blocks: PlantBlocks) -> PlantBlocks:
+        """``A -> T^-1 A T``, ``B -> T^-1 B``, ``C -> C T``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in original state coordinates.
+        """
+        t = self.t
+        A = blocks.A * (1.0 / t)[:, None] * t[None, :]
+        B1, B2 = blocks.B1 / t[:, None], blocks.B2 / t[:, None]
+        C1, C2 = blocks.C1 * t[None, :], blocks.C2 * t[None, :]
+        if self.Tb is not None:
+            Tb, Tbi = self.Tb, self.Tbi
+            A, B1, B2, C1, C2 = Tbi @ A @ Tb, Tbi @ B1, Tbi @ B2, C1 @ Tb, C2 @ Tb
+        return dataclasses.replace(blocks, A=A, B1=B1, B2=B2, C1=C1, C2=C2)
+
+    def invert(self, blocks: PlantBlocks) -> PlantBlocks:
+        """Inverse of :meth:`apply`: ``A -> T A T^-1``, ``B -> T B``, ``C -> C T^-1``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in scaled state coordinates.
+        """
+        t = self.t
+        A, B1, B2, C1, C2 = blocks.A, blocks.B1, blocks.B2, blocks.C1, blocks.C2
+        if self.Tb is not None:
+            Tb, Tbi = self.Tb, self.Tbi
+            A, B1, B2, C1, C2 = Tb @ A @ Tbi, Tb @ B1, Tb @ B2, C1 @ Tbi, C2 @ Tbi
+        A = A * t[:, None] * (1.0 / t)[None, :]
+        B1, B2 = B1 * t[:, None], B2 * t[:, None]
+        C1, C2 = C1 / t[None, :], C2 / t[None, :]
+        return dataclasses.replace(blocks, A=A, B1=B1, B2=B2, C1=C1, C2=C2)
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity: the controller sees only u and y, not the plant's states.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity (see :meth:`apply_controller`).
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def _closed_loop_T(self, P, inverse: bool) -> np.ndarray:
+        n = self.t.size
+        nk = P.shape[0] - n
+        if P.ndim != 2 or P.shape[0] != P.shape[1] or nk < 0:
+            raise ModelStructureError(
+                f"P must be a square certificate of order >= {n} (plant states, then "
+                f"controller states); got shape {P.shape}"
+            )
+        T = np.linalg.inv(self.T) if inverse else self.T
+        return sla.block_diag(T, np.eye(nk))
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """``P -> Tc' P Tc`` with ``Tc = blkdiag(T, I_nk)`` (a congruence).
+
+        Parameters
+        ----------
+        P : numpy.ndarray, shape (n + nk, n + nk)
+            Certificate of the closed loop in original coordinates.
+        """
+        P = np.asarray(P, float)
+        Tc = self._closed_loop_T(P, inverse=False)
+        return _sym(Tc.T @ _sym(P) @ Tc)
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """``P -> Tc^-T P Tc^-1`` with ``Tc = blkdiag(T, I_nk)``.
+
+        Parameters
+        ----------
+        P : numpy.ndarray, shape (n + nk, n + nk)
+            Certificate of the closed loop in scaled state coordinates.
+        """
+        P = np.asarray(P, float)
+        Tinv = self._closed_loop_T(P, inverse=True)
+        return _sym(Tinv.T @ _sym(P) @ Tinv)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """Identity: a change of state coordinates keeps the norm.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """Identity (see :meth:`apply_gamma`).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+
+@dataclasses.dataclass(frozen=True)
+class TimeScaling:
+    """Time scaling ``tau = w0 t``: ``A, B1, B2`` are divided by ``w0``.
+
+    The H-infinity norm is invariant (frequency is rescaled), and so is the
+    bounded-real inequality up to the factor ``w0`` in the certificate.
+
+    Parameters
+    ----------
+    w0 : float
+        Time scale, rad/s.
+    """
+
+    w0: float
+
+    @classmethod
+    def fit(cls, blocks: PlantBlocks) -> TimeScaling:
+        """``w0``: the spectral radius of ``A``, or ``|A|/100`` when ``A`` is nearly nilpotent.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant (after the state scaling).
+        """
+        A = blocks.A
+        n = A.shape[0]
+        rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if n else 0.0
+        w0 = max(rho, 1e-2 * float(np.linalg.norm(A, 2)) if n else 0.0)
+        return cls(w0 if w0 > 1e-12 else 1.0)
+
+    def apply(self, blocks: PlantBlocks) -> PlantBlocks:
+        """``A, B1, B2 -> A / w0, B1 / w0, B2 / w0``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in time t.
+        """
+        w0 = self.w0
+        return dataclasses.replace(blocks, A=blocks.A / w0, B1=blocks.B1 / w0, B2=blocks.B2 / w0)
+
+    def invert(self, blocks: PlantBlocks) -> PlantBlocks:
+        """``A, B1, B2 -> w0 A, w0 B1, w0 B2``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in time tau.
+        """
+        w0 = self.w0
+        return dataclasses.replace(blocks, A=blocks.A * w0, B1=blocks.B1 * w0, B2=blocks.B2 * w0)
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``Ak, Bk -> Ak / w0, Bk / w0``.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller in time t.
+        """
+        return ControllerMatrices(K.Ak / self.w0, K.Bk / self.w0, K.Ck, K.Dk)
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``Ak, Bk -> w0 Ak, w0 Bk``.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller in time tau.
+        """
+        return ControllerMatrices(K.Ak * self.w0, K.Bk * self.w0, K.Ck, K.Dk)
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """``P -> w0 P``.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate in time t.
+        """
+        return np.asarray(P, float) * self.w0
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """``P -> P / w0``.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate in time tau.
+        """
+        return np.asarray(P, float) / self.w0
+
+    def apply_gamma(self, gamma: float) -> float:
+        """Identity: time scaling keeps the H-infinity norm.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """Identity (see :meth:`apply_gamma`).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ChannelScaling:
+    """Channel-by-channel scaling of the controls and measurements.
+
+    ``u = diag(su) us`` and ``ys = diag(sy)^-1 y``: ``B2, D12 -> B2 diag(su),
+    D12 diag(su)``, ``C2, D21 -> diag(sy)^-1 C2, diag(sy)^-1 D21``.  The
+    controller absorbs it, ``Ks = diag(su)^-1 K diag(sy)``; the closed loop from w
+    to z is unchanged.
+
+    Parameters
+    ----------
+    su : numpy.ndarray, shape (nu,)
+        Control scale factors.
+    sy : numpy.ndarray, shape (ny,)
+        Measurement scale factors.
+    """
+
+    su: np.ndarray
+    sy: np.ndarray
+
+    @classmethod
+    def fit(cls, blocks: PlantBlocks) -> ChannelScaling:
+        """Unit-norm columns of ``[B2; D12]`` and rows of ``[C2, D21]``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant (after the state and time scalings).
+        """
+        su = 1.0 / np.maximum(np.linalg.norm(np.vstack([blocks.B2, blocks.D12]), axis=0), 1e-300)
+        sy = np.maximum(np.linalg.norm(np.hstack([blocks.C2, blocks.D21]), axis=1), 1e-300)
+        return cls(su, sy)
+
+    @classmethod
+    def identity(cls, nu: int, ny: int) -> ChannelScaling:
+        """No channel scaling.
+
+        Parameters
+        ----------
+        nu, ny : int
+            Numbers of controls and measurements.
+        """
+        return cls(np.ones(nu), np.ones(ny))
+
+    def apply(self, blocks: PlantBlocks) -> PlantBlocks:
+        """``B2, D12 -> B2 diag(su), D12 diag(su)``; ``C2, D21 -> C2 / sy, D21 / sy``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in original channel units.
+        """
+        su, sy = self.su, self.sy
+        return dataclasses.replace(
+            blocks,
+            B2=blocks.B2 * su[None, :],
+            D12=blocks.D12 * su[None, :],
+            C2=blocks.C2 / sy[:, None],
+            D21=blocks.D21 / sy[:, None],
+        )
+
+    def invert(self, blocks: PlantBlocks) -> PlantBlocks:
+        """Inverse of :meth:`apply`.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in scaled channel units.
+        """
+        su, sy = self.su, self.sy
+        return dataclasses.replace(
+            blocks,
+            B2=blocks.B2 / su[None, :],
+            D12=blocks.D12 / su[None, :],
+            C2=blocks.C2 * sy[:, None],
+            D21=blocks.D21 * sy[:, None],
+        )
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``K -> diag(su)^-1 K diag(sy)``.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller from y to u.
+        """
+        su, sy = self.su, self.sy
+        return ControllerMatrices(
+            K.Ak, K.Bk * sy[None, :], K.Ck / su[:, None], K.Dk * sy[None, :] / su[:, None]
+        )
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``Ks -> diag(su) Ks diag(sy)^-1``.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller from ys to us.
+        """
+        su, sy = self.su, self.sy
+        return ControllerMatrices(
+            K.Ak, K.Bk / sy[None, :], su[:, None] * K.Ck, su[:, None] * K.Dk / sy[None, :]
+        )
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """Identity: the closed loop from w to z, states included, is unchanged.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """Identity (see :meth:`apply_certificate`).
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """Identity: the closed loop from w to z is unchanged.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """Identity (see :meth:`apply_gamma`).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+
+@dataclasses.dataclass(frozen=True)
+class PerformanceScaling:
+    """One scalar each for the exogenous inputs and the performance outputs.
+
+    ``w = sw ws`` and ``zs = z / sz``: ``B1, D21 -> sw B1, sw D21``,
+    ``C1, D12 -> C1 / sz, D12 / sz`` and ``D11 -> D11 sw / sz``.  The closed loop
+    is multiplied by ``sw / sz``, so ``gamma_s = gamma sw / sz`` exactly; one
+    scalar per side keeps the H-infinity problem equivalent (channel-wise
+    scaling of w or z would change the norm being minimised).
+
+    Parameters
+    ----------
+    sw : float
+        Exogenous-input scale.
+    sz : float
+        Performance-output scale.
+    """
+
+    sw: float
+    sz: float
+
+    @classmethod
+    def fit(cls, blocks: PlantBlocks) -> PerformanceScaling:
+        """``sw``: unit ``||[B1; D21]||_2``; then ``sz``: unit ``||[C1, D11, D12]||_2``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant (after the state, time and channel scalings).
+        """
+        sw = 1.0 / max(np.linalg.norm(np.vstack([blocks.B1, blocks.D21]), 2), 1e-300)
+        D11 = blocks.D11 * sw
+        sz = max(np.linalg.norm(np.hstack([blocks.C1, D11, blocks.D12]), 2), 1e-300)
+        return cls(sw, sz)
+
+    def apply(self, blocks: PlantBlocks) -> PlantBlocks:
+        """``w = sw ws``, ``zs = z / sz``.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in original w and z units.
+        """
+        sw, sz = self.sw, self.sz
+        B1, D21, D11 = blocks.B1 * sw, blocks.D21 * sw, blocks.D11 * sw
+        C1, D11, D12 = blocks.C1 / sz, D11 / sz, blocks.D12 / sz
+        return dataclasses.replace(blocks, B1=B1, C1=C1, D11=D11, D12=D12, D21=D21)
+
+    def invert(self, blocks: PlantBlocks) -> PlantBlocks:
+        """Inverse of :meth:`apply`.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in scaled w and z units.
+        """
+        sw, sz = self.sw, self.sz
+        C1, D11, D12 = blocks.C1 * sz, blocks.D11 * sz, blocks.D12 * sz
+        B1, D21, D11 = blocks.B1 / sw, blocks.D21 / sw, D11 / sw
+        return dataclasses.replace(blocks, B1=B1, C1=C1, D11=D11, D12=D12, D21=D21)
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity: the controller sees only u and y.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity (see :meth:`apply_controller`).
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """``P -> P / (sz sw)`` (with ``gamma -> gamma sw / sz``).
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate in original w and z units.
+        """
+        return np.asarray(P, float) / (self.sz * self.sw)
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """``P -> sz sw P``: a congruence of the bounded-real inequality.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate in scaled w and z units.
+        """
+        return np.asarray(P, float) * (self.sz * self.sw)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """``gamma -> gamma sw / sz``.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound in original units.
+        """
+        return gamma * self.sw / self.sz
+
+    def invert_gamma(self, gamma: float) -> float:
+        """``gamma_s -> gamma_s sz / sw``.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound of the scaled problem.
+        """
+        return gamma * self.sz / self.sw
+
+
+# ---------------------------------------------------------------------------------- composite
+@dataclasses.dataclass(frozen=True, eq=False)
+class PlantScaling:
+    """The four stages of the synthesis scaling, applied in the order of the fields.
+
+    Every map is the composition of the stages' maps: forward maps in the
+    order state, time, channels, performance; plant and gamma inverses in the
+    reverse order.  Controllers are mapped back time first, then channels, and
+    certificates state first, then the scalar factors (the orders the
+    synthesis has always used, so its numbers are unchanged to the last bit;
+    the stages' maps commute, so this is the same composition up to rounding).
+
+    Parameters
+    ----------
+    state : StateScaling
+        ``x = T xs``.
+    time : TimeScaling
+        ``tau = w0 t``.
+    channels : ChannelScaling
+        ``u = diag(su) us``, ``ys = diag(sy)^-1 y``.
+    performance : PerformanceScaling
+        ``w = sw ws``, ``zs = z / sz``.
+    """
+
+    state: StateScaling
+    time: TimeScaling
+    channels: ChannelScaling
+    performance: PerformanceScaling
+
+    @classmethod
+    def fit(cls, blocks: PlantBlocks, *, common: PlantScaling | None = None) -> PlantScaling:
+        """Fit each stage to the plant the previous stages produced.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant to scale.
+        common : PlantScaling, optional
+            Multi-model design: take the time, channel and performance stages from
+            ``common`` (so that one controller serves every member); only the
+            state transformation is fitted to ``blocks``.
+        """
+        state = StateScaling.fit(blocks)
+        if common is not None:
+            return cls(state, common.time, common.channels, common.performance)
+        b = state.apply(blocks)
+        time = TimeScaling.fit(b)
+        b = time.apply(b)
+        channels = ChannelScaling.fit(b)
+        performance = PerformanceScaling.fit(channels.apply(b))
+        return cls(state, time, channels, performance)
+
+    @classmethod
+    def identity(cls, n: int, nu: int, ny: int) -> PlantScaling:
+        """No scaling at all (every map is the identity, exactly).
+
+        Parameters
+        ----------
+        n : int
+            Plant order.
+        nu, ny : int
+            Numbers of controls and measurements.
+        """
+        return cls(
+            StateScaling.identity(n),
+            TimeScaling(1.0),
+            ChannelScaling.identity(nu, ny),
+            PerformanceScaling(1.0, 1.0),
+        )
+
+    @property
+    def stages(self) -> tuple:
+        """``(state, time, channels, performance)``, in the order they are applied."""
+        return (self.state, self.time, self.channels, self.performance)
+
+    def apply(self, blocks: PlantBlocks) -> PlantBlocks:
+        """The scaled plant.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant in original coordinates.
+        """
+        for stage in self.stages:
+            blocks = stage.apply(blocks)
+        return blocks
+
+    def invert(self, blocks: PlantBlocks) -> PlantBlocks:
+        """The plant in original coordinates.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Scaled plant.
+        """
+        for stage in reversed(self.stages):
+            blocks = stage.invert(blocks)
+        return blocks
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """A controller of the original plant, for the scaled plant.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller ``u = K y`` in original coordinates.
+        """
+        for stage in self.stages:
+            K = stage.apply_controller(K)
+        return K
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """A controller of the scaled plant, for the original plant.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller ``us = Ks ys`` of the scaled plant (time tau).
+        """
+        return self.channels.invert_controller(self.time.invert_controller(K))
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """A certificate of the original closed loop, for the scaled one.
+
+        Parameters
+        ----------
+        P : numpy.ndarray, shape (n + nk, n + nk)
+            Certificate of ``F_l(P, K)`` at level ``gamma``; the result certifies the
+            scaled closed loop at ``apply_gamma(gamma)``.
+        """
+        for stage in self.stages:
+            P = stage.apply_certificate(P)
+        return P
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """A certificate of the scaled closed loop, for the original one.
+
+        ``P -> (sz sw / w0) Tc^-T P Tc^-1`` with ``Tc = blkdiag(T, I_nk)``: the
+        state congruence first, then the time and performance factors combined
+        into one scalar (the order the synthesis has always used; it equals the
+        composition of the stages' maps, which commute, up to rounding).
+
+        Parameters
+        ----------
+        P : numpy.ndarray, shape (n + nk, n + nk)
+            Certificate of the scaled closed loop at level ``gamma_s`` (scaled
+            plant states, then controller states); the result certifies
+            ``F_l(P, K)`` at ``invert_gamma(gamma_s)``.
+        """
+        P = self.channels.invert_certificate(self.state.invert_certificate(P))
+        return P * (self.performance.sz * self.performance.sw / self.time.w0)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """A bound in original units, in scaled units.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound of the original closed loop.
+        """
+        for stage in self.stages:
+            gamma = stage.apply_gamma(gamma)
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """A bound in scaled units, in original units.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound of the scaled closed loop.
+        """
+        for stage in reversed(self.stages):
+            gamma = stage.invert_gamma(gamma)
+        return gamma
+
+    def as_dict(self) -> dict:
+        """The scalars and channel factors, for reports.
+
+        Time scale ``w0`` (rad/s), ``sw``, ``sz`` (``gamma_s = gamma sw / sz``) and
+        copies of ``su``, ``sy``.
+        """
+        return {
+            "w0": self.time.w0,
+            "sw": self.performance.sw,
+            "sz": self.performance.sz,
+            "su": self.channels.su.copy(),
+            "sy": self.channels.sy.copy(),
+        }
+
+
+# ---------------------------------------------------------------------------------- D22
+@dataclasses.dataclass(frozen=True, eq=False)
+class D22Removal:
+    """Loop shift that removes ``D22``: the synthesis designs for ``y0 = y - D22 u``.
+
+    The shifted plant has ``D22 = 0``; a controller ``K0`` designed for it is
+    mapped back by ``K = K0 (I + D22 K0)^-1``.  The controller's states, hence the
+    closed loop's realization, and so its certificates and norm, are unchanged.
+
+    Parameters
+    ----------
+    D22 : numpy.ndarray, shape (ny, nu)
+        Feedthrough from u to y of the original plant.
+    """
+
+    D22: np.ndarray
+
+    def apply(self, gp: GeneralizedPlant) -> GeneralizedPlant:
+        """The plant from ``(w, u)`` to ``(z, y0)``: ``D22`` set to zero.
+
+        Parameters
+        ----------
+        gp : GeneralizedPlant
+            Original plant (its ``D22`` must be this one's).
+        """
+        self._check_plant("gp", gp)
+        return gp.with_blocks(D22=np.zeros_like(self.D22, dtype=float))
+
+    def invert(self, gp: GeneralizedPlant) -> GeneralizedPlant:
+        """The plant with ``D22`` put back.
+
+        Parameters
+        ----------
+        gp : GeneralizedPlant
+            Shifted plant (``D22 = 0``).
+        """
+        return gp.with_blocks(D22=self.D22)
+
+    def _check_plant(self, name, gp):
+        if gp.D22.shape != np.shape(self.D22) or not np.array_equal(gp.D22, self.D22):
+            raise ModelStructureError(
+                f"{name}: D22Removal was built for another D22; expected the plant's D22 to be "
+                f"{np.array2string(np.asarray(self.D22), precision=3)}, got "
+                f"{np.array2string(gp.D22, precision=3)}"
+            )
+
+    def loop_condition(self, Dk) -> float:
+        """Condition number of ``I + Dk D22`` (1 when ``D22 = 0``).
+
+        Parameters
+        ----------
+        Dk : numpy.ndarray, shape (nu, ny)
+            Feedthrough of the controller designed for the shifted plant.
+        """
+        if not np.any(self.D22):
+            return 1.0
+        return float(np.linalg.cond(np.eye(Dk.shape[0]) + Dk @ self.D22))
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``K0 = K (I - D22 K)^-1``: the controller as seen by the shifted plant.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller of the original plant.
+
+        Raises
+        ------
+        VerificationError
+            If ``I - Dk D22`` is numerically singular (ill-posed loop).
+        """
+        return _shift_controller(K, -np.asarray(self.D22, float))
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """``K = K0 (I + D22 K0)^-1``: the controller for the original plant.
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller ``K0`` designed for the shifted plant.
+
+        Raises
+        ------
+        VerificationError
+            If ``I + Dk D22`` is numerically singular (ill-posed loop).
+        """
+        return _shift_controller(K, self.D22)
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """Identity: the closed loop's realization is unchanged.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """Identity (see :meth:`apply_certificate`).
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """Identity: the closed loop is unchanged.
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """Identity (see :meth:`apply_gamma`).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+
+def _shift_controller(K: ControllerMatrices, D22) -> ControllerMatrices:
+    """``K0 (I + D22 K0)^-1`` in state space (``D22 -> -D22`` gives the inverse map)."""
+    Ak, Bk, Ck, Dk = K
+    if not np.any(D22):
+        return ControllerMatrices(Ak, Bk, Ck, Dk)
+    M = np.eye(Dk.shape[0]) + Dk @ D22
+    c = float(np.linalg.cond(M))
+    if c > D22_MAX_COND:
+        raise VerificationError(
+            "D22 loop transformation is ill-posed: I + Dk*D22 must have condition number "
+            f"at most {D22_MAX_COND:g}; got {c:.3g}"
+        )
+    E = np.linalg.inv(M)
+    return ControllerMatrices(Ak - Bk @ D22 @ E @ Ck, Bk - Bk @ D22 @ E @ Dk, E @ Ck, E @ Dk)

@@ -1,0 +1,155 @@
+"""The Figure 5 junction table and the three assemblies that consume it.
+
+Each consumer is tied to the table: the loop's static blocks are exactly the table's
+rows; the batched family assembly gives the poles of the loop built from the table;
+the force-feedback generalized plant, closed with a controller, contains every pole
+of the loop closed with the same controller. Signal names that do not connect fail.
+"""
+
+import control as ct
+import numpy as np
+import pytest
+
+from robust.errors import ModelStructureError
+from robust.model.wiring import CONTROLLER_FORCE, connect, expand, figure5_junctions
+from robust.synthesis.forcefb import as_plant_controller, force_feedback_plant
+from uncertainty import closed_loop_matrices, default_family
+
+
+@pytest.fixture(scope="module")
+def family():
+    return default_family()
+
+
+@pytest.fixture(scope="module")
+def nominal(family):
+    return family.member(family.nominal_values())
+
+
+def _controller(outputs):
+    """A stable, seeded 2-state controller x, c, y -> outputs (small gains)."""
+    rng = np.random.default_rng(7)
+    A = np.array([[-30.0, 5.0], [-5.0, -20.0]])
+    B = 1e-3 * rng.standard_normal((2, 3))
+    C = rng.standard_normal((len(outputs), 2))
+    D = np.zeros((len(outputs), 3))
+    return ct.ss(A, B, C, D, inputs=["x", "c", "y"], outputs=list(outputs), name="K")
+
+
+def _static_rows(blocks):
+    rows = {}
+    for b in blocks:
+        if b.nstates == 0:
+            rows[b.name] = (
+                b.output_labels[0],
+                dict(zip(b.input_labels, np.asarray(b.D, float).ravel())),
+            )
+    return rows
+
+
+@pytest.mark.parametrize(
+    "bdft,outputs",
+    [
+        (True, ()),
+        (True, ("f",)),
+        (True, ("r_corr",)),
+        (True, ("f", "r_corr")),
+        (False, ("r_corr",)),
+    ],
+    ids=["bdft", "bdft-force", "bdft-correction", "bdft-both", "no-bdft-correction"],
+)
+def test_the_loops_static_blocks_are_the_table(nominal, bdft, outputs):
+    K = None
+    if outputs:
+        K = _controller(outputs)
+        if not bdft:
+            K = ct.ss(
+                K.A,
+                K.B[:, [0, 2]],
+                K.C,
+                K.D[:, [0, 2]],
+                inputs=["x", "y"],
+                outputs=list(outputs),
+                name="K",
+            )
+    external = bdft and nominal.human.has_force_port
+    blocks = nominal.blocks(bdft=bdft, controller=K, external_force=external)
+    force = (("f_ext",) if external else ()) + ((CONTROLLER_FORCE,) if "f" in outputs else ())
+    table = figure5_junctions(
+        k_psf=nominal.k_psf,
+        handle_gain=nominal.calibration.handle_sign * nominal.calibration.loop_scale,
+        bdft=bdft,
+        reference_correction="r_corr" in outputs,
+        force_terms=force,
+    )
+    want = {j.name: (j.output, dict(j.terms)) for j in table}
+    assert _static_rows(blocks) == want
+
+
+def test_expand_substitutes_the_junctions(nominal):
+    g = nominal.calibration.handle_sign * nominal.calibration.loop_scale
+    table = figure5_junctions(
+        k_psf=nominal.k_psf,
+        handle_gain=g,
+        reference_correction=True,
+        force_terms=("f_ext", CONTROLLER_FORCE),
+    )
+    err = expand("err", table)
+    assert err == pytest.approx({"h": nominal.k_psf * g, "r_corr": 1.0, "y": -1.0})
+    assert expand("x", table) == pytest.approx({"h": g})
+    assert expand("f", table) == {CONTROLLER_FORCE: 1.0}
+    assert expand("c", table) == {"c": 1.0}
+
+
+@pytest.mark.parametrize(
+    "outputs",
+    [(), ("f",), ("r_corr",), ("f", "r_corr")],
+    ids=["open", "force", "correction", "both"],
+)
+def test_batched_assembly_matches_the_loop(family, outputs):
+    K = _controller(outputs) if outputs else None
+    rng = np.random.default_rng(3)
+    lo = np.array([p.low for p in family.parameters])
+    hi = np.array([p.high for p in family.parameters])
+    rows = lo + (hi - lo) * rng.random((4, len(lo)))
+    Acl = closed_loop_matrices(family, rows, controller=K)
+    for row, A in zip(rows, Acl):
+        want = np.sort_complex(ct.poles(family.member(row).system(controller=K)))
+        got = np.sort_complex(np.linalg.eigvals(A))
+        np.testing.assert_allclose(got, want, rtol=1e-7, atol=1e-7)
+
+
+def test_force_feedback_plant_contains_the_loop(nominal):
+    K = _controller(("f",))
+    K = ct.ss(K.A, K.B[:, :2], K.C, K.D[:, :2], inputs=["x", "c"], outputs=["f"], name="K")
+    gp = force_feedback_plant(nominal)
+    cl = gp.closed_loop(as_plant_controller(K))
+    plant_poles = np.linalg.eigvals(np.asarray(cl.A, float))
+    for p in ct.poles(nominal.system(controller=K)):
+        assert np.min(np.abs(plant_poles - p)) <= 1e-6 * max(1.0, abs(p))
+
+
+def test_unconnected_inputs_and_unknown_names_fail():
+    a = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="err", outputs="y", name="a")
+    b = ct.ss(
+        [[-2.0]],
+        [
+            [1.0],
+        ],
+        [[1.0]],
+        [[0.0]],
+        inputs="yy",
+        outputs="z",
+        name="b",
+    )
+    with pytest.raises(ModelStructureError, match="Unused input"):
+        connect([a, b], inputs=["err"], outputs=["z"], name="typo")
+    with pytest.raises(ModelStructureError, match="cannot connect"):
+        connect([a], inputs=["nonexistent"], outputs=["y"], name="unknown")
+    sys = connect([a, b], inputs=["err"], outputs=["y"], name="ok", ignore_inputs=["yy"])
+    assert sys.nstates == 2
+
+
+def test_a_junction_with_a_non_finite_gain_is_refused():
+    with pytest.raises(ModelStructureError, match="gain of 'x'"):
+        figure5_junctions(k_psf=float("nan"), handle_gain=1.0)
