@@ -51,6 +51,7 @@ from robust.model.components import (
 )
 from robust.model.human import HumanModel, LiteralHuman
 from robust.model.loop import BDFTLoop, LoopCalibration
+from robust.model.wiring import connect
 
 __all__ = [
     "CalibrationCandidate",
@@ -191,7 +192,13 @@ def open_bdft_path(human: HumanModel, pi: PIParams, loop: BDFTLoop | None = None
         valve_cylinder(base.valve),
     ]
     blocks += [structure(base.struct), human.system()]
-    sys = ct.interconnect(blocks, inputs=["x"], outputs=["h"])
+    sys = connect(
+        blocks,
+        inputs=["x"],
+        outputs=["h"],
+        name="open_bdft_path",
+        ignore_inputs=["f"] if human.has_force_port else (),
+    )
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
     return m.A, m.B, m.C, m.D
 

@@ -132,7 +132,7 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
         outputs=G.output_labels,
         name="open_plant_d",
     )
-    cl_d = ct.interconnect([Gd, Kd], inputs="u", outputs="y", name="sampled_loop")
+    cl_d = connect([Gd, Kd], inputs=["u"], outputs=["y"], name="sampled_loop")
     z = np.linalg.eigvals(np.asarray(cl_d.A, float))
     s_d = np.log(z.astype(complex)) / T
     max_re_d = float(np.max(s_d.real)) if s_d.size else -np.inf
