@@ -157,6 +157,35 @@ def test_identity_scaling_is_exact():
     assert sc.invert_gamma(1.7) == 1.7
 
 
+#: the maps each stage leaves alone (the others change the plant, controller, certificate, gamma)
+IDENTITY_MAPS = {
+    "state": ("controller", "gamma"),
+    "time": ("gamma",),
+    "channels": ("certificate", "gamma"),
+    "performance": ("controller",),
+    "d22": ("certificate", "gamma"),
+}
+
+
+@pytest.mark.parametrize("stage", list(IDENTITY_MAPS))
+def test_maps_a_stage_leaves_alone_are_exact_identities(stage):
+    b = _blocks(6, 1)
+    s = D22Removal(np.ones((2, 2))) if stage == "d22" else _stages(b)[stage]
+    rng = np.random.default_rng(0)
+    K = _random_controller(rng, 6, 2, 2)
+    M = rng.standard_normal((12, 12))
+    P = M @ M.T
+    maps = {
+        "controller": lambda f: all(np.array_equal(a, c) for a, c in zip(f(K), K)),
+        "certificate": lambda f: np.array_equal(f(P), P),
+        "gamma": lambda f: f(1.7) == 1.7,
+    }
+    for name, is_identity in maps.items():
+        for direction in ("apply", "invert"):
+            f = getattr(s, f"{direction}_{name}")
+            assert is_identity(f) == (name in IDENTITY_MAPS[stage]), f"{stage}.{f.__name__}"
+
+
 # ------------------------------------------------------------------------- what fit does
 @pytest.mark.parametrize("n,seed", SEEDS, ids=IDS)
 def test_fitted_scaling_normalises_the_channels(n, seed):

@@ -5,7 +5,8 @@ solved for a scaled copy of the plant, and their answers are mapped back.  Each
 scaling is a small frozen dataclass with forward maps (``apply`` for the plant,
 ``apply_controller``, ``apply_certificate``, ``apply_gamma``) and their inverses
 (``invert``, ``invert_controller``, ``invert_certificate``, ``invert_gamma``), after
-cvxpy's ``Reduction.apply`` / ``Reduction.invert``.  The synthesis uses ``apply`` on
+cvxpy's ``Reduction.apply`` / ``Reduction.invert``; a stage writes out only the maps it
+changes and inherits identities for the others.  The synthesis uses ``apply`` on
 the plant and the inverse maps on its answers; the other maps exist for warm starts
 (:func:`robust.synthesis.multi.hinfsyn_multi` maps its current controller forward)
 and for round-trip tests.
@@ -200,16 +201,89 @@ def _balancing_transform(A, B, C):
 
 
 # ---------------------------------------------------------------------------------- stages
+class _Identities:
+    """Identity maps of controllers, certificates and gamma, for the stages to override.
+
+    Every stage (and :class:`D22Removal`) inherits from this class and writes out
+    only the maps it really changes; the others are these identities.  ``apply``
+    and ``invert`` (the plant maps) are each stage's own.
+    """
+
+    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity: ``K`` itself (the stage leaves controllers unchanged).
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
+        """Identity: ``K`` itself (see :meth:`apply_controller`).
+
+        Parameters
+        ----------
+        K : ControllerMatrices
+            Controller.
+        """
+        return K
+
+    def apply_certificate(self, P) -> np.ndarray:
+        """Identity: ``P`` as a float array (the stage leaves certificates unchanged).
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def invert_certificate(self, P) -> np.ndarray:
+        """Identity: ``P`` as a float array (see :meth:`apply_certificate`).
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Certificate.
+        """
+        return np.asarray(P, float)
+
+    def apply_gamma(self, gamma: float) -> float:
+        """Identity: ``gamma`` itself (the stage leaves the H-infinity norm unchanged).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+    def invert_gamma(self, gamma: float) -> float:
+        """Identity: ``gamma`` itself (see :meth:`apply_gamma`).
+
+        Parameters
+        ----------
+        gamma : float
+            H-infinity bound.
+        """
+        return gamma
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
-class StateScaling:
+class StateScaling(_Identities):
     """State transformation ``x = T xs`` with ``T = diag(t) Tb``.
 
     ``diag(t)`` balances ``A`` (:func:`diagonal_balance`); ``Tb`` then takes the
     diagonally balanced plant to a balanced realization of the plant shifted to
     stability (Moore 1981; square-root method of Laub, Heath, Paige & Ward 1987),
     and is left out when it is unavailable or worse conditioned than
-    ``BALANCE_MAX_COND``.  The controller does not depend on the plant's state
-    coordinates, so only certificates (which contain plant states) are mapped.
+    ``BALANCE_MAX_COND``.
+
+    Maps changed: the plant (``A -> T^-1 A T``, ``B -> T^-1 B``, ``C -> C T``) and
+    the certificate (the congruence ``P -> Tc' P Tc``, ``Tc = blkdiag(T, I_nk)``,
+    since it contains plant states).  Controller and gamma maps are identities: the
+    controller sees only u and y, and a change of state coordinates keeps the norm.
 
     Parameters
     ----------
@@ -306,26 +380,6 @@ class StateScaling:
         C1, C2 = C1 / t[None, :], C2 / t[None, :]
         return dataclasses.replace(blocks, A=A, B1=B1, B2=B2, C1=C1, C2=C2)
 
-    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
-        """Identity: the controller sees only u and y, not the plant's states.
-
-        Parameters
-        ----------
-        K : ControllerMatrices
-            Controller.
-        """
-        return K
-
-    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
-        """Identity (see :meth:`apply_controller`).
-
-        Parameters
-        ----------
-        K : ControllerMatrices
-            Controller.
-        """
-        return K
-
     def _closed_loop_T(self, P, inverse: bool) -> np.ndarray:
         n = self.t.size
         nk = P.shape[0] - n
@@ -361,33 +415,16 @@ class StateScaling:
         Tinv = self._closed_loop_T(P, inverse=True)
         return _sym(Tinv.T @ _sym(P) @ Tinv)
 
-    def apply_gamma(self, gamma: float) -> float:
-        """Identity: a change of state coordinates keeps the norm.
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
-    def invert_gamma(self, gamma: float) -> float:
-        """Identity (see :meth:`apply_gamma`).
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
 
 @dataclasses.dataclass(frozen=True)
-class TimeScaling:
+class TimeScaling(_Identities):
     """Time scaling ``tau = w0 t``: ``A, B1, B2`` are divided by ``w0``.
 
-    The H-infinity norm is invariant (frequency is rescaled), and so is the
-    bounded-real inequality up to the factor ``w0`` in the certificate.
+    Maps changed: the plant (``A, B1, B2 -> A / w0, B1 / w0, B2 / w0``), the
+    controller (``Ak, Bk -> Ak / w0, Bk / w0``) and the certificate
+    (``P -> w0 P``: the bounded-real inequality is invariant up to that factor).
+    The gamma map is the identity: the H-infinity norm is invariant (frequency is
+    rescaled).
 
     Parameters
     ----------
@@ -474,35 +511,17 @@ class TimeScaling:
         """
         return np.asarray(P, float) / self.w0
 
-    def apply_gamma(self, gamma: float) -> float:
-        """Identity: time scaling keeps the H-infinity norm.
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
-    def invert_gamma(self, gamma: float) -> float:
-        """Identity (see :meth:`apply_gamma`).
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class ChannelScaling:
+class ChannelScaling(_Identities):
     """Channel-by-channel scaling of the controls and measurements.
 
     ``u = diag(su) us`` and ``ys = diag(sy)^-1 y``: ``B2, D12 -> B2 diag(su),
     D12 diag(su)``, ``C2, D21 -> diag(sy)^-1 C2, diag(sy)^-1 D21``.  The
-    controller absorbs it, ``Ks = diag(su)^-1 K diag(sy)``; the closed loop from w
-    to z is unchanged.
+    controller absorbs it, ``Ks = diag(su)^-1 K diag(sy)``.
+
+    Maps changed: the plant and the controller.  Certificate and gamma maps are
+    identities: the closed loop from w to z, states included, is unchanged.
 
     Parameters
     ----------
@@ -599,49 +618,9 @@ class ChannelScaling:
             K.Ak, K.Bk / sy[None, :], su[:, None] * K.Ck, su[:, None] * K.Dk / sy[None, :]
         )
 
-    def apply_certificate(self, P) -> np.ndarray:
-        """Identity: the closed loop from w to z, states included, is unchanged.
-
-        Parameters
-        ----------
-        P : numpy.ndarray
-            Certificate.
-        """
-        return np.asarray(P, float)
-
-    def invert_certificate(self, P) -> np.ndarray:
-        """Identity (see :meth:`apply_certificate`).
-
-        Parameters
-        ----------
-        P : numpy.ndarray
-            Certificate.
-        """
-        return np.asarray(P, float)
-
-    def apply_gamma(self, gamma: float) -> float:
-        """Identity: the closed loop from w to z is unchanged.
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
-    def invert_gamma(self, gamma: float) -> float:
-        """Identity (see :meth:`apply_gamma`).
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
 
 @dataclasses.dataclass(frozen=True)
-class PerformanceScaling:
+class PerformanceScaling(_Identities):
     """One scalar each for the exogenous inputs and the performance outputs.
 
     ``w = sw ws`` and ``zs = z / sz``: ``B1, D21 -> sw B1, sw D21``,
@@ -649,6 +628,10 @@ class PerformanceScaling:
     is multiplied by ``sw / sz``, so ``gamma_s = gamma sw / sz`` exactly; one
     scalar per side keeps the H-infinity problem equivalent (channel-wise
     scaling of w or z would change the norm being minimised).
+
+    Maps changed: the plant, the certificate (``P -> P / (sz sw)``) and gamma
+    (``gamma -> gamma sw / sz``).  The controller map is the identity: the
+    controller sees only u and y.
 
     Parameters
     ----------
@@ -700,26 +683,6 @@ class PerformanceScaling:
         C1, D11, D12 = blocks.C1 * sz, blocks.D11 * sz, blocks.D12 * sz
         B1, D21, D11 = blocks.B1 / sw, blocks.D21 / sw, D11 / sw
         return dataclasses.replace(blocks, B1=B1, C1=C1, D11=D11, D12=D12, D21=D21)
-
-    def apply_controller(self, K: ControllerMatrices) -> ControllerMatrices:
-        """Identity: the controller sees only u and y.
-
-        Parameters
-        ----------
-        K : ControllerMatrices
-            Controller.
-        """
-        return K
-
-    def invert_controller(self, K: ControllerMatrices) -> ControllerMatrices:
-        """Identity (see :meth:`apply_controller`).
-
-        Parameters
-        ----------
-        K : ControllerMatrices
-            Controller.
-        """
-        return K
 
     def apply_certificate(self, P) -> np.ndarray:
         """``P -> P / (sz sw)`` (with ``gamma -> gamma sw / sz``).
@@ -955,12 +918,16 @@ class PlantScaling:
 
 # ---------------------------------------------------------------------------------- D22
 @dataclasses.dataclass(frozen=True, eq=False)
-class D22Removal:
+class D22Removal(_Identities):
     """Loop shift that removes ``D22``: the synthesis designs for ``y0 = y - D22 u``.
 
     The shifted plant has ``D22 = 0``; a controller ``K0`` designed for it is
-    mapped back by ``K = K0 (I + D22 K0)^-1``.  The controller's states, hence the
-    closed loop's realization, and so its certificates and norm, are unchanged.
+    mapped back by ``K = K0 (I + D22 K0)^-1``.
+
+    Maps changed: the plant (``D22 -> 0``) and the controller
+    (``K0 = K (I - D22 K)^-1``, inverse as above).  Certificate and gamma maps are
+    identities: the controller's states, hence the closed loop's realization, and
+    so its certificates and norm, are unchanged.
 
     Parameters
     ----------
@@ -1040,46 +1007,6 @@ class D22Removal:
             If ``I + Dk D22`` is numerically singular (ill-posed loop).
         """
         return _shift_controller(K, self.D22)
-
-    def apply_certificate(self, P) -> np.ndarray:
-        """Identity: the closed loop's realization is unchanged.
-
-        Parameters
-        ----------
-        P : numpy.ndarray
-            Certificate.
-        """
-        return np.asarray(P, float)
-
-    def invert_certificate(self, P) -> np.ndarray:
-        """Identity (see :meth:`apply_certificate`).
-
-        Parameters
-        ----------
-        P : numpy.ndarray
-            Certificate.
-        """
-        return np.asarray(P, float)
-
-    def apply_gamma(self, gamma: float) -> float:
-        """Identity: the closed loop is unchanged.
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
-
-    def invert_gamma(self, gamma: float) -> float:
-        """Identity (see :meth:`apply_gamma`).
-
-        Parameters
-        ----------
-        gamma : float
-            H-infinity bound.
-        """
-        return gamma
 
 
 def _shift_controller(K: ControllerMatrices, D22) -> ControllerMatrices:
