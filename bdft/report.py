@@ -6,7 +6,9 @@ import sys
 from pathlib import Path
 
 from bdft.common import print_json
+from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
+from uncertainty import default_family
 
 __all__ = ["register", "run"]
 
@@ -65,12 +67,16 @@ def run(args) -> int:
 
     art_dir = Path(args.out).with_name(Path(args.out).name + "-artifacts")
     runs = run_all_designs(samples=args.samples, seed=args.seed, out_dir=art_dir, progress=progress)
-    path = write_design_report(runs, args.out, samples=args.samples, seed=args.seed)
+    coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
+    path = write_design_report(
+        runs, args.out, samples=args.samples, seed=args.seed, coverage=coverage
+    )
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
         print_json(
             {
                 "report": str(path),
+                "family": coverage.to_json(),
                 "designs": {
                     k: (str(r) if isinstance(r, Exception) else r.to_json())
                     for k, r in runs.items()

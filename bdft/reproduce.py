@@ -6,6 +6,7 @@ import sys
 
 from bdft.common import print_json
 from reports.reproduce import reproduce, result_to_json, write_reproduction_report
+from robust.model.human import HUMAN_VARIANT_NAMES
 
 __all__ = ["register", "run"]
 
@@ -30,8 +31,8 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--human",
-        choices=["literal", "physical", "both"],
-        default="both",
+        choices=[*HUMAN_VARIANT_NAMES, "all"],
+        default="all",
         help="human variant(s) to evaluate (default: %(default)s)",
     )
     p.add_argument(
@@ -47,7 +48,7 @@ def run(args) -> int:
     ----------
     args : argparse.Namespace
         Parsed ``bdft reproduce`` options: ``out`` (report folder), ``human``
-        (``"literal"``, ``"physical"`` or ``"both"``) and ``json``.
+        (a name of :data:`robust.model.human.HUMAN_VARIANT_NAMES` or ``"all"``) and ``json``.
 
     Returns
     -------
@@ -56,7 +57,7 @@ def run(args) -> int:
         (``--json``, with the report path under ``"report"``) or one line per claim and
         variant; progress goes to standard error.
     """
-    variants = ("literal", "physical") if args.human == "both" else (args.human,)
+    variants = HUMAN_VARIANT_NAMES if args.human == "all" else (args.human,)
 
     def progress(msg: str) -> None:
         print(f"[bdft reproduce] {msg} ...", file=sys.stderr, flush=True)

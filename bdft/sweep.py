@@ -12,15 +12,15 @@ from bdft.validate import add_family_arguments, build_family, progress_bar
 from reports.sweeps import write_sweep_report
 from uncertainty import DEFAULT_CHUNK
 from uncertainty.sweeps import (
-    stiffness_damping_sweep,
+    frequency_damping_sweep,
     structure_frequency_sweep,
     workspace_sweep,
 )
 
 __all__ = ["register", "run"]
 
-_NAMES = ("workspace", "stiffness-damping", "structure-frequency")
-_DEFAULT_MEMBERS = {"workspace": 2000, "stiffness-damping": 200, "structure-frequency": 2000}
+_NAMES = ("workspace", "frequency-damping", "structure-frequency")
+_DEFAULT_MEMBERS = {"workspace": 2000, "frequency-damping": 200, "structure-frequency": 2000}
 
 
 def register(sub) -> None:
@@ -52,7 +52,7 @@ def register(sub) -> None:
         "--pair",
         choices=("arm", "trunk"),
         default="arm",
-        help="stiffness-damping: which spring-damper of the human chain (default: %(default)s)",
+        help="frequency-damping: the arm endpoint or the trunk on the seat (default: %(default)s)",
     )
     p.add_argument(
         "--points",
@@ -89,10 +89,10 @@ def _run_sweep(args, family, progress):
         return workspace_sweep(family, factors=factors, **common), members * (
             19 if factors is None else len(factors)
         )
-    if args.name == "stiffness-damping":
+    if args.name == "frequency-damping":
         n = args.points or 12
-        return stiffness_damping_sweep(
-            family, pair=args.pair, n_k=n, n_c=n, **common
+        return frequency_damping_sweep(
+            family, pair=args.pair, n_f=n, n_z=n, **common
         ), members * n * n
     n = args.points or 13
     lo = family.parameter("struct.f1_hz").low / family.struct.f1_hz
@@ -103,7 +103,7 @@ def _total(args) -> int:
     members = args.samples or _DEFAULT_MEMBERS[args.name]
     pts = {
         "workspace": 19 if args.points is None else args.points,
-        "stiffness-damping": (args.points or 12) ** 2,
+        "frequency-damping": (args.points or 12) ** 2,
         "structure-frequency": args.points or 13,
     }[args.name]
     return (members + 1) * pts  # plus the nominal member at each point
@@ -116,11 +116,11 @@ def run(args) -> int:
     ----------
     args : argparse.Namespace
         Parsed ``bdft sweep`` options: ``name`` (``"workspace"``,
-        ``"stiffness-damping"`` or ``"structure-frequency"``); the family options of
+        ``"frequency-damping"`` or ``"structure-frequency"``); the family options of
         :func:`bdft.validate.add_family_arguments` (``samples``: members per grid
-        point, 0 when not given, meaning 2000, or 200 for the stiffness-damping map;
+        point, 0 when not given, meaning 2000, or 200 for the frequency-damping map;
         ``seed``, ``human``, ``plant_file``, ``chunk``); ``method`` (``"mc"`` or
-        ``"lhs"``); ``pair`` (``"arm"`` or ``"trunk"``, for the stiffness-damping map);
+        ``"lhs"``); ``pair`` (``"arm"`` or ``"trunk"``, for the frequency-damping map);
         ``points`` (grid points per swept axis, ``None`` for 19 factors, a 12 x 12 map
         or 13 frequencies); ``workspace_factor`` (``None``: 1 for the workspace sweep,
         2 for the others); ``out`` (report folder, ``None`` for

@@ -9,7 +9,9 @@ import time
 from tqdm import tqdm
 
 from bdft.common import print_json
-from uncertainty import DEFAULT_CHUNK, default_family, sample, validate_family
+from robust.model.literature import DEFAULT_POSTURE, POSTURES
+from robust.model.physical import nominal_params
+from uncertainty import DEFAULT_CHUNK, RANGES, default_family, sample, validate_family
 from uncertainty.files import family_nominals, load_component_fit, load_controller
 
 __all__ = ["add_family_arguments", "build_family", "progress_bar", "register", "run"]
@@ -42,8 +44,8 @@ _nonneg_int = _int_at_least(0, "non-negative")
 def add_family_arguments(p, *, samples: int) -> None:
     """Add the options shared by ``validate`` and ``sweep``: family, sampling, plant files.
 
-    The options are ``--samples``, ``--seed``, ``--human``, ``--plant-file`` (repeatable)
-    and ``--chunk``.
+    The options are ``--samples``, ``--seed``, ``--human``, ``--posture``, ``--ranges``,
+    ``--plant-file`` (repeatable) and ``--chunk``.
 
     Parameters
     ----------
@@ -70,6 +72,20 @@ def add_family_arguments(p, *, samples: int) -> None:
         choices=["literal", "physical"],
         default="physical",
         help="human variant of every member (default: %(default)s)",
+    )
+    p.add_argument(
+        "--posture",
+        choices=list(POSTURES),
+        default=DEFAULT_POSTURE,
+        help="physical human: posture whose published trunk ranges the family spans "
+        "(default: %(default)s)",
+    )
+    p.add_argument(
+        "--ranges",
+        choices=list(RANGES),
+        default="published",
+        help="physical human: the published ranges, or the STRESS variant beyond them "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--plant-file",
@@ -128,8 +144,9 @@ def build_family(args):
     ----------
     args : argparse.Namespace
         Parsed options of :func:`add_family_arguments`; ``human`` (``"literal"`` or
-        ``"physical"``) and ``plant_file`` (component-fit JSON paths whose parameters
-        replace that component's nominal values) are used.
+        ``"physical"``), ``posture`` and ``ranges`` (physical human) and ``plant_file``
+        (component-fit JSON paths whose parameters replace that component's nominal
+        values) are used.
 
     Returns
     -------
@@ -138,7 +155,11 @@ def build_family(args):
         workspace (factor 1).
     """
     fits = [load_component_fit(path) for path in args.plant_file]
-    return default_family(args.human, **family_nominals(fits, human=args.human))
+    nominals = family_nominals(fits, human=args.human)
+    if args.human == "physical":
+        nominals.setdefault("physical", nominal_params(args.posture))
+        return default_family(args.human, posture=args.posture, ranges=args.ranges, **nominals)
+    return default_family(args.human, **nominals)
 
 
 def progress_bar(total: int, desc: str):
@@ -203,6 +224,9 @@ def run(args) -> int:
     obj = res.to_json()
     obj.update(
         requested_samples=samples.requested,
+        family=family.name,
+        posture=family.posture if family.human == "physical" else None,
+        ranges=family.ranges if family.human == "physical" else None,
         workspace_factor=args.workspace_factor,
         controller=args.controller,
         plant_files=list(args.plant_file),
@@ -214,7 +238,9 @@ def run(args) -> int:
         print_json(obj)
         return 0
     print(
-        f"family: {family.name}, {res.samples} members ({res.method}, seed {res.seed}), "
+        f"family: {family.name}"
+        + (" (STRESS VARIANT: beyond the published ranges)" if family.ranges == "stress" else "")
+        + f", {res.samples} members ({res.method}, seed {res.seed}), "
         f"K_PSF {res.k_psf:.5g}"
     )
     print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")

@@ -7,6 +7,7 @@ them. Builds on :mod:`robust`, :mod:`uncertainty` and :mod:`designs`; the comman
 line builds on it.
 """
 
+from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.designs import run_all_designs, verdict, write_design_report
 from reports.html import HtmlPage, fmt, write_report_dir
 from reports.reproduce import (
@@ -19,6 +20,9 @@ from reports.reproduce import (
 from reports.sweeps import sweep_figures, write_sweep_report
 
 __all__ = [
+    "FamilyCoverage",
+    "add_coverage_section",
+    "family_coverage",
     "HtmlPage",
     "ReproductionResult",
     "VariantResult",

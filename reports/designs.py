@@ -10,6 +10,7 @@ import numpy as np
 
 from designs import design_names, run_design
 from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
+from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.html import HtmlPage, write_report_dir
 from robust.analysis.loops import loop_poles
 from robust.errors import BDFTError
@@ -269,7 +270,9 @@ def _hardest_member(failing: dict) -> dict | None:
     }
 
 
-def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
+def write_design_report(
+    runs: dict, out_dir, *, samples: int, seed: int, coverage: FamilyCoverage | None = None
+):
     """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories.
 
     The folder is replaced atomically (:func:`reports.html.write_report_dir`) and
@@ -286,6 +289,9 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
         Members each design was validated on (the figures redraw the same sample).
     seed : int
         Sampling seed of that sample.
+    coverage : reports.coverage.FamilyCoverage, optional
+        Who the family covers (default: computed for the default family on the same
+        sample size and seed).
 
     Returns
     -------
@@ -293,11 +299,14 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
         The page's ``index.html``.
     """
     limits = DeviceLimits()
+    coverage = coverage or family_coverage(default_family(), samples=samples, seed=seed)
     page = HtmlPage("Compensators against biodynamic feedthrough: comparison on the default family")
     page.p(
         f"Every design is validated on the same {samples} members of the default family "
-        f"(Latin hypercube, seed {seed}): physical human stiffness, damping and mass, "
-        "structure frequencies, damping ratios and gain. "
+        f"(Latin hypercube, seed {seed}): the operator's body mass, arm-endpoint mass, "
+        "natural frequency and damping ratio and trunk natural frequency and damping ratio "
+        "over their published ranges (section 'Who the family covers'), and the structure's "
+        "frequencies, damping ratios and gain. "
         "Force is simulated on the nominal member and the three worst stable members with a "
         "0.1-8 Hz chirp and a seeded 0-2 Hz intended motion "
         f"({100 * INTENT_FRACTION:g} % of the half-workspace); the Omni's limits are "
@@ -360,6 +369,7 @@ def write_design_report(runs: dict, out_dir, *, samples: int, seed: int):
     page.h2("Verdict")
     for text in verdict(runs):
         page.p(text)
+    add_coverage_section(page, coverage)
     _figures(page, runs, samples, seed, limits)
     page.attach(
         "designs.json",

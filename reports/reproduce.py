@@ -33,7 +33,7 @@ from robust.analysis.simulation import SweptSine, TimeResponse, simulate_swept_s
 from robust.errors import InfeasibleError
 from robust.jsonio import to_jsonable
 from robust.model.components import K_PSF_NOMINAL, structure, valve_cylinder
-from robust.model.human import HumanModel, LiteralHuman, human_variant
+from robust.model.human import HUMAN_VARIANT_NAMES, HumanModel, LiteralHuman, human_variant
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
 from robust.model.physical import fit_summary
 
@@ -152,7 +152,7 @@ def _same_calibration(a: LoopCalibration, b: LoopCalibration) -> bool:
 
 
 def reproduce(
-    *, variants=("literal", "physical"), sweep: SweptSine | None = None, progress=None
+    *, variants=HUMAN_VARIANT_NAMES, sweep: SweptSine | None = None, progress=None
 ) -> ReproductionResult:
     """Run the calibration search and check C1-C5 for each human variant.
 
@@ -165,8 +165,9 @@ def reproduce(
     Parameters
     ----------
     variants : sequence of str
-        Human variants to evaluate, among ``"literal"`` and ``"physical"``; an
-        unknown name is listed in ``unavailable``, not raised.
+        Human variants to evaluate (:data:`robust.model.human.HUMAN_VARIANT_NAMES`:
+        literal, physical, physical-no-backrest, eqn5-fit); an unknown name is listed
+        in ``unavailable``, not raised.
     sweep : SweptSine, optional
         Intended motion of the time simulations (default ``SweptSine()``: 0.1-8 Hz
         over 20 s at 1 kHz, unit amplitude).

@@ -128,6 +128,11 @@ def _line_figures(res: SweepResult, xkey: str, xlabel: str):
     ]
 
 
+def _axis_label(res: SweepResult, name: str) -> str:
+    units = res.settings.get("units", {}).get(name, "")
+    return f"{name} [{units}]" if units and units != "-" else name
+
+
 def _map_figures(res: SweepResult):
     kname, cname = list(res.columns)[:2]
     nk, nc = res.grid_shape
@@ -141,11 +146,10 @@ def _map_figures(res: SweepResult):
     if Z.min() < 0.0 < Z.max():
         a.contour(K, C, Z, levels=[0.0], colors="k", linewidths=1.2)
     nom = res.settings["nominal"]
-    a.plot(nom[kname], nom[cname], "k*", ms=12, label="nominal (fit to Eqn 5)")
+    a.plot(nom[kname], nom[cname], "k*", ms=12, label="nominal operator")
     a.set_xscale("log")
-    a.set_yscale("log")
-    a.set_xlabel(f"{kname} [N/m]")
-    a.set_ylabel(f"{cname} [N s/m]")
+    a.set_xlabel(_axis_label(res, kname))
+    a.set_ylabel(_axis_label(res, cname))
     a.set_title(res.title)
     a.legend(loc="upper right")
     fig.colorbar(mesh, ax=a, label="worst real part of a pole [1/s] (black: 0)")
@@ -153,9 +157,8 @@ def _map_figures(res: SweepResult):
     F = res.columns["fraction_stable"].reshape(nk, nc)
     m2 = ax2[0, 0].pcolormesh(K, C, F, shading="nearest", cmap="viridis", vmin=0, vmax=1)
     ax2[0, 0].set_xscale("log")
-    ax2[0, 0].set_yscale("log")
-    ax2[0, 0].set_xlabel(f"{kname} [N/m]")
-    ax2[0, 0].set_ylabel(f"{cname} [N s/m]")
+    ax2[0, 0].set_xlabel(_axis_label(res, kname))
+    ax2[0, 0].set_ylabel(_axis_label(res, cname))
     ax2[0, 0].set_title("Fraction of members stable")
     fig2.colorbar(m2, ax=ax2[0, 0], label="fraction stable")
     fig3, ax3 = _figure(1, 1, (7.0, 5.5))
@@ -166,9 +169,8 @@ def _map_figures(res: SweepResult):
         ax3[0, 0].contour(K, C, Zn, levels=[0.0], colors="k", linewidths=1.2)
     ax3[0, 0].plot(nom[kname], nom[cname], "k*", ms=12)
     ax3[0, 0].set_xscale("log")
-    ax3[0, 0].set_yscale("log")
-    ax3[0, 0].set_xlabel(f"{kname} [N/m]")
-    ax3[0, 0].set_ylabel(f"{cname} [N s/m]")
+    ax3[0, 0].set_xlabel(_axis_label(res, kname))
+    ax3[0, 0].set_ylabel(_axis_label(res, cname))
     ax3[0, 0].set_title("Largest real part, other parameters nominal")
     fig3.colorbar(m3, ax=ax3[0, 0], label="largest real part of a pole [1/s] (black: 0)")
     n = res.settings["members_per_point"]
@@ -193,7 +195,7 @@ _FIGURES = {
     "workspace": lambda r: _line_figures(
         r, "workspace_factor", "workspace factor (K_PSF = 0.1097 / factor)"
     ),
-    "stiffness-damping": _map_figures,
+    "frequency-damping": _map_figures,
     "structure-frequency": lambda r: _line_figures(
         r, "f1_hz", "structure mode 1 frequency [Hz] (mode 2 scaled alike)"
     ),

@@ -10,6 +10,7 @@ import pytest
 
 from designs.registry import run_design
 from robust.model.device import DeviceLimits
+from uncertainty import default_family, sample, validate_family
 
 SAMPLES, SEED = 500, 0
 LIM = DeviceLimits()
@@ -51,9 +52,6 @@ def test_hinf_robust_stabilises_every_sampled_member(runs):
 
 
 def test_hinf_robust_holds_on_a_held_out_sample(runs):
-    from uncertainty import default_family, sample
-    from uncertainty.batched import validate_family
-
     r = _run(runs, "hinf-robust")
     fam = default_family()
     v = validate_family(
@@ -94,9 +92,14 @@ def test_hinf_nominal_margins(runs):
 
 
 def test_virtual_damping_margins(runs):
-    ev = _run(runs, "virtual-damping").evaluation
-    assert ev.fraction_stable >= 0.75
-    assert ev.fraction_stable < 1.0
+    r = _run(runs, "virtual-damping")
+    ev = r.evaluation
+    # the chosen pair keeps the force within the device limits and stabilises more of the
+    # sample than no compensation does, but not all of it
+    assert r.details["force_limited_choice"] and ev.force_within_limits
+    fam = default_family()
+    bare = validate_family(fam, sample(fam.parameters, SAMPLES, method="lhs", seed=SEED))
+    assert bare.fraction_stable < ev.fraction_stable < 1.0
     _force_flag_consistent(ev)
 
 

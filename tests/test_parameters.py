@@ -7,6 +7,7 @@ import pytest
 from scipy import stats
 
 from robust.errors import ParameterError
+from robust.model.literature import published_box
 from uncertainty.family import MODEL_PARAMETERS, Family, default_family
 from uncertainty.parameters import UncertainParameter
 
@@ -95,12 +96,22 @@ def test_default_family_ranges(human):
     f1 = fam.parameter("struct.f1_hz")
     assert f1.high == pytest.approx(6.3) and f1.low <= 3.0
     if human == "physical":
-        for name in ("human.k_trunk", "human.c_trunk", "human.k_arm", "human.c_arm"):
-            q = fam.parameter(name)
-            assert q.distribution == "loguniform"
-            assert q.high / q.low == pytest.approx(10.0)
-        bm = fam.parameter("human.body_mass")
-        assert bm.low <= 50.0 and bm.high >= 100.0
+        # every human parameter spans its published range and cites it
+        box = published_box(fam.posture)
+        for name, r in box.items():
+            q = fam.parameter(f"human.{name}")
+            assert (q.low, q.high, q.distribution, q.source) == (
+                r.low,
+                r.high,
+                r.distribution,
+                r.source,
+            )
+            assert r.low <= q.nominal <= r.high
+        assert "STRESS" not in " ".join(p.source for p in fam.parameters)
+        stress = default_family(human, ranges="stress")
+        assert stress.name.startswith("stress-")
+        assert stress.parameter("human.zeta_arm").low == pytest.approx(0.1)
+        assert all("STRESS VARIANT" in stress.parameter(f"human.{n}").source for n in box)
 
 
 def test_nominal_member_is_the_nominal_loop():

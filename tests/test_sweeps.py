@@ -10,7 +10,7 @@ from bdft import main
 from robust.errors import ParameterError
 from uncertainty import default_family, validate_family
 from uncertainty.sampling import SampleSet, sample
-from uncertainty.sweeps import stiffness_damping_sweep, structure_frequency_sweep, workspace_sweep
+from uncertainty.sweeps import frequency_damping_sweep, structure_frequency_sweep, workspace_sweep
 
 
 def test_workspace_sweep_rows_equal_direct_validation():
@@ -24,23 +24,23 @@ def test_workspace_sweep_rows_equal_direct_validation():
     assert res.settings["seed"] == 3 and res.settings["members_per_point"] == 40
 
 
-def test_stiffness_damping_map_fixes_the_swept_pair():
+def test_frequency_damping_map_fixes_the_swept_pair():
     fam = default_family("physical").with_workspace_factor(2.0)
-    res = stiffness_damping_sweep(fam, n_k=3, n_c=2, members=10, seed=1)
+    res = frequency_damping_sweep(fam, n_f=3, n_z=2, members=10, seed=1)
     assert res.grid_shape == (3, 2) and len(res.columns["max_real_pole"]) == 6
-    base = [p for p in fam.parameters if p.name not in ("human.k_arm", "human.c_arm")]
+    swept = ("human.f_arm_hz", "human.zeta_arm")
+    base = [p for p in fam.parameters if p.name not in swept]
     S = sample(base, 10, method="lhs", seed=1)
-    k, c = res.columns["human.k_arm"][4], res.columns["human.c_arm"][4]
+    point = {n: res.columns[n][4] for n in swept}
+    lo, hi = fam.parameter("human.f_arm_hz").low, fam.parameter("human.f_arm_hz").high
+    assert point["human.f_arm_hz"] == pytest.approx(np.geomspace(lo, hi, 3)[2])
     vals = np.column_stack(
-        [
-            S.column(n) if n in S.names else np.full(10, {"human.k_arm": k, "human.c_arm": c}[n])
-            for n in fam.names
-        ]
+        [S.column(n) if n in S.names else np.full(10, point[n]) for n in fam.names]
     )
     ref = validate_family(fam, SampleSet(fam.names, vals, "lhs", 1, 10))
     assert res.columns["max_real_pole"][4] == pytest.approx(ref.max_real_pole)
     with pytest.raises(ParameterError, match="needs the physical human"):
-        stiffness_damping_sweep(default_family("literal"))
+        frequency_damping_sweep(default_family("literal"))
 
 
 def test_structure_frequency_sweep_spans_tyres_to_stilts():
@@ -49,7 +49,7 @@ def test_structure_frequency_sweep_spans_tyres_to_stilts():
     assert res.columns["f1_hz"][0] == pytest.approx(0.4 * 6.3)
 
 
-@pytest.mark.parametrize("name", ["workspace", "stiffness-damping", "structure-frequency"])
+@pytest.mark.parametrize("name", ["workspace", "frequency-damping", "structure-frequency"])
 def test_cli_sweep_writes_page_plots_and_csv(capsys, tmp_path, name):
     out = tmp_path / name
     assert (
@@ -76,6 +76,6 @@ def test_cli_sweep_writes_page_plots_and_csv(capsys, tmp_path, name):
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs and all(p in page for p in pngs)
     rows = list(csv.DictReader((out / f"{name}.csv").open()))
-    assert len(rows) == (9 if name == "stiffness-damping" else 3)
+    assert len(rows) == (9 if name == "frequency-damping" else 3)
     assert float(rows[0]["fraction_stable"]) == pytest.approx(obj["columns"]["fraction_stable"][0])
     assert not list(out.glob(".*.tmp"))

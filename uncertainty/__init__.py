@@ -11,7 +11,7 @@ Public API (import from here; module layout may change):
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`BDFT_BAND_HZ`;
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
-* sweeps: :func:`workspace_sweep`, :func:`stiffness_damping_sweep`,
+* sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
@@ -25,14 +25,14 @@ from uncertainty.batched import (
     member_metrics,
     validate_family,
 )
-from uncertainty.family import HUMAN_VARIANTS, MODEL_PARAMETERS, Family, default_family
+from uncertainty.family import HUMAN_VARIANTS, MODEL_PARAMETERS, RANGES, Family, default_family
 from uncertainty.files import family_nominals, load_component_fit, load_controller
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
 from uncertainty.sampling import METHODS, SampleSet, sample
 from uncertainty.sweeps import (
     SWEEPS,
     SweepResult,
-    stiffness_damping_sweep,
+    frequency_damping_sweep,
     structure_frequency_sweep,
     workspace_sweep,
 )
@@ -42,6 +42,7 @@ __all__ = [
     "UncertainParameter",
     "HUMAN_VARIANTS",
     "MODEL_PARAMETERS",
+    "RANGES",
     "Family",
     "default_family",
     "METHODS",
@@ -61,6 +62,6 @@ __all__ = [
     "SWEEPS",
     "SweepResult",
     "workspace_sweep",
-    "stiffness_damping_sweep",
+    "frequency_damping_sweep",
     "structure_frequency_sweep",
 ]

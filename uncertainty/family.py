@@ -10,8 +10,11 @@ Parameter names:
 
 * structure (Eqn 4): ``struct.k_s``, ``struct.zeta1``, ``struct.zeta2``,
   ``struct.f1_hz``, ``struct.f2_hz``;
-* physical human: ``human.body_mass`` (scales both masses), ``human.k_trunk``,
-  ``human.c_trunk``, ``human.k_arm``, ``human.c_arm``;
+* physical human, as biodynamics papers report it (:mod:`robust.model.literature`):
+  ``human.body_mass`` (scales the upper-body mass), ``human.m_arm`` (effective mass at
+  the hand), ``human.f_arm_hz``, ``human.zeta_arm`` (arm endpoint, trunk held),
+  ``human.f_trunk_hz``, ``human.zeta_trunk`` (upper body on the seat); stiffnesses and
+  dampings are derived (:mod:`robust.model.modal`);
 * literal human (Eqn 5): ``human.k_h``, ``human.p1``.
 """
 
@@ -28,23 +31,29 @@ from robust.errors import ParameterError
 from robust.model.anthropometry import NOMINAL_BODY_MASS
 from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
 from robust.model.human import LiteralHuman, LiteralHumanParams
+from robust.model.literature import DEFAULT_POSTURE, POSTURES, published_box, stress_box
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
-from robust.model.physical import PhysicalHuman, PhysicalHumanParams
+from robust.model.modal import modal_to_physical
+from robust.model.physical import PhysicalHuman, PhysicalHumanParams, nominal_params
 from uncertainty.parameters import UncertainParameter
 
-__all__ = ["HUMAN_VARIANTS", "Family", "default_family", "MODEL_PARAMETERS"]
+__all__ = ["HUMAN_VARIANTS", "RANGES", "Family", "default_family", "MODEL_PARAMETERS"]
 
 HUMAN_VARIANTS = ("physical", "literal")
+#: Ranges a default family can span: the published ones, or the labelled stress variant.
+RANGES = ("published", "stress")
 
 _STRUCT = ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")
 _PHYS = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
+_MODAL = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
 _LIT = ("k_h", "z1", "p1")
 
 #: Names of the family parameters each variant accepts.
 MODEL_PARAMETERS = {
     "physical": tuple(f"struct.{n}" for n in _STRUCT)
     + ("human.body_mass",)
-    + tuple(f"human.{n}" for n in _PHYS if n not in ("m_trunk", "m_arm")),
+    + tuple(f"human.{n}" for n in _MODAL)
+    + ("human.h_gain", "human.c_unit"),
     "literal": tuple(f"struct.{n}" for n in _STRUCT) + tuple(f"human.{n}" for n in _LIT),
 }
 
@@ -64,12 +73,16 @@ class Family:
     valve, struct, literal, physical : parameter dataclasses
         Nominal values (the valve does not vary).
     body_mass : float
-        Nominal body mass (kg) that ``physical``'s masses belong to; a member with
-        ``human.body_mass = M`` has both masses scaled by ``M / body_mass``.
+        Nominal body mass (kg) that ``physical``'s upper-body mass belongs to; a member
+        with ``human.body_mass = M`` has it scaled by ``M / body_mass``.
     calibration : LoopCalibration
         PI gains, junction sign and loop-scale factor of every member.
     name : str
         Label for reports.
+    posture : {"backrest", "no-backrest"}
+        Posture of the physical human's ranges (a label; the ranges are in ``parameters``).
+    ranges : {"published", "stress"}
+        Whether the human ranges are the published ones or the stress variant beyond them.
     """
 
     parameters: tuple[UncertainParameter, ...]
@@ -82,12 +95,18 @@ class Family:
     body_mass: float = NOMINAL_BODY_MASS
     calibration: LoopCalibration = DEFAULT_CALIBRATION
     name: str = "default"
+    posture: str = DEFAULT_POSTURE
+    ranges: str = "published"
 
     def __post_init__(self):
         if self.human not in HUMAN_VARIANTS:
             raise ParameterError(
                 f"Family.human must be one of {HUMAN_VARIANTS}; got {self.human!r}"
             )
+        if self.posture not in POSTURES:
+            raise ParameterError(f"Family.posture must be one of {POSTURES}; got {self.posture!r}")
+        if self.ranges not in RANGES:
+            raise ParameterError(f"Family.ranges must be one of {RANGES}; got {self.ranges!r}")
         object.__setattr__(
             self, "k_psf", check_scalar("k_psf", self.k_psf, POSITIVE, owner="Family")
         )
@@ -192,9 +211,23 @@ class Family:
                 out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.literal, f)))
         else:
             scale = cols.get("human.body_mass", np.full(n, self.body_mass)) / self.body_mass
-            out["human.m_trunk"] = self.physical.m_trunk * scale
-            out["human.m_arm"] = self.physical.m_arm * scale
-            for f in _PHYS[2:]:
+            modal = {
+                f: cols.get(f"human.{f}", np.full(n, getattr(self.physical, f))) for f in _MODAL
+            }
+            m_trunk = self.physical.m_trunk * scale
+            k_t, c_t, k_a, c_a = modal_to_physical(
+                m_trunk,
+                modal["m_arm"],
+                modal["f_trunk_hz"],
+                modal["zeta_trunk"],
+                modal["f_arm_hz"],
+                modal["zeta_arm"],
+            )
+            out["human.m_trunk"] = m_trunk
+            out["human.m_arm"] = modal["m_arm"]
+            out["human.k_trunk"], out["human.c_trunk"] = k_t, c_t
+            out["human.k_arm"], out["human.c_arm"] = k_a, c_a
+            for f in ("h_gain", "c_unit"):
                 out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.physical, f)))
         return out
 
@@ -242,12 +275,14 @@ class Family:
                 self.literal if self.human == "literal" else self.physical
             ),
             "calibration": dataclasses.asdict(self.calibration),
+            "posture": self.posture,
+            "ranges": self.ranges,
             "parameters": [p.describe() for p in self.parameters],
         }
 
 
 # -- the default family ------------------------------------------------------------------------
-#: Total width (high/low) of the log-uniform human stiffness and damping ranges.
+#: Total width (high/low) of the literal human's log-uniform gain range.
 HUMAN_SPREAD = 10.0
 #: Lowest structure frequency as a fraction of the stilts value.
 WHEELS_FREQUENCY_FRACTION = 0.4
@@ -315,27 +350,25 @@ def _spread(name, nominal, units, source):
     return UncertainParameter(name, nominal, nominal / r, nominal * r, "loguniform", units, source)
 
 
-def _physical_parameters(p: PhysicalHumanParams, body_mass: float) -> list[UncertainParameter]:
-    note = (
-        "fit to Eqn 5 (paper: Hybrid III x0.6) spread over one order of magnitude, "
-        "as literature values vary (paper)"
-    )
-    return [
-        UncertainParameter(
-            "human.body_mass",
-            body_mass,
-            min(50.0, body_mass),
-            max(110.0, body_mass),
-            "uniform",
-            "kg",
-            "small (about 5th percentile female, 50 kg) to large (about 95th percentile "
-            "male, 110 kg) operator",
-        ),
-        _spread("human.k_trunk", p.k_trunk, "N/m", note),
-        _spread("human.c_trunk", p.c_trunk, "N s/m", note),
-        _spread("human.k_arm", p.k_arm, "N/m", note + "; grip and posture change the arm most"),
-        _spread("human.c_arm", p.c_arm, "N s/m", note + "; active vs passive grip (paper)"),
-    ]
+def _physical_parameters(
+    p: PhysicalHumanParams, body_mass: float, box: dict
+) -> list[UncertainParameter]:
+    """Body mass, arm and trunk modal parameters over the ranges of ``box``, nominal ``p``."""
+    nominal = {"body_mass": body_mass, **{f: getattr(p, f) for f in _MODAL}}
+    out = []
+    for name in ("body_mass", *_MODAL):
+        r = box[name]
+        v = float(nominal[name])
+        if not r.contains(v):
+            raise ParameterError(
+                f"default_family: the nominal human.{name} = {v:.6g} {r.units} lies outside "
+                f"its range [{r.low:g}, {r.high:g}]; give a nominal inside the range "
+                "(robust.model.physical.nominal_params gives the published nominal)"
+            )
+        out.append(
+            UncertainParameter(f"human.{name}", v, r.low, r.high, r.distribution, r.units, r.source)
+        )
+    return out
 
 
 def _literal_parameters(p: LiteralHumanParams) -> list[UncertainParameter]:
@@ -368,14 +401,20 @@ def default_family(
     physical: PhysicalHumanParams | None = None,
     body_mass: float = NOMINAL_BODY_MASS,
     calibration: LoopCalibration = DEFAULT_CALIBRATION,
+    posture: str = DEFAULT_POSTURE,
+    ranges: str = "published",
 ) -> Family:
     """The default family (BRIEF section 5) around the given nominals.
 
     Structure: natural frequencies from the stilts values down to x0.4 (a machine
     on its tyres), damping ratios x0.5..x2, gain x1..x3 (larger cab motion on
-    tyres). Physical human: stiffnesses and dampings log-uniform over one order of
-    magnitude around the fit, body mass 50-110 kg. Literal human: gain over one
-    order of magnitude, pole x0.5..x2. The valve/cylinder does not vary.
+    tyres). Physical human: body mass, arm-endpoint effective mass, natural frequency
+    and damping ratio, trunk natural frequency and damping ratio, each over its
+    published range for the posture (:mod:`robust.model.literature`; the source of
+    every range is in the parameter's source note), around the nominal operator
+    fitted inside those ranges; ``ranges="stress"`` widens them beyond the published
+    ones (a labelled stress variant). Literal human: gain over one order of
+    magnitude, pole x0.5..x2. The valve/cylinder does not vary.
 
     Parameters
     ----------
@@ -384,35 +423,49 @@ def default_family(
     k_psf : float
         Position scale factor of every member.
     valve, struct, literal, physical : optional
-        Nominal parameters (default: the paper's values and the physical fit).
+        Nominal parameters (default: the paper's values and, for the physical human,
+        the nominal operator of ``posture``, :func:`robust.model.physical.nominal_params`).
     body_mass : float
         Body mass (kg) the physical nominal masses belong to.
     calibration : LoopCalibration
         Loop calibration (default :data:`robust.model.loop.DEFAULT_CALIBRATION`).
+    posture : {"backrest", "no-backrest"}
+        Posture whose published trunk ranges the physical family spans.
+    ranges : {"published", "stress"}
+        The published ranges, or the stress variant beyond them.
 
     Returns
     -------
     Family
-        Named ``"default-<human>"``; five structure parameters plus five
-        (physical) or two (literal) human parameters.
+        Named ``"default-<human>"`` (``-<posture>`` for a posture other than the
+        default, ``stress-`` instead of ``default-`` for the stress variant); five
+        structure parameters plus six (physical) or two (literal) human parameters.
 
     Raises
     ------
     ParameterError
-        If ``human`` is not a known variant.
+        If ``human``, ``posture`` or ``ranges`` is not known, or a physical nominal
+        lies outside its range.
     """
+    if posture not in POSTURES:
+        raise ParameterError(f"default_family: posture must be one of {POSTURES}; got {posture!r}")
+    if ranges not in RANGES:
+        raise ParameterError(f"default_family: ranges must be one of {RANGES}; got {ranges!r}")
     struct = struct or StructureParams()
     literal = literal or LiteralHumanParams()
-    physical = physical or PhysicalHumanParams()
+    physical = physical or nominal_params(posture)
     params = _structure_parameters(struct)
     if human == "physical":
-        params += _physical_parameters(physical, body_mass)
+        box = published_box(posture) if ranges == "published" else stress_box(posture)
+        params += _physical_parameters(physical, body_mass, box)
     elif human == "literal":
         params += _literal_parameters(literal)
     else:
         raise ParameterError(
             f"default_family: human must be one of {HUMAN_VARIANTS}; got {human!r}"
         )
+    prefix = "default" if ranges == "published" else "stress"
+    suffix = "" if (human == "literal" or posture == DEFAULT_POSTURE) else f"-{posture}"
     return Family(
         parameters=tuple(params),
         human=human,
@@ -423,5 +476,7 @@ def default_family(
         physical=physical,
         body_mass=body_mass,
         calibration=calibration,
-        name=f"default-{human}",
+        name=f"{prefix}-{human}{suffix}",
+        posture=posture,
+        ranges=ranges,
     )

@@ -29,12 +29,12 @@ __all__ = [
     "SWEEPS",
     "SweepResult",
     "workspace_sweep",
-    "stiffness_damping_sweep",
+    "frequency_damping_sweep",
     "structure_frequency_sweep",
 ]
 
 #: Sweep names of ``bdft sweep``.
-SWEEPS = ("workspace", "stiffness-damping", "structure-frequency")
+SWEEPS = ("workspace", "frequency-damping", "structure-frequency")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -195,28 +195,29 @@ def workspace_sweep(
     )
 
 
-def stiffness_damping_sweep(
+def frequency_damping_sweep(
     family: Family,
     *,
     pair: str = "arm",
-    n_k: int = 12,
-    n_c: int = 12,
+    n_f: int = 12,
+    n_z: int = 12,
     members: int = 200,
     method: str = "lhs",
     seed: int = 0,
     chunk: int = DEFAULT_CHUNK,
     progress=None,
 ) -> SweepResult:
-    """Map of the worst real part over a grid of one human stiffness x damping.
+    """Map of the worst real part over a grid of one human natural frequency x damping ratio.
 
     Parameters
     ----------
     family : Family
-        A physical-human family containing ``human.k_<pair>`` and ``human.c_<pair>``.
+        A physical-human family containing ``human.f_<pair>_hz`` and ``human.zeta_<pair>``.
     pair : {"arm", "trunk"}
-        Which spring-damper of the chain to sweep.
-    n_k, n_c : int
-        Grid points (log-spaced over the parameters' ranges), at least 2 each.
+        Which part of the operator to sweep: the arm endpoint or the trunk on the seat.
+    n_f, n_z : int
+        Grid points over the parameters' ranges (frequency log-spaced, damping ratio
+        linear), at least 2 each.
     members : int
         Members (the other parameters) validated at each grid point.
     method, seed : str, int
@@ -229,44 +230,45 @@ def stiffness_damping_sweep(
     Returns
     -------
     SweepResult
-        Named ``"stiffness-damping"``, grid shape ``(n_k, n_c)``; columns
-        ``human.k_<pair>`` (N/m) and ``human.c_<pair>`` (N s/m), then the metrics;
-        ``settings["nominal"]`` holds the two nominal values.
+        Named ``"frequency-damping"``, grid shape ``(n_f, n_z)``; columns
+        ``human.f_<pair>_hz`` (Hz) and ``human.zeta_<pair>``, then the metrics;
+        ``settings["nominal"]`` holds the two nominal values and ``settings["units"]``
+        their units.
     """
     _check_members(members)
     if family.human != "physical":
         raise ParameterError(
-            "the stiffness x damping sweep needs the physical human; "
+            "the frequency x damping sweep needs the physical human; "
             f"the family uses {family.human!r}"
         )
     if pair not in ("arm", "trunk"):
         raise ParameterError(f"pair must be 'arm' or 'trunk'; got {pair!r}")
-    for n in (n_k, n_c):
+    for n in (n_f, n_z):
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-            raise ParameterError(f"n_k and n_c must be integers >= 2; got {n!r}")
-    pk, pc = family.parameter(f"human.k_{pair}"), family.parameter(f"human.c_{pair}")
-    ks = np.geomspace(pk.low, pk.high, n_k)
-    cs = np.geomspace(pc.low, pc.high, n_c)
-    K, C = np.meshgrid(ks, cs, indexing="ij")
-    grid = [{pk.name: k, pc.name: c} for k, c in zip(K.ravel(), C.ravel())]
+            raise ParameterError(f"n_f and n_z must be integers >= 2; got {n!r}")
+    pf, pz = family.parameter(f"human.f_{pair}_hz"), family.parameter(f"human.zeta_{pair}")
+    fs = np.geomspace(pf.low, pf.high, n_f)
+    zs = np.linspace(pz.low, pz.high, n_z)
+    F, Z = np.meshgrid(fs, zs, indexing="ij")
+    grid = [{pf.name: f, pz.name: z} for f, z in zip(F.ravel(), Z.ravel())]
     rows, settings = _metrics_on_grid(
         family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
     )
     settings["pair"] = pair
-    settings["nominal"] = {pk.name: pk.nominal, pc.name: pc.nominal}
-    cols = {pk.name: K.ravel(), pc.name: C.ravel(), **rows}
+    settings["nominal"] = {pf.name: pf.nominal, pz.name: pz.nominal}
+    settings["units"] = {pf.name: pf.units, pz.name: pz.units}
+    cols = {pf.name: F.ravel(), pz.name: Z.ravel(), **rows}
     return SweepResult(
-        name="stiffness-damping",
-        title=f"Human {pair} stiffness x damping ({family.human} human)",
+        name="frequency-damping",
+        title=f"Human {pair} natural frequency x damping ratio ({family.human} human)",
         description=(
             "Worst (largest) real part of the closed-loop poles over "
             f"{settings['members_per_point']} members of the family's other parameters, at each "
-            f"{pk.name} x {pc.name} grid point (log-spaced over the family's order-of-magnitude "
-            "ranges)."
+            f"{pf.name} x {pz.name} grid point (over the family's published ranges)."
         ),
         columns=cols,
         settings=settings,
-        grid_shape=(n_k, n_c),
+        grid_shape=(n_f, n_z),
     )
 
 

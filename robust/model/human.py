@@ -20,9 +20,15 @@ from typing import Protocol, runtime_checkable
 import control as ct
 
 from robust.checks import POSITIVE, validate_fields
-from robust.model.physical import PhysicalHuman
+from robust.model.physical import EQN5_FIT, PhysicalHuman, nominal_params
 
-__all__ = ["HumanModel", "LiteralHumanParams", "LiteralHuman", "human_variant"]
+__all__ = [
+    "HumanModel",
+    "LiteralHumanParams",
+    "LiteralHuman",
+    "human_variant",
+    "HUMAN_VARIANT_NAMES",
+]
 
 
 @runtime_checkable
@@ -123,15 +129,23 @@ class LiteralHuman:
         }
 
 
+#: Named nominal human variants (:func:`human_variant`).
+HUMAN_VARIANT_NAMES = ("literal", "physical", "physical-no-backrest", "eqn5-fit")
+
+
 def human_variant(name: str) -> HumanModel:
     """Return the nominal human variant called ``name``.
 
     Parameters
     ----------
-    name : {"literal", "physical"}
-        ``"literal"`` for :class:`LiteralHuman` (Eqn 5 as printed) or
-        ``"physical"`` for :class:`~robust.model.physical.PhysicalHuman` (the
-        mass-spring-damper chain with a force port), each with default parameters.
+    name : {"literal", "physical", "physical-no-backrest", "eqn5-fit"}
+        ``"literal"``: :class:`LiteralHuman` (Eqn 5 as printed); ``"physical"``: the
+        mass-spring-damper chain with a force port
+        (:class:`~robust.model.physical.PhysicalHuman`), nominal operator of the
+        published ranges with a backrest; ``"physical-no-backrest"``: the same without
+        a backrest; ``"eqn5-fit"``: the chain with the unconstrained magnitude-only fit
+        to Eqn 5 (:data:`~robust.model.physical.EQN5_FIT`, outside the published
+        ranges), kept for comparison.
 
     Returns
     -------
@@ -141,10 +155,14 @@ def human_variant(name: str) -> HumanModel:
     Raises
     ------
     ValueError
-        If ``name`` is neither ``"literal"`` nor ``"physical"``.
+        If ``name`` is not one of :data:`HUMAN_VARIANT_NAMES`.
     """
     if name == "literal":
         return LiteralHuman()
     if name == "physical":
         return PhysicalHuman()
-    raise ValueError(f"human variant must be 'literal' or 'physical'; got {name!r}")
+    if name == "physical-no-backrest":
+        return PhysicalHuman(nominal_params("no-backrest"), variant=name)
+    if name == "eqn5-fit":
+        return PhysicalHuman(EQN5_FIT, variant=name)
+    raise ValueError(f"human variant must be one of {HUMAN_VARIANT_NAMES}; got {name!r}")
