@@ -4,41 +4,90 @@ Each sub-command lives in its own module of this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a callable
 taking the parsed arguments and returning the process exit code. Every command
 that reports numbers has ``--json``, which prints exactly one JSON object on
-standard output (progress and log lines go to standard error).
+standard output (progress, timings and log lines go to standard error, so the
+same options and seed give the same bytes).
+
+Options are checked before any work by one argument layer, :mod:`bdft.args`.
+Exit codes:
+
+* 0: success;
+* 2: bad input (an option, an input file, an output path) or a failed computation
+  the workbench reports on purpose (:class:`robust.errors.BDFTError`); standard
+  error gets exactly one line, ``bdft COMMAND: error: ...``, naming the option or
+  file, what was expected and what was got;
+* 1: an unexpected internal error (a bug); standard error gets one line saying
+  where the full traceback was written (a ``bdft-COMMAND-*.log`` file in
+  ``BDFT_LOG_DIR``, or the system's temporary folder);
+* 130: interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
 
-import argparse
+import os
 import sys
+import tempfile
+import traceback
 
-from bdft import design, identify, report, reproduce, sweep, validate
+from bdft import design, identify, margin, report, reproduce, sweep, validate
+from bdft.args import ArgumentParser, UsageError
 from robust.errors import BDFTError
+from robust.version import __version__
 
-__all__ = ["main", "build_parser", "COMMANDS"]
+__all__ = ["main", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
 
 #: Sub-command modules, in the order ``bdft --help`` lists them.
-COMMANDS = (reproduce, validate, sweep, identify, design, report)
+COMMANDS = (reproduce, validate, margin, sweep, identify, design, report)
+
+#: Environment variable naming the folder for tracebacks of internal errors.
+LOG_DIR_ENV = "BDFT_LOG_DIR"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> ArgumentParser:
     """The ``bdft`` argument parser with every sub-command registered.
 
     Returns
     -------
-    argparse.ArgumentParser
+    bdft.args.ArgumentParser
         Parser of ``bdft COMMAND ...``, one sub-parser per module of :data:`COMMANDS`
         (each module's ``register``); the parsed namespace's ``func`` runs the command.
+        Parse errors raise :class:`bdft.args.UsageError` instead of exiting.
     """
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="bdft",
         description="Biodynamic-feedthrough robust-control workbench.",
+        epilog="Exit codes: 0 success; 2 bad input or a reported error (one line on "
+        "standard error); 1 internal error (the line names the traceback file).",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for module in COMMANDS:
         module.register(sub)
     return parser
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _command_of(argv: list[str]) -> str:
+    names = {m.__name__.rsplit(".", 1)[1] for m in COMMANDS}
+    for arg in argv:
+        if arg in names:
+            return arg
+        if not arg.startswith("-"):
+            break
+    return ""
+
+
+def _write_traceback(command: str, argv: list[str]) -> str:
+    """Write the current exception's traceback to a log file and return its path."""
+    folder = os.environ.get(LOG_DIR_ENV) or tempfile.gettempdir()
+    fd, path = tempfile.mkstemp(prefix=f"bdft-{command or 'main'}-", suffix=".log", dir=folder)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(f"bdft-workbench {__version__}\n")
+        fh.write(f"command: bdft {' '.join(argv)}\n\n")
+        fh.write(traceback.format_exc())
+    return path
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -52,12 +101,38 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit code: 0 on success, 2 on a reported error.
+        Exit code: 0 on success, 2 on bad input or a reported error, 1 on an
+        unexpected internal error, 130 when interrupted (see the module notes).
+        ``--help`` still exits through :class:`SystemExit` with code 0.
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = _command_of(argv)
+    prog = f"bdft {command}" if command else "bdft"
     try:
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        command = args.command
+        prog = f"bdft {command}"
+        if extra:
+            raise UsageError(
+                f"unrecognized arguments: expected only the options of 'bdft {command} --help'; "
+                f"got {' '.join(extra)}"
+            )
         return int(args.func(args) or 0)
-    except BDFTError as exc:
-        print(f"bdft {args.command}: error: {exc}", file=sys.stderr)
+    except UsageError as exc:
+        print(f"{exc.prog or prog}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except BDFTError as exc:
+        print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the last resort: one line and a log file
+        what = _one_line(f"{type(exc).__name__}: {exc}")[:300]
+        try:
+            where = f"the full traceback is in {_write_traceback(command, argv)}"
+        except OSError as log_exc:
+            where = f"the traceback could not be written ({_one_line(log_exc)})"
+        print(f"{prog}: internal error: {what}; this is a bug, {where}", file=sys.stderr)
+        return 1

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import sys
 
+from bdft.args import UsageError, check_artifact_targets, members, members_help, seed
 from bdft.common import print_json
 from designs.registry import design_names, run_design
-from robust.errors import ParameterError
 
 __all__ = ["register", "run"]
 
@@ -30,17 +30,34 @@ def register(sub) -> None:
     p.add_argument("--list", action="store_true", help="print the design names, one per line")
     p.add_argument(
         "--samples",
-        type=int,
+        type=members("--samples"),
         default=2000,
-        help="family members to validate on (default: %(default)s)",
+        help=members_help("family members to validate on (default: %(default)s)"),
     )
-    p.add_argument("--seed", type=int, default=0, help="sampling seed (default: %(default)s)")
-    p.add_argument("--method", choices=["mc", "lhs", "grid", "vertices"], default="lhs")
     p.add_argument(
-        "--out", default="reports/out/designs", help="artifact folder (default: %(default)s)"
+        "--seed",
+        type=seed("--seed"),
+        default=0,
+        help="sampling seed, 0 to 2**63-1 (default: %(default)s)",
+    )
+    p.add_argument(
+        "--method",
+        choices=["mc", "lhs", "grid", "vertices"],
+        default="lhs",
+        help="sampling method (default: %(default)s)",
+    )
+    p.add_argument(
+        "--out",
+        default="reports/out/designs",
+        help="artifact folder; NAME.json and NAME.mat there are replaced only when they are "
+        "previous artifacts (default: %(default)s)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
+
+
+def _names() -> str:
+    return ", ".join(design_names())
 
 
 def run(args) -> int:
@@ -61,17 +78,19 @@ def run(args) -> int:
 
     Raises
     ------
-    robust.errors.ParameterError
-        Without a design name and without ``--list``, with ``--samples`` below 1, or
-        for an unknown design name.
+    bdft.args.UsageError
+        Without a design name and without ``--list``, for an unknown design name, or
+        an ``--out`` where the artifact cannot be written (checked before the design
+        is computed).
     """
     if args.list:
         print("\n".join(design_names()))
         return 0
     if not args.name:
-        raise ParameterError("give a design NAME or --list")
-    if args.samples < 1:
-        raise ParameterError(f"--samples must be a positive integer; got {args.samples}")
+        raise UsageError(f"NAME: expected a design name or --list; got neither ({_names()})")
+    if args.name not in design_names():
+        raise UsageError(f"NAME: unknown design {args.name!r}; expected one of {_names()}")
+    check_artifact_targets("--out", args.out, [args.name])
     print(
         f"[bdft design] running {args.name!r} on {args.samples} members (seed {args.seed}) ...",
         file=sys.stderr,

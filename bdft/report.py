@@ -5,7 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from bdft.args import check_artifact_targets, check_report_dir, members, members_help, seed
 from bdft.common import print_json
+from designs.registry import design_names
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from uncertainty import default_family
@@ -29,11 +31,22 @@ def register(sub) -> None:
         "write their artifacts and one HTML page comparing them.",
     )
     p.add_argument(
-        "--samples", type=int, default=2000, help="family members (default: %(default)s)"
+        "--samples",
+        type=members("--samples"),
+        default=2000,
+        help=members_help("family members (default: %(default)s)"),
     )
-    p.add_argument("--seed", type=int, default=0, help="sampling seed (default: %(default)s)")
     p.add_argument(
-        "--out", default="reports/out/designs", help="output folder (default: %(default)s)"
+        "--seed",
+        type=seed("--seed"),
+        default=0,
+        help="sampling seed, 0 to 2**63-1 (default: %(default)s)",
+    )
+    p.add_argument(
+        "--out",
+        default="reports/out/designs",
+        help="report folder: a new folder or a previous bdft report, never another folder or "
+        "file; the artifacts go to <out>-artifacts (default: %(default)s)",
     )
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with every design's summary"
@@ -52,7 +65,9 @@ def run(args) -> int:
     ----------
     args : argparse.Namespace
         Parsed ``bdft report`` options: ``samples`` (family members every design is
-        validated on), ``seed`` (sampling seed), ``out`` (report folder) and ``json``.
+        validated on), ``seed`` (sampling seed), ``out`` (report folder: a new folder or
+        a previous report; it and the artifacts' folder are checked before any work)
+        and ``json``.
 
     Returns
     -------
@@ -65,12 +80,12 @@ def run(args) -> int:
     def progress(name):
         print(f"[bdft report] design {name} ...", file=sys.stderr, flush=True)
 
-    art_dir = Path(args.out).with_name(Path(args.out).name + "-artifacts")
+    out = check_report_dir("--out", args.out)
+    art_dir = Path(args.out).with_name(out.name + "-artifacts")
+    check_artifact_targets("--out", art_dir, design_names())
     runs = run_all_designs(samples=args.samples, seed=args.seed, out_dir=art_dir, progress=progress)
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
-    path = write_design_report(
-        runs, args.out, samples=args.samples, seed=args.seed, coverage=coverage
-    )
+    path = write_design_report(runs, out, samples=args.samples, seed=args.seed, coverage=coverage)
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
         print_json(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from bdft.args import check_report_dir
 from bdft.common import print_json
 from reports.reproduce import reproduce, result_to_json, write_reproduction_report
 from robust.model.human import HUMAN_VARIANT_NAMES
@@ -27,7 +28,10 @@ def register(sub) -> None:
         "each human variant and write one HTML page with its figures.",
     )
     p.add_argument(
-        "--out", default="reports/out/reproduce", help="output folder (default: %(default)s)"
+        "--out",
+        default="reports/out/reproduce",
+        help="report folder: a new folder or a previous bdft report, never another folder or "
+        "file (default: %(default)s)",
     )
     p.add_argument(
         "--human",
@@ -47,7 +51,8 @@ def run(args) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        Parsed ``bdft reproduce`` options: ``out`` (report folder), ``human``
+        Parsed ``bdft reproduce`` options: ``out`` (report folder: a new folder or a
+        previous report, checked before any work), ``human``
         (a name of :data:`robust.model.human.HUMAN_VARIANT_NAMES` or ``"all"``) and ``json``.
 
     Returns
@@ -57,13 +62,14 @@ def run(args) -> int:
         (``--json``, with the report path under ``"report"``) or one line per claim and
         variant; progress goes to standard error.
     """
+    out = check_report_dir("--out", args.out)
     variants = HUMAN_VARIANT_NAMES if args.human == "all" else (args.human,)
 
     def progress(msg: str) -> None:
         print(f"[bdft reproduce] {msg} ...", file=sys.stderr, flush=True)
 
     res = reproduce(variants=variants, progress=progress)
-    path = write_reproduction_report(res, args.out)
+    path = write_reproduction_report(res, out)
     progress(f"report written to {path}")
     if args.json:
         obj = result_to_json(res)

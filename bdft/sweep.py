@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from bdft.args import check_report_dir, integer, real
 from bdft.common import print_json
-from bdft.validate import add_family_arguments, build_family, progress_bar
+from bdft.validate import add_family_arguments, build_family, check_family_arguments, progress_bar
 from reports.sweeps import write_sweep_report
 from uncertainty import DEFAULT_CHUNK
 from uncertainty.sweeps import (
@@ -17,10 +18,12 @@ from uncertainty.sweeps import (
     workspace_sweep,
 )
 
-__all__ = ["register", "run"]
+__all__ = ["MAX_POINTS", "register", "run"]
 
 _NAMES = ("workspace", "frequency-damping", "structure-frequency")
 _DEFAULT_MEMBERS = {"workspace": 2000, "frequency-damping": 200, "structure-frequency": 2000}
+#: Grid points per swept axis: at least 2 (a sweep draws a line), at most this many.
+MAX_POINTS = 200
 
 
 def register(sub) -> None:
@@ -56,19 +59,25 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--points",
-        type=int,
+        type=integer("--points", low=2, high=MAX_POINTS),
         default=None,
-        help="grid points per swept axis (default: 19 factors, 12x12 map, 13 frequencies)",
+        help=f"grid points per swept axis, 2 to {MAX_POINTS} (default: 19 factors, 12x12 map, "
+        "13 frequencies)",
     )
     p.add_argument(
         "--workspace-factor",
-        type=float,
+        type=real("--workspace-factor", low=0.0, low_open=True),
         default=None,
         help="workspace factor of the family (K_PSF = 0.1097 / factor); default 1 for the "
         "workspace sweep (its reference) and 2 for the others (the paper's stabilised "
         "workspace, C2)",
     )
-    p.add_argument("--out", default=None, help="output folder (default: reports/out/sweep-<name>)")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="report folder: a new folder or a previous bdft report, never another folder "
+        "or file (default: reports/out/sweep-<name>)",
+    )
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with the table and settings"
     )
@@ -121,10 +130,11 @@ def run(args) -> int:
         point, 0 when not given, meaning 2000, or 200 for the frequency-damping map;
         ``seed``, ``human``, ``plant_file``, ``chunk``); ``method`` (``"mc"`` or
         ``"lhs"``); ``pair`` (``"arm"`` or ``"trunk"``, for the frequency-damping map);
-        ``points`` (grid points per swept axis, ``None`` for 19 factors, a 12 x 12 map
-        or 13 frequencies); ``workspace_factor`` (``None``: 1 for the workspace sweep,
-        2 for the others); ``out`` (report folder, ``None`` for
-        ``reports/out/sweep-<name>``) and ``json``.
+        ``points`` (grid points per swept axis, 2 to :data:`MAX_POINTS`, ``None`` for
+        19 factors, a 12 x 12 map or 13 frequencies); ``workspace_factor`` (``None``:
+        1 for the workspace sweep, 2 for the others); ``out`` (report folder, ``None`` for
+        ``reports/out/sweep-<name>``; a new folder or a previous report, checked
+        before the sweep runs) and ``json``.
 
     Returns
     -------
@@ -132,6 +142,8 @@ def run(args) -> int:
         Exit code 0. Standard output gets the table and settings as one JSON object
         (``--json``) or the title and the CSV table; progress goes to standard error.
     """
+    out = check_report_dir("--out", Path(args.out or f"reports/out/sweep-{args.name}"))
+    check_family_arguments(args)
     factor = (
         args.workspace_factor
         if args.workspace_factor is not None
@@ -140,7 +152,6 @@ def run(args) -> int:
     family = build_family(args).with_workspace_factor(factor)
     with progress_bar(_total(args), f"sweep {args.name}") as bar:
         res, _ = _run_sweep(args, family, bar.update)
-    out = Path(args.out or f"reports/out/sweep-{args.name}")
     index = write_sweep_report(res, out)
     print(f"[bdft sweep] report written to {index}", file=sys.stderr)
     if args.json:

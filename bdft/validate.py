@@ -2,43 +2,36 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 
 from tqdm import tqdm
 
+from bdft.args import (
+    batch,
+    batch_help,
+    check_json_file,
+    members,
+    members_help,
+    real,
+    seed,
+)
 from bdft.common import print_json
 from robust.model.literature import DEFAULT_POSTURE, POSTURES
 from robust.model.physical import nominal_params
 from uncertainty import DEFAULT_CHUNK, RANGES, default_family, sample, validate_family
 from uncertainty.files import family_nominals, load_component_fit, load_controller
 
-__all__ = ["add_family_arguments", "build_family", "progress_bar", "register", "run"]
+__all__ = [
+    "add_family_arguments",
+    "build_family",
+    "check_family_arguments",
+    "progress_bar",
+    "register",
+    "run",
+]
 
 _METHODS = ("mc", "lhs", "grid", "vertices")
-
-
-def _int_at_least(minimum: int, what: str):
-    """An argparse ``type`` accepting integers >= ``minimum``.
-
-    The error message says a ``what`` integer was expected.
-    """
-
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a {what} integer; got {text!r}") from None
-        if n < minimum:
-            raise argparse.ArgumentTypeError(f"expected a {what} integer; got {n}")
-        return n
-
-    return parse
-
-
-_positive_int = _int_at_least(1, "positive")
-_nonneg_int = _int_at_least(0, "non-negative")
 
 
 def add_family_arguments(p, *, samples: int) -> None:
@@ -57,15 +50,15 @@ def add_family_arguments(p, *, samples: int) -> None:
     """
     p.add_argument(
         "--samples",
-        type=_positive_int,
+        type=members("--samples"),
         default=samples,
-        help="number of members (default: %(default)s)",
+        help=members_help("number of members (default: %(default)s)"),
     )
     p.add_argument(
         "--seed",
-        type=_nonneg_int,
+        type=seed("--seed"),
         default=0,
-        help="sampling seed, written into the output (default: %(default)s)",
+        help="sampling seed, 0 to 2**63-1, written into the output (default: %(default)s)",
     )
     p.add_argument(
         "--human",
@@ -96,7 +89,10 @@ def add_family_arguments(p, *, samples: int) -> None:
         "nominal values; may be repeated, one per component",
     )
     p.add_argument(
-        "--chunk", type=_positive_int, default=None, help="members per batch (default: 20000)"
+        "--chunk",
+        type=batch("--chunk"),
+        default=None,
+        help=batch_help("members per batch (default: 20000)"),
     )
 
 
@@ -129,12 +125,31 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--workspace-factor",
-        type=float,
+        type=real("--workspace-factor", low=0.0, low_open=True),
         default=1.0,
-        help="handle workspace multiple: K_PSF = 0.1097 / factor (default: %(default)s)",
+        help="handle workspace multiple, a positive number: K_PSF = 0.1097 / factor "
+        "(default: %(default)s)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object with the metrics")
     p.set_defaults(func=run)
+
+
+def check_family_arguments(args) -> None:
+    """Check the family options' input files before any work (:mod:`bdft.args`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options of :func:`add_family_arguments`: every ``plant_file`` must be
+        a readable JSON object file (the loader then checks its fields).
+
+    Raises
+    ------
+    bdft.args.UsageError
+        Naming ``--plant-file`` and the file.
+    """
+    for path in args.plant_file:
+        check_json_file("--plant-file", path)
 
 
 def build_family(args):
@@ -205,9 +220,13 @@ def run(args) -> int:
     -------
     int
         Exit code 0. Standard output gets the metrics of
-        :class:`uncertainty.ValidationResult` with the run's settings and the elapsed
-        time in seconds, as one JSON object (``--json``) or as text.
+        :class:`uncertainty.ValidationResult` with the run's settings, as one JSON
+        object (``--json``) or as text; it depends only on the options and the seed.
+        The elapsed time goes to standard error.
     """
+    check_family_arguments(args)
+    if args.controller is not None:
+        check_json_file("--controller", args.controller)
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()
@@ -221,6 +240,11 @@ def run(args) -> int:
             progress=bar.update,
         )
     elapsed = time.perf_counter() - t0
+    print(
+        f"[bdft validate] {res.samples} members in {elapsed:.2f} s "
+        f"({res.samples / max(elapsed, 1e-9):,.0f} members/s)",
+        file=sys.stderr,
+    )
     obj = res.to_json()
     obj.update(
         requested_samples=samples.requested,
@@ -232,7 +256,6 @@ def run(args) -> int:
         plant_files=list(args.plant_file),
         calibration=family.describe()["calibration"],
         nominals={k: family.describe()[k] for k in ("valve", "struct", "human_nominal")},
-        elapsed_s=elapsed,
     )
     if args.json:
         print_json(obj)
@@ -252,5 +275,4 @@ def run(args) -> int:
     print("  worst member:")
     for k, v in res.worst.items():
         print(f"    {k:18s} {v:.6g}")
-    print(f"  {elapsed:.2f} s, {res.samples / elapsed:,.0f} members/s")
     return 0

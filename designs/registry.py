@@ -28,6 +28,7 @@ from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
+from uncertainty.margins import robust_margin
 
 __all__ = ["DESIGNS", "design_names", "get_design", "run_design"]
 
@@ -113,6 +114,7 @@ def run_design(
     out_dir=None,
     limits: DeviceLimits | None = None,
     held_out: int = 10000,
+    margin_boxes: int = 0,
 ) -> DesignResult:
     """Build, validate, discretise and export the design ``name`` on the default family.
 
@@ -136,6 +138,10 @@ def run_design(
         Device limits (default: the Omni's).
     held_out : int
         Members of the held-out validation sample.
+    margin_boxes : int
+        Sub-boxes per scale of the certified robust margin
+        (:func:`uncertainty.margins.robust_margin`, open left half-plane); 0 skips the
+        margin. Both bounds and the critical member go into ``details["robust_margin"]``.
 
     Returns
     -------
@@ -150,6 +156,18 @@ def run_design(
     fam, K = res.family, res.controller
     ev = evaluate_design(name, fam, members, K, limits=lim, notes=res.notes)
     details = dict(res.details, held_out=_held_out(fam, K, held_out, seed + 1))
+    if margin_boxes:
+        margin = robust_margin(
+            fam,
+            controller=K,
+            samples=1000,
+            seed=seed,
+            max_boxes=margin_boxes,
+            ladder=6,
+            iterations=2,
+        ).to_json()
+        margin.pop("timings_s")
+        details["robust_margin"] = margin
     artifact = None
     if K is not None:
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)

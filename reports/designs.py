@@ -315,7 +315,7 @@ def write_design_report(
     rows, classes = [], []
     for name, run in runs.items():
         if isinstance(run, Exception):
-            rows.append([name, "FAILED", str(run)[:300]] + [""] * 9)
+            rows.append([name, "FAILED", str(run)[:300]] + [""] * 11)
             classes.append("fails")
             continue
         e = run.evaluation
@@ -335,6 +335,8 @@ def write_design_report(
                 e.peak_force_n,
                 e.rms_force_n,
                 f"{run.order_full} -> {run.order_reduced}",
+                run.details.get("robust_margin", {}).get("lower", float("nan")),
+                run.details.get("robust_margin", {}).get("upper", float("nan")),
             ]
         )
         classes.append("holds" if valid else "fails")
@@ -353,6 +355,8 @@ def write_design_report(
             "peak force [N]",
             "RMS force [N]",
             "order",
+            "margin, certified lower",
+            "margin, upper",
         ],
         rows,
         row_classes=classes,
@@ -363,7 +367,11 @@ def write_design_report(
         "Held-out: fraction stable on 10000 further members (LHS, seed + 1) that no design saw. "
         "BDFT near 6 Hz: largest |20 log10 |Y/Y_ref|| over 5-7.5 Hz on the nominal member "
         "(0 dB: no effect). "
-        "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member.",
+        "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member. "
+        "Margin: the largest scale of the family's box (about its nominal, 1 = the family) "
+        "at which every member is stable: the certified lower bound covers the whole scaled "
+        "box (interval enclosure and a Lyapunov LMI per sub-box), the upper bound is the "
+        "scale of the worst member found (bdft margin); nan when not computed.",
         cls="note",
     )
     page.h2("Verdict")

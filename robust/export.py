@@ -4,8 +4,15 @@ An artifact holds the continuous controller, its discrete 1 kHz equivalent
 (Tustin, prewarped at the structure mode), signal names and units, the design's
 weights and solver information, the family seed its validation used, and the
 software versions. :func:`load_artifact` validates a file before anything uses it:
-structure, shapes, finiteness, sample time, and that the discrete matrices are
-the Tustin transform of the continuous ones.
+structure, the type of every field, shapes, finiteness, sample time, and that the
+discrete matrices are the Tustin transform of the continuous ones; any malformed file
+(random bytes, a directory, a field of the wrong type) raises
+:class:`~robust.errors.ArtifactError` naming the file and the field.
+
+:func:`write_artifact` writes the JSON and ``.mat`` files as a pair (both or
+neither, :func:`robust.jsonio.atomic_write_group`) and replaces existing files only
+when they are artifacts themselves (:func:`check_artifact_target`), never a file of
+the user's.
 """
 
 from __future__ import annotations
@@ -15,13 +22,15 @@ import datetime as _dt
 import json
 import math
 import platform
+import warnings
 from pathlib import Path
 
 import control as ct
 import numpy as np
+import scipy.linalg
 
-from robust.errors import ArtifactError, ModelStructureError
-from robust.jsonio import atomic_write, atomic_write_json, to_jsonable
+from robust.errors import ArtifactError, ModelStructureError, ParameterError
+from robust.jsonio import atomic_write_group, to_jsonable
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.version import __version__
 
@@ -30,11 +39,18 @@ __all__ = [
     "discretize",
     "write_artifact",
     "load_artifact",
+    "check_artifact_target",
+    "is_artifact_file",
     "FORMAT_VERSION",
+    "MAX_ARTIFACT_BYTES",
     "SIGNAL_UNITS",
 ]
 
 FORMAT_VERSION = 1
+
+#: Largest artifact file :func:`load_artifact` reads (a controller of a few hundred
+#: states is well under 1 MiB; anything bigger is not an artifact).
+MAX_ARTIFACT_BYTES = 64 * 2**20
 
 #: Units of the signals a controller can measure or drive (paper's units where it gives
 #: none).
@@ -68,14 +84,36 @@ def discretize(K: ct.StateSpace, dt: float, *, prewarp_hz: float | None = None) 
 
     Raises
     ------
+    ParameterError
+        If ``dt`` is not a positive finite number, or ``prewarp_hz`` is not a
+        positive finite frequency below the Nyquist frequency ``1 / (2 dt)``.
     ModelStructureError
-        If ``K`` is not continuous-time.
+        If ``K`` is not a continuous-time state-space system.
     """
+    if not isinstance(K, ct.StateSpace):
+        raise ModelStructureError(
+            f"discretize: K must be a control.StateSpace; got {type(K).__name__}"
+        )
     if not K.isctime():
         raise ModelStructureError(f"discretize needs a continuous-time controller; got dt={K.dt}")
+    if not _is_real(dt) or not math.isfinite(dt) or dt <= 0:
+        raise ParameterError(
+            f"discretize: dt must be a positive, finite sample time in s; got {_show(dt)}"
+        )
+    dt = float(dt)
     kw = {}
     if prewarp_hz is not None:
-        kw["prewarp_frequency"] = 2 * math.pi * prewarp_hz
+        nyquist = 0.5 / dt
+        if (
+            not _is_real(prewarp_hz)
+            or not math.isfinite(prewarp_hz)
+            or not 0 < prewarp_hz < nyquist
+        ):
+            raise ParameterError(
+                f"discretize: prewarp_hz must be a frequency in (0, {nyquist:g}) Hz (below the "
+                f"Nyquist frequency 1/(2 dt) for dt={dt:g} s) or None; got {_show(prewarp_hz)}"
+            )
+        kw["prewarp_frequency"] = 2 * math.pi * float(prewarp_hz)
     Kd = ct.sample_system(K, dt, method="bilinear", **kw)
     return ct.ss(
         Kd.A,
@@ -193,11 +231,114 @@ def _versions() -> dict:
     }
 
 
+def _is_real(x) -> bool:
+    """A real number (Python or numpy), not a bool."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(
+        x, (bool, np.bool_)
+    )
+
+
+def _json_type(value) -> str:
+    """The JSON name of a parsed value's type (object, array, string, number, boolean, null)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "boolean"
+    return {dict: "object", list: "array", str: "string", int: "number", float: "number"}.get(
+        type(value), type(value).__name__
+    )
+
+
+def _show(value, width: int = 60) -> str:
+    """``repr`` of a value, cut to ``width`` characters (file contents can be huge)."""
+    text = repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def is_artifact_file(path: str | Path) -> bool:
+    """Whether ``path`` is a controller artifact file (JSON or ``.mat``) written by this module.
+
+    Used before replacing a file, so that only artifacts are ever overwritten. The
+    check is by content, not name: a JSON file must hold an object whose ``kind`` is
+    ``"bdft-controller"``; a ``.mat`` file must hold the variables ``Ac`` and
+    ``meta_json`` that :func:`write_artifact` writes.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to look at.
+
+    Returns
+    -------
+    bool
+        True for an artifact file; False for anything else (missing, a directory,
+        unreadable, too big, other content).
+    """
+    import scipy.io
+
+    path = Path(path)
+    try:
+        if not path.is_file() or path.stat().st_size > MAX_ARTIFACT_BYTES:
+            return False
+        if path.suffix.lower() == ".mat":
+            names = {name for name, _, _ in scipy.io.whosmat(str(path))}
+            return {"Ac", "meta_json"} <= names
+        obj = json.loads(path.read_bytes().decode("utf-8"))
+    except Exception:  # noqa: BLE001 - any failure to read it means it is not an artifact
+        return False
+    return isinstance(obj, dict) and obj.get("kind") == "bdft-controller"
+
+
+def check_artifact_target(path: str | Path, *, mat: bool = True) -> tuple[Path, Path | None]:
+    """Check that :func:`write_artifact` may write ``path`` (and its ``.mat``), before any work.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The artifact's JSON file: its name must end in ``.json``; it must not be a
+        directory; an existing file there (and at the ``.mat`` path) must be a
+        controller artifact (:func:`is_artifact_file`), so a file of the user's is
+        never replaced.
+    mat : bool, optional
+        Whether the ``.mat`` file ``path.with_suffix(".mat")`` is written too.
+
+    Returns
+    -------
+    (pathlib.Path, pathlib.Path or None)
+        The JSON path and the ``.mat`` path (None with ``mat=False``).
+
+    Raises
+    ------
+    ParameterError
+        If ``path`` does not end in ``.json``, or a target exists and is a directory
+        or not an artifact; the message names the file.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        raise ParameterError(f"artifact path must end in .json; got {str(path)!r}")
+    targets = [path, path.with_suffix(".mat")] if mat else [path]
+    for target in targets:
+        if target.is_dir():
+            raise ParameterError(
+                f"artifact path {str(target)!r} is a directory; expected a file to write"
+            )
+        if (target.exists() or target.is_symlink()) and not is_artifact_file(target):
+            raise ParameterError(
+                f"refusing to replace {str(target)!r}: it exists and is not a bdft controller "
+                "artifact; expected no file there or a previous artifact. Move it away or "
+                "choose another folder"
+            )
+    return path, (targets[1] if mat else None)
+
+
 def write_artifact(
     art: ControllerArtifact, path: str | Path, *, mat: bool = True
 ) -> dict[str, Path]:
-    """Write ``path`` (JSON) and, with ``mat=True``, the ``.mat`` beside it; both atomically.
+    """Write ``path`` (JSON) and, with ``mat=True``, the ``.mat`` beside it, as one pair.
 
+    Both files are written to temporary names and renamed into place together
+    (:func:`robust.jsonio.atomic_write_group`): after a failure neither is left (and
+    previous artifacts are as they were). New files get the usual mode (umask).
     The ``.mat`` holds ``Ac, Bc, Cc, Dc`` (continuous), ``Ad, Bd, Cd, Dd, Ts``
     (discrete), ``inputs``, ``outputs`` (cell arrays of names) and ``meta_json``.
 
@@ -206,8 +347,9 @@ def write_artifact(
     art : ControllerArtifact
         The controller and its provenance.
     path : str or pathlib.Path
-        The JSON file to write (:meth:`ControllerArtifact.to_dict`); parent
-        directories are created, an existing file is replaced.
+        The JSON file to write (:meth:`ControllerArtifact.to_dict`), ending in
+        ``.json``; parent directories are created. An existing artifact is replaced;
+        any other existing file is refused (:func:`check_artifact_target`).
     mat : bool, optional
         Also write the MATLAB file ``path.with_suffix(".mat")`` (default True).
 
@@ -215,14 +357,24 @@ def write_artifact(
     -------
     dict of str to pathlib.Path
         ``"json"`` and, with ``mat=True``, ``"mat"``: the files written.
+
+    Raises
+    ------
+    ParameterError
+        If a target is a directory or an existing file that is not an artifact.
     """
     import scipy.io
 
-    path = Path(path)
+    path, matpath = check_artifact_target(path, mat=mat)
     d = art.to_dict()
-    out = {"json": atomic_write_json(path, d)}
+    text = json.dumps(d, indent=2, allow_nan=False) + "\n"
+
+    def _write_json(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    items = [(path, _write_json)]
     if mat:
-        matpath = path.with_suffix(".mat")
         c, k = art.continuous, art.discrete
         payload = {
             "Ac": c.A,
@@ -244,27 +396,62 @@ def write_artifact(
             ),
         }
 
-        def _w(tmp: str) -> None:
+        def _write_mat(tmp: str) -> None:
             with open(tmp, "wb") as fh:
                 scipy.io.savemat(fh, payload)
 
-        out["mat"] = atomic_write(matpath, _w)
-    return out
+        items.append((matpath, _write_mat))
+    written = atomic_write_group(items)
+    return dict(zip(("json", "mat"), written))
+
+
+_NO_ENTRY = object()
+#: How :func:`robust.jsonio.to_jsonable` writes non-finite numbers.
+_NONFINITE_TEXT = ("nan", "inf", "-inf")
+
+
+def _non_number(raw):
+    """The first entry of nested lists that is not a number, or ``_NO_ENTRY``."""
+    stack = [raw]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, list):
+            stack.extend(reversed(v))
+        elif isinstance(v, bool) or not (
+            isinstance(v, (int, float)) or (isinstance(v, str) and v in _NONFINITE_TEXT)
+        ):
+            return v
+    return _NO_ENTRY
 
 
 def _matrix(d: dict, key: str, where: str) -> np.ndarray:
     if key not in d:
         raise ArtifactError(f"{where}: missing matrix {key!r}")
+    raw = d[key]
+    if not isinstance(raw, list):
+        raise ArtifactError(
+            f"{where}.{key}: expected a numeric matrix (a list of rows); "
+            f"got a JSON {_json_type(raw)} {_show(raw)}"
+        )
+    bad = _non_number(raw)
+    if bad is not _NO_ENTRY:
+        raise ArtifactError(
+            f"{where}.{key}: expected a numeric matrix (a list of rows of numbers); "
+            f"got an entry {_show(bad)} (a JSON {_json_type(bad)})"
+        )
     try:
-        m = np.array(d[key], dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ArtifactError(f"{where}.{key}: not a numeric matrix ({exc})") from None
+        m = np.array(raw, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ArtifactError(
+            f"{where}.{key}: expected a numeric matrix (a list of rows of numbers); "
+            f"got {_show(raw)} ({exc})"
+        ) from None
     if m.size == 0:
         m = m.reshape((0, 0)) if m.ndim < 2 else m
     if m.ndim != 2:
         raise ArtifactError(f"{where}.{key}: expected a 2-D matrix; got shape {m.shape}")
     if not np.all(np.isfinite(m)):
-        raise ArtifactError(f"{where}.{key}: contains NaN or inf")
+        raise ArtifactError(f"{where}.{key}: contains NaN or inf; expected finite numbers")
     return m
 
 
@@ -281,7 +468,72 @@ def _ss(d: dict, where: str, inputs, outputs, dt=0):
                 f"{where}.{key}: expected shape {expected[key]} for {n} states, "
                 f"{m} inputs, {p} outputs; got {mat.shape}"
             )
-    return ct.ss(A, B, C, D, dt, inputs=list(inputs), outputs=list(outputs))
+    try:
+        return ct.ss(A, B, C, D, dt, inputs=list(inputs), outputs=list(outputs))
+    except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
+        raise ArtifactError(f"{where}: not a valid state-space system ({exc})") from None
+
+
+def _read_document(path: Path) -> dict:
+    """The artifact's JSON object; every way of not being one raises ArtifactError."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise ArtifactError(f"controller artifact {path} does not exist") from None
+    except OSError as exc:
+        raise ArtifactError(
+            f"controller artifact {path} cannot be read: {exc.strerror or exc}"
+        ) from None
+    if path.is_dir():
+        raise ArtifactError(f"controller artifact {path} is a directory; expected a JSON file")
+    if info.st_size > MAX_ARTIFACT_BYTES:
+        raise ArtifactError(
+            f"controller artifact {path} has {info.st_size} bytes; expected a JSON file of at "
+            f"most {MAX_ARTIFACT_BYTES} bytes"
+        )
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ArtifactError(
+            f"controller artifact {path} cannot be read: {exc.strerror or exc}"
+        ) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ArtifactError(
+            f"controller artifact {path} is not valid JSON: not UTF-8 text "
+            f"(byte {raw[exc.start]:#04x} at offset {exc.start})"
+        ) from None
+    try:
+        d = json.loads(text)
+    except RecursionError:
+        raise ArtifactError(
+            f"controller artifact {path} is not valid JSON for an artifact: nested too deeply"
+        ) from None
+    except ValueError as exc:  # json.JSONDecodeError, and integers too long to convert
+        raise ArtifactError(f"controller artifact {path} is not valid JSON: {exc}") from None
+    if not isinstance(d, dict):
+        raise ArtifactError(
+            f"{path}: expected a JSON object with 'kind': 'bdft-controller'; "
+            f"got a JSON {_json_type(d)}"
+        )
+    return d
+
+
+def _signals(d: dict, key: str, allowed: tuple, path: Path) -> list[str]:
+    v = d.get(key)
+    if not isinstance(v, list) or not v or not all(isinstance(s, str) for s in v):
+        raise ArtifactError(
+            f"{path}: field {key!r} must be a non-empty list of signal names; got {_show(v)}"
+        )
+    bad = [s for s in v if s not in allowed]
+    if bad:
+        raise ArtifactError(
+            f"{path}: field {key!r}: unknown signal name(s) {bad}; expected names among {allowed}"
+        )
+    if len(set(v)) != len(v):
+        raise ArtifactError(f"{path}: field {key!r} names a signal twice; got {v}")
+    return v
 
 
 def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact:
@@ -290,7 +542,8 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     Parameters
     ----------
     path : str or pathlib.Path
-        The artifact's JSON file (the ``.mat`` file is not read).
+        The artifact's JSON file (the ``.mat`` file is not read); at most
+        :data:`MAX_ARTIFACT_BYTES` bytes.
     rtol : float, optional
         Not used: the check that the discrete matrices are the Tustin transform
         of the continuous ones compares frequency responses at 0.5, 2, 6 and 20 Hz
@@ -306,66 +559,90 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     Raises
     ------
     ArtifactError
-        On a missing or unreadable file, a wrong kind or version, malformed or
-        non-finite matrices, inconsistent shapes, a non-positive sample time, or
-        discrete matrices that are not the Tustin transform of the continuous ones.
+        On a missing, unreadable or oversized file, a directory, bytes that are not
+        UTF-8 JSON, a wrong kind or version, a field of the wrong type, malformed or
+        non-finite matrices, inconsistent shapes, a non-positive sample time, a
+        prewarping frequency outside (0, Nyquist), or discrete matrices that are not
+        the Tustin transform of the continuous ones. The message names the file and
+        the field.
     """
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ArtifactError(f"controller artifact {path} does not exist") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ArtifactError(f"controller artifact {path} is not valid JSON: {exc}") from None
-    if not isinstance(d, dict) or d.get("kind") != "bdft-controller":
+    d = _read_document(path)
+    if d.get("kind") != "bdft-controller":
+        raise ArtifactError(f"{path}: 'kind' must be 'bdft-controller'; got {_show(d.get('kind'))}")
+    version = d.get("format_version")
+    if not (type(version) is int and version == FORMAT_VERSION):
         raise ArtifactError(
-            f"{path}: 'kind' must be 'bdft-controller'; "
-            f"got {d.get('kind') if isinstance(d, dict) else type(d).__name__!r}"
+            f"{path}: format_version must be {FORMAT_VERSION}; got {_show(version)}"
         )
-    if d.get("format_version") != FORMAT_VERSION:
-        raise ArtifactError(
-            f"{path}: format_version must be {FORMAT_VERSION}; got {d.get('format_version')!r}"
-        )
-    ins, outs = d.get("inputs"), d.get("outputs")
-    if not (isinstance(ins, list) and isinstance(outs, list) and ins and outs):
-        raise ArtifactError(
-            f"{path}: 'inputs' and 'outputs' must be non-empty lists of signal names"
-        )
-    bad = [s for s in ins if s not in CONTROLLER_INPUTS] + [
-        s for s in outs if s not in CONTROLLER_OUTPUTS
-    ]
-    if bad:
-        raise ArtifactError(
-            f"{path}: unknown signal name(s) {bad}; inputs must be among "
-            f"{CONTROLLER_INPUTS}, outputs among {CONTROLLER_OUTPUTS}"
-        )
+    ins = _signals(d, "inputs", CONTROLLER_INPUTS, path)
+    outs = _signals(d, "outputs", CONTROLLER_OUTPUTS, path)
     for sec in ("continuous", "discrete"):
         if not isinstance(d.get(sec), dict):
-            raise ArtifactError(f"{path}: missing section {sec!r}")
+            raise ArtifactError(
+                f"{path}: field {sec!r} must be an object holding A, B, C, D; "
+                f"got {_show(d.get(sec))}"
+            )
+    name = d.get("name", path.stem)
+    if not isinstance(name, str):
+        raise ArtifactError(f"{path}: field 'name' must be a string; got {_show(name)}")
+    free = {}
+    for key in ("weights", "solver", "family", "validation", "extra"):
+        free[key] = d.get(key, {})
+        if not isinstance(free[key], dict):
+            raise ArtifactError(
+                f"{path}: field {key!r} must be a JSON object; got {_show(free[key])}"
+            )
     cont = _ss(d["continuous"], f"{path.name}:continuous", ins, outs)
     dt = d["discrete"].get("dt")
-    if not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
-        raise ArtifactError(f"{path}: discrete.dt must be a positive sample time in s; got {dt!r}")
-    disc = _ss(d["discrete"], f"{path.name}:discrete", ins, outs, dt=float(dt))
+    if not _is_real(dt) or not math.isfinite(dt) or dt <= 0:
+        raise ArtifactError(
+            f"{path}: discrete.dt must be a positive sample time in s; got {_show(dt)}"
+        )
+    dt = float(dt)
+    disc = _ss(d["discrete"], f"{path.name}:discrete", ins, outs, dt=dt)
     prewarp = d["discrete"].get("prewarp_hz")
-    again = discretize(cont, float(dt), prewarp_hz=prewarp)
+    if prewarp is not None and (
+        not _is_real(prewarp) or not math.isfinite(prewarp) or not 0 < prewarp < 0.5 / dt
+    ):
+        raise ArtifactError(
+            f"{path}: discrete.prewarp_hz must be null or a frequency in (0, {0.5 / dt:g}) Hz "
+            f"(below the Nyquist frequency); got {_show(prewarp)}"
+        )
+    prewarp = None if prewarp is None else float(prewarp)
     w = 2 * np.pi * np.array([0.5, 2.0, 6.0, 20.0])
     z = np.exp(1j * w * dt)
-    g1 = np.asarray(disc(z, squeeze=False))
-    g2 = np.asarray(again(z, squeeze=False))
-    if not np.allclose(g1, g2, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(g2).max())):
+    try:
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            # a singular I - A dt/2 has no Tustin transform: an error here, not a warning
+            warnings.simplefilter("error", scipy.linalg.LinAlgWarning)
+            again = discretize(cont, dt, prewarp_hz=prewarp)
+            g1 = np.asarray(disc(z, squeeze=False))
+            g2 = np.asarray(again(z, squeeze=False))
+    except (
+        ValueError,
+        np.linalg.LinAlgError,
+        scipy.linalg.LinAlgWarning,
+        ZeroDivisionError,
+        OverflowError,
+    ) as exc:
+        raise ArtifactError(
+            f"{path}: discrete: cannot check that it is the Tustin transform of the continuous "
+            f"controller ({type(exc).__name__}: {exc})"
+        ) from None
+    if not (
+        np.all(np.isfinite(g1))
+        and np.all(np.isfinite(g2))
+        and np.allclose(g1, g2, rtol=1e-6, atol=1e-9 * max(1.0, np.abs(g2).max()))
+    ):
         raise ArtifactError(
             f"{path}: the discrete controller is not the Tustin transform "
             f"(dt={dt}, prewarp={prewarp} Hz) of the continuous one"
         )
     return ControllerArtifact(
-        name=str(d.get("name", path.stem)),
+        name=name,
         continuous=cont,
         discrete=disc,
         prewarp_hz=prewarp,
-        weights=d.get("weights", {}),
-        solver=d.get("solver", {}),
-        family=d.get("family", {}),
-        validation=d.get("validation", {}),
-        extra=d.get("extra", {}),
+        **free,
     )

@@ -1,4 +1,11 @@
-"""Conversion of results to JSON-ready values and atomic file writing."""
+"""Conversion of results to JSON-ready values and atomic file writing.
+
+Files are written into a temporary name beside the destination and renamed into
+place, so a failure never leaves a half-written file; :func:`atomic_write_group`
+does the same for several files that belong together (all or none). A new file gets
+the usual mode (``0o666`` less the process umask, as :func:`open` would create it),
+a replaced file keeps its mode.
+"""
 
 from __future__ import annotations
 
@@ -6,8 +13,9 @@ import dataclasses
 import json
 import math
 import os
+import stat
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +25,10 @@ __all__ = [
     "atomic_write_text",
     "atomic_write_bytes",
     "atomic_write",
+    "atomic_write_group",
     "atomic_write_json",
+    "current_umask",
+    "new_file_mode",
 ]
 
 
@@ -66,11 +77,80 @@ def to_jsonable(obj):
     return obj
 
 
+def current_umask() -> int:
+    """The process's file-mode creation mask, read without changing it where possible.
+
+    Returns
+    -------
+    int
+        The umask (e.g. ``0o022``): from ``/proc/self/status`` on Linux, otherwise by
+        setting and restoring it with :func:`os.umask`.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def new_file_mode(path: str | os.PathLike | None = None) -> int:
+    """The permission bits a file written at ``path`` should get.
+
+    Parameters
+    ----------
+    path : str or os.PathLike, optional
+        The destination. If it exists, its permission bits are kept; otherwise (or
+        when None) a new file gets ``0o666`` less the umask, as :func:`open` gives it.
+
+    Returns
+    -------
+    int
+        Permission bits for :func:`os.chmod`.
+    """
+    if path is not None:
+        try:
+            return stat.S_IMODE(os.stat(path).st_mode)
+        except OSError:
+            pass
+    return 0o666 & ~current_umask()
+
+
+def _make_parents(path: Path, created: list[Path]) -> None:
+    """Create ``path``'s missing parent folders, recording them (outermost first) in ``created``."""
+    missing = []
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        missing.append(parent)
+        parent = parent.parent
+    for folder in reversed(missing):
+        folder.mkdir(exist_ok=True)
+        created.append(folder)
+
+
+def _temp_beside(path: Path) -> str:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    return tmp
+
+
+def _unlink_quietly(name) -> None:
+    try:
+        os.unlink(name)
+    except FileNotFoundError:
+        pass
+
+
 def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> Path:
     """Write a file through ``writer(tmp_path)`` into a temporary name, then rename.
 
     If ``writer`` raises, the temporary file is removed and ``path`` is untouched,
-    so no half-written output is ever left behind.
+    so no half-written output is ever left behind. The file gets the mode of
+    :func:`new_file_mode` (the umask's, or the replaced file's).
 
     Parameters
     ----------
@@ -86,20 +166,85 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> Path
     pathlib.Path
         ``path``, as a :class:`~pathlib.Path`.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    return atomic_write_group([(path, writer)])[0]
+
+
+def atomic_write_group(
+    items: Sequence[tuple[str | os.PathLike, Callable[[str], None]]],
+) -> list[Path]:
+    """Write several files that belong together: all of them, or none.
+
+    Every file is first written to a temporary name beside its destination (by its
+    ``writer``); only when all are written are they renamed into place. If a writer
+    or a rename fails, the temporary files are removed and the destinations already
+    renamed are put back as they were (the previous file restored, or the new one
+    removed), the folders made for them are removed again, and the error is raised
+    again.
+
+    Parameters
+    ----------
+    items : sequence of (path, writer)
+        Destination (``str`` or path-like; missing parent directories are created,
+        an existing file is replaced) and ``writer(tmp_path)``, which writes the
+        whole content to the file named ``tmp_path``. Destinations must differ.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The destinations, in the order given.
+    """
+    paths = [Path(p) for p, _ in items]
+    if len({os.path.abspath(p) for p in paths}) != len(paths):
+        raise ValueError(f"atomic_write_group: destinations must differ; got {paths}")
+    temps: list[str] = []  # written content, one per destination
+    scratch: list[str] = []  # every temporary name, removed at the end
+    backups: dict[Path, str] = {}
+    renamed: list[Path] = []
+    created: list[Path] = []  # folders made for the files, removed again on failure
     try:
-        writer(tmp)
-        os.replace(tmp, path)
+        for path in paths:
+            _make_parents(path, created)
+        for path, (_, writer) in zip(paths, items):
+            tmp = _temp_beside(path)
+            temps.append(tmp)
+            scratch.append(tmp)
+            writer(tmp)
+            os.chmod(tmp, new_file_mode(path))
+        for path in paths:
+            if path.exists():
+                # a hard link keeps the previous file until every rename is done
+                backup = _temp_beside(path)
+                scratch.append(backup)
+                try:
+                    os.unlink(backup)
+                    os.link(path, backup)
+                    backups[path] = backup
+                except OSError:
+                    pass
+        for path, tmp in zip(paths, temps):
+            os.replace(tmp, path)
+            renamed.append(path)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
+        for path in renamed:
+            try:
+                if path in backups:
+                    os.replace(backups[path], path)
+                else:
+                    os.unlink(path)
+            except OSError:
+                pass
+        for name in scratch:
+            _unlink_quietly(name)
+        for folder in reversed(created):
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
         raise
-    return path
+    finally:
+        for name in scratch:
+            _unlink_quietly(name)
+    return paths
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:

@@ -1,7 +1,5 @@
 import json
 
-import pytest
-
 from bdft import main
 
 
@@ -30,21 +28,27 @@ def test_reproduce_json_end_to_end(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["reproduce"]
 
 
-def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch):
+def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch, capsys):
     import reports.figures as plots
 
     def boom(*a, **k):
         raise RuntimeError("figure failed")
 
     monkeypatch.setattr(plots, "ratio_figure", boom)
-    out = tmp_path / "reproduce"
-    with pytest.raises(RuntimeError, match="figure failed"):
-        main(["reproduce", "--out", str(out), "--human", "literal"])
-    assert list(tmp_path.iterdir()) == []
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    monkeypatch.setenv("BDFT_LOG_DIR", str(logs))
+    out = tmp_path / "work" / "reproduce"
+    out.parent.mkdir()
+    # an unexpected error: exit code 1, one line naming the traceback file
+    assert main(["reproduce", "--out", str(out), "--human", "literal"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("bdft reproduce: internal error: RuntimeError: figure failed")
+    log = next(logs.iterdir())
+    assert str(log) in err and "figure failed" in log.read_text()
+    assert list(out.parent.iterdir()) == []
 
 
 def test_unknown_human_variant_is_rejected(capsys):
-    with pytest.raises(SystemExit) as exc:
-        main(["reproduce", "--human", "robot"])
-    assert exc.value.code == 2
-    assert "invalid choice: 'robot'" in capsys.readouterr().err
+    assert main(["reproduce", "--human", "robot"]) == 2
+    assert "bdft reproduce: error: --human: expected one of" in capsys.readouterr().err

@@ -95,5 +95,5 @@ def test_failed_write_leaves_nothing(tmp_path, artifact, monkeypatch):
     monkeypatch.setattr(scipy.io, "savemat", boom)
     with pytest.raises(OSError, match="disk full"):
         ex.write_artifact(artifact, tmp_path / "k.json")
-    # the JSON was complete before the .mat failed; no temporary files remain
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.json"]
+    # the pair is written together: neither file, and no temporary file, remains
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -5,8 +5,11 @@ Built on :mod:`robust` (the models); the designs, reports and the command line b
 Public API (import from here; module layout may change):
 
 * uncertain parameters: :class:`UncertainParameter`, :data:`DISTRIBUTIONS`;
-* families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`;
-* sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`;
+* families: :class:`Family`, :func:`default_family`, :data:`MODEL_PARAMETERS`,
+  :data:`PHYSICAL_LIMITS` and :data:`BOUNDS_RTOL` (what a member's values must satisfy,
+  :meth:`Family.check_members`);
+* sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`, :data:`MAX_SAMPLE_BYTES`
+  and :func:`max_members` (the largest sample drawn at once);
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`BDFT_BAND_HZ`;
@@ -18,6 +21,7 @@ Public API (import from here; module layout may change):
 from uncertainty.batched import (
     BDFT_BAND_HZ,
     DEFAULT_CHUNK,
+    MAX_CHUNK_BYTES,
     STABILITY_THRESHOLD,
     ValidationResult,
     batched_poles,
@@ -25,10 +29,18 @@ from uncertainty.batched import (
     member_metrics,
     validate_family,
 )
-from uncertainty.family import HUMAN_VARIANTS, MODEL_PARAMETERS, RANGES, Family, default_family
+from uncertainty.family import (
+    BOUNDS_RTOL,
+    HUMAN_VARIANTS,
+    MODEL_PARAMETERS,
+    PHYSICAL_LIMITS,
+    RANGES,
+    Family,
+    default_family,
+)
 from uncertainty.files import family_nominals, load_component_fit, load_controller
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
-from uncertainty.sampling import METHODS, SampleSet, sample
+from uncertainty.sampling import MAX_SAMPLE_BYTES, METHODS, SampleSet, max_members, sample
 from uncertainty.sweeps import (
     SWEEPS,
     SweepResult,
@@ -45,11 +57,16 @@ __all__ = [
     "RANGES",
     "Family",
     "default_family",
+    "PHYSICAL_LIMITS",
+    "BOUNDS_RTOL",
     "METHODS",
     "SampleSet",
     "sample",
+    "MAX_SAMPLE_BYTES",
+    "max_members",
     "BDFT_BAND_HZ",
     "DEFAULT_CHUNK",
+    "MAX_CHUNK_BYTES",
     "STABILITY_THRESHOLD",
     "ValidationResult",
     "batched_poles",

@@ -33,6 +33,14 @@ Realisations (fixed, as functions of the parameters):
   ``x, c, y`` and outputs among ``f, r_corr`` (the convention of
   :mod:`robust.model.loop`).
 
+Bad members: every public function here checks the member values once, vectorised,
+before any matrix is built (:meth:`uncertainty.family.Family.check_members`, about 0.1 s per
+million members): NaN, inf and non-physical values (a non-positive mass, gain, natural
+frequency or damping ratio) and, by default, values outside the family's bounds raise
+:class:`~robust.errors.ParameterError` naming the member row and the parameter.
+``check_bounds=False`` admits members beyond the bounds (a scaled box for robust margins)
+while still refusing non-physical ones. ``chunk`` is capped by :data:`MAX_CHUNK_BYTES`.
+
 Static relations (intended motion ``u = 0`` and external hand force ``f_ext = 0``,
 which do not affect poles), from the junction table of
 :func:`robust.model.wiring.figure5_junctions`: ``x = sigma kappa h``,
@@ -49,6 +57,7 @@ import control as ct
 import numpy as np
 
 from robust.analysis.stability import stability_bound
+from robust.checks import FINITE, check_callable, check_int, check_scalar
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
@@ -68,6 +77,8 @@ __all__ = [
     "ValidationResult",
     "validate_family",
     "member_metrics",
+    "MAX_CHUNK_BYTES",
+    "CHECK_ROWS",
 ]
 
 #: Band (Hz) of the poles whose damping ratio is reported: the structure's modes from
@@ -79,6 +90,13 @@ STABILITY_THRESHOLD = stability_bound(0.0)
 #: Members per chunk: about 27 MB of closed-loop matrices for a 13-state loop (smaller
 #: chunks reuse memory instead of faulting in fresh pages for every batch).
 DEFAULT_CHUNK = 20_000
+#: Memory budget of one chunk, bytes (about ``chunk * n^2 * 40`` for an ``n``-state loop): a
+#: larger ``chunk`` is reduced to fit, so a huge ``chunk`` never allocates more than this
+#: (chunking does not change any result).
+MAX_CHUNK_BYTES = 2**30
+#: Rows checked per pass by :meth:`uncertainty.family.Family.check_members` before any pole is
+#: computed (bounded memory for the check of millions of members).
+CHECK_ROWS = 1_000_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -242,8 +260,19 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     return _const("controller", *mats, ins, internal)
 
 
+def _check_family(family, where: str) -> None:
+    if not isinstance(family, Family):
+        raise ParameterError(
+            f"{where}: family must be an uncertainty.Family; got {type(family).__name__}"
+        )
+
+
 def loop_blocks(
-    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+    family: Family,
+    values: np.ndarray,
+    *,
+    controller: ct.StateSpace | None = None,
+    check_bounds: bool = True,
 ) -> list[Block]:
     """The dynamic blocks of the loop for members ``values``.
 
@@ -259,6 +288,10 @@ def loop_blocks(
     controller : control.StateSpace, optional
         Continuous-time compensator, inputs among ``x, c, y`` and outputs among
         ``f, r_corr``.
+    check_bounds : bool
+        Require the values within the family's bounds (default); non-finite and
+        non-physical values are refused either way
+        (:meth:`uncertainty.family.Family.check_members`).
 
     Returns
     -------
@@ -266,12 +299,22 @@ def loop_blocks(
 
     Raises
     ------
+    ParameterError
+        If a member's values are non-finite, non-physical or (with ``check_bounds``)
+        outside the family's bounds; the message names the row and the parameter.
     ModelStructureError
         If the controller is not a continuous-time ``control.StateSpace`` with
         distinct, known signal names and finite matrices, or drives ``f`` with the
         literal human (which has no force port).
     """
-    p = family.model_arrays(values)
+    _check_family(family, "loop_blocks")
+    v = family.check_members(values, check_bounds=check_bounds, where="loop_blocks")
+    return _loop_blocks(family, v, controller)
+
+
+def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
+    """:func:`loop_blocks` of checked values."""
+    p = family._model_arrays(values)
     cal = family.calibration
     blocks = []
     if cal.ki > 0.0:
@@ -337,7 +380,11 @@ def _interconnection(family: Family, blocks: list[Block], controller) -> np.ndar
 
 
 def closed_loop_matrices(
-    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+    family: Family,
+    values: np.ndarray,
+    *,
+    controller: ct.StateSpace | None = None,
+    check_bounds: bool = True,
 ) -> np.ndarray:
     """Closed-loop state matrices of members ``values``.
 
@@ -346,9 +393,13 @@ def closed_loop_matrices(
     family : Family
         The family the members belong to.
     values : ndarray, shape (N, d)
-        Uncertain-parameter values (columns in ``family.names`` order).
+        Uncertain-parameter values (columns in ``family.names`` order): finite, physical
+        and, with ``check_bounds``, within the family's bounds.
     controller : control.StateSpace, optional
         Compensator at the handle-force and measurement signals.
+    check_bounds : bool
+        Require the values within the family's bounds (default); pass False for members
+        beyond them (scaled boxes), which must still be physical.
 
     Returns
     -------
@@ -358,12 +409,21 @@ def closed_loop_matrices(
 
     Raises
     ------
+    ParameterError
+        If a member's values are non-finite, non-physical or (with ``check_bounds``)
+        outside the family's bounds; the message names the row and the parameter.
     ModelStructureError
         If the algebraic loop ``I - D M`` is singular for a member (ill-posed loop).
     """
-    values = np.asarray(values, float)
+    _check_family(family, "closed_loop_matrices")
+    v = family.check_members(values, check_bounds=check_bounds, where="closed_loop_matrices")
+    return _closed_loop(family, v, controller)
+
+
+def _closed_loop(family: Family, values: np.ndarray, controller) -> np.ndarray:
+    """:func:`closed_loop_matrices` of checked values."""
     N = values.shape[0]
-    blocks = loop_blocks(family, values, controller=controller)
+    blocks = _loop_blocks(family, values, controller)
     M = _interconnection(family, blocks, controller)
     ns = [b.nstates for b in blocks]
     ni = [len(b.inputs) for b in blocks]
@@ -429,7 +489,11 @@ def _solve_algebraic_loop(DM: np.ndarray, C: np.ndarray) -> np.ndarray:
 
 
 def batched_poles(
-    family: Family, values: np.ndarray, *, controller: ct.StateSpace | None = None
+    family: Family,
+    values: np.ndarray,
+    *,
+    controller: ct.StateSpace | None = None,
+    check_bounds: bool = True,
 ) -> np.ndarray:
     """Closed-loop poles of members ``values``.
 
@@ -441,14 +505,23 @@ def batched_poles(
         Uncertain-parameter values (columns in ``family.names`` order).
     controller : control.StateSpace, optional
         Compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
+    check_bounds : bool
+        As for :func:`closed_loop_matrices`.
 
     Returns
     -------
     ndarray of complex, shape (N, n)
         Every member's closed-loop poles, rad/s (one batch: for large ``N`` see
         :func:`member_metrics`, which works chunk by chunk).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`closed_loop_matrices`.
     """
-    return np.linalg.eigvals(closed_loop_matrices(family, values, controller=controller))
+    return np.linalg.eigvals(
+        closed_loop_matrices(family, values, controller=controller, check_bounds=check_bounds)
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -533,6 +606,46 @@ def _member_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]
     return max_real, zeta.min(axis=1)
 
 
+def _check_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[float, float]]:
+    """Validate ``chunk``, ``band_hz`` and ``progress`` of a batched call."""
+    chunk = check_int(f"{where}: chunk", chunk, low=1)
+    try:
+        lo, hi = band_hz
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"{where}: band_hz must be a pair (low, high) in Hz; got {band_hz!r}"
+        ) from None
+    lo = check_scalar(f"{where}: band_hz[0]", lo, FINITE)
+    hi = check_scalar(f"{where}: band_hz[1]", hi, FINITE)
+    if not (0.0 <= lo < hi):
+        raise ParameterError(f"{where}: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
+    check_callable("progress", progress, owner=where)
+    return chunk, (lo, hi)
+
+
+def _memory_chunk(family: Family, controller, chunk: int) -> int:
+    """``chunk`` reduced so that one chunk's matrices stay within :data:`MAX_CHUNK_BYTES`."""
+    n = 1 + 4 + 4 + (4 if family.human == "physical" else 2)
+    if isinstance(controller, ct.StateSpace):
+        n += int(controller.nstates)
+    return max(1, min(chunk, MAX_CHUNK_BYTES // (40 * n * n)))
+
+
+def _check_all(family: Family, values, check_bounds: bool, where: str) -> np.ndarray:
+    """Check every member, :data:`CHECK_ROWS` rows per pass, before any pole is computed."""
+    if not (isinstance(values, np.ndarray) and values.ndim == 2 and values.dtype.kind in "iuf"):
+        return family.check_members(values, check_bounds=check_bounds, where=where)
+    v = np.asarray(values, float)
+    for start in range(0, max(1, v.shape[0]), CHECK_ROWS):
+        family.check_members(
+            v[start : start + CHECK_ROWS],
+            check_bounds=check_bounds,
+            row_offset=start,
+            where=where,
+        )
+    return v
+
+
 def member_metrics(
     family: Family,
     values: np.ndarray,
@@ -541,8 +654,12 @@ def member_metrics(
     chunk: int = DEFAULT_CHUNK,
     band_hz: tuple[float, float] = BDFT_BAND_HZ,
     progress: Callable[[int], None] | None = None,
+    check_bounds: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Per-member largest real part and smallest in-band damping ratio, chunk by chunk.
+
+    Every member is checked (:meth:`uncertainty.family.Family.check_members`) before
+    any pole is computed.
 
     Parameters
     ----------
@@ -550,7 +667,7 @@ def member_metrics(
         The family the members belong to.
     values : ndarray, shape (N, d)
         Uncertain-parameter values (columns in ``family.names`` order).
-    controller, chunk, band_hz, progress
+    controller, chunk, band_hz, progress, check_bounds
         As for :func:`validate_family`.
 
     Returns
@@ -561,15 +678,31 @@ def member_metrics(
         Smallest damping ratio of each member's poles in ``band_hz`` (``inf`` if none).
     nstates : int
         Closed-loop order.
+
+    Raises
+    ------
+    ParameterError
+        If a member is non-finite, non-physical or (with ``check_bounds``) outside the
+        family's bounds (the message names the row and the parameter), ``chunk`` is not
+        a positive integer, ``band_hz`` is not ``0 <= low < high`` or ``progress`` is not
+        callable.
     """
-    values = np.asarray(values, float)
+    _check_family(family, "member_metrics")
+    chunk, band_hz = _check_options("member_metrics", chunk, band_hz, progress)
+    values = _check_all(family, values, check_bounds, "member_metrics")
+    return _metrics(family, values, controller, chunk, band_hz, progress)
+
+
+def _metrics(family, values, controller, chunk, band_hz, progress):
+    """:func:`member_metrics` of checked values and options."""
+    chunk = _memory_chunk(family, controller, chunk)
     N = values.shape[0]
     max_real = np.empty(N)
     min_damp = np.empty(N)
     nstates = 0
     for start in range(0, N, chunk):
         stop = min(N, start + chunk)
-        Acl = closed_loop_matrices(family, values[start:stop], controller=controller)
+        Acl = _closed_loop(family, values[start:stop], controller)
         nstates = Acl.shape[-1]
         poles = np.linalg.eigvals(Acl)
         del Acl
@@ -588,8 +721,13 @@ def validate_family(
     band_hz: tuple[float, float] = BDFT_BAND_HZ,
     stability_threshold: float = STABILITY_THRESHOLD,
     progress: Callable[[int], None] | None = None,
+    check_bounds: bool = True,
 ) -> ValidationResult:
     """Closed-loop poles of every member of ``samples``, and the family metrics.
+
+    Member values must be finite and physical and lie within the family's bounds
+    (:meth:`uncertainty.family.Family.check_members`); every member is checked,
+    vectorised, before any pole is computed, so a bad member costs no work.
 
     Parameters
     ----------
@@ -600,13 +738,19 @@ def validate_family(
     controller : control.StateSpace, optional
         Compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
     chunk : int
-        Members per batch (bounds memory: about ``chunk * n^2 * 40`` bytes).
+        Members per batch (bounds memory: about ``chunk * n^2 * 40`` bytes; reduced to
+        keep within :data:`MAX_CHUNK_BYTES`, which changes no result).
     band_hz : (float, float)
         Frequency band of the poles whose damping is reported, Hz.
     stability_threshold : float
         A member is stable when all its poles have real part below this, 1/s.
     progress : callable, optional
         Called with the number of members finished after each chunk.
+    check_bounds : bool
+        Require every member within the family's bounds (default). Pass False to
+        validate members beyond them (a scaled box for robust margins); non-finite and
+        non-physical values (a negative mass, frequency or damping ratio) are refused
+        either way.
 
     Returns
     -------
@@ -615,32 +759,34 @@ def validate_family(
     Raises
     ------
     ParameterError
-        If the sample's names differ from the family's, ``chunk`` is not a positive
-        integer or ``band_hz`` is not ``0 <= low < high``.
+        If ``samples`` is not a :class:`~uncertainty.sampling.SampleSet` whose names
+        match the family's, a member is non-finite, non-physical or (with
+        ``check_bounds``) outside the family's bounds (the message names the row and the
+        parameter), ``chunk`` is not a positive integer, ``band_hz`` is not
+        ``0 <= low < high`` or ``stability_threshold`` is not finite.
     ModelStructureError
         For an invalid controller, an ill-posed loop or non-finite poles.
     """
+    _check_family(family, "validate_family")
+    if not isinstance(samples, SampleSet):
+        raise ParameterError(
+            f"validate_family: samples must be an uncertainty.SampleSet; "
+            f"got {type(samples).__name__}"
+        )
     if tuple(samples.names) != family.names:
         raise ParameterError(
             f"validate_family: sample names {list(samples.names)} do not match the family's "
             f"{list(family.names)}"
         )
-    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
-        raise ParameterError(f"validate_family: chunk must be a positive integer; got {chunk!r}")
-    lo, hi = (float(b) for b in band_hz)
-    if not (0.0 <= lo < hi):
-        raise ParameterError(
-            f"validate_family: band_hz must satisfy 0 <= low < high; got {band_hz!r}"
-        )
-    N = len(samples)
-    max_real, min_damp, nstates = member_metrics(
-        family,
-        samples.values,
-        controller=controller,
-        chunk=chunk,
-        band_hz=(lo, hi),
-        progress=progress,
+    chunk, (lo, hi) = _check_options("validate_family", chunk, band_hz, progress)
+    stability_threshold = check_scalar(
+        "validate_family: stability_threshold", stability_threshold, FINITE
     )
+    N = len(samples)
+    if N == 0:
+        raise ParameterError("validate_family: samples holds no members; got 0 rows")
+    values = _check_all(family, samples.values, check_bounds, "validate_family")
+    max_real, min_damp, nstates = _metrics(family, values, controller, chunk, (lo, hi), progress)
     if not np.all(np.isfinite(max_real)):
         raise ModelStructureError(
             "non-finite closed-loop poles for some members; check parameter ranges"

@@ -26,18 +26,32 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from robust.checks import POSITIVE, check_scalar
+from robust.checks import NONZERO, POSITIVE, Spec, check_columns, check_scalar
 from robust.errors import ParameterError
 from robust.model.anthropometry import NOMINAL_BODY_MASS
 from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
-from robust.model.human import LiteralHuman, LiteralHumanParams
+from robust.model.human import LITERAL_SPECS, LiteralHuman, LiteralHumanParams
 from robust.model.literature import DEFAULT_POSTURE, POSTURES, published_box, stress_box
 from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
 from robust.model.modal import modal_to_physical
-from robust.model.physical import PhysicalHuman, PhysicalHumanParams, nominal_params
+from robust.model.physical import (
+    MODAL_SPECS,
+    PHYSICAL_SPECS,
+    PhysicalHuman,
+    PhysicalHumanParams,
+    nominal_params,
+)
 from uncertainty.parameters import UncertainParameter
 
-__all__ = ["HUMAN_VARIANTS", "RANGES", "Family", "default_family", "MODEL_PARAMETERS"]
+__all__ = [
+    "HUMAN_VARIANTS",
+    "RANGES",
+    "Family",
+    "default_family",
+    "MODEL_PARAMETERS",
+    "PHYSICAL_LIMITS",
+    "BOUNDS_RTOL",
+]
 
 HUMAN_VARIANTS = ("physical", "literal")
 #: Ranges a default family can span: the published ones, or the labelled stress variant.
@@ -56,6 +70,36 @@ MODEL_PARAMETERS = {
     + ("human.h_gain", "human.c_unit"),
     "literal": tuple(f"struct.{n}" for n in _STRUCT) + tuple(f"human.{n}" for n in _LIT),
 }
+
+#: What every value of a family parameter must satisfy to be a physical loop at all, whatever
+#: the family's bounds (the check of ``check_bounds=False``): finite, with positive gains,
+#: masses, natural frequencies and damping ratios and a nonzero unit gain ``h_gain`` -- the
+#: sign constraints of the model's parameter dataclasses
+#: (:data:`robust.model.components.STRUCTURE_SPECS`, :data:`robust.model.human.LITERAL_SPECS`,
+#: :data:`robust.model.physical.PHYSICAL_SPECS` and :data:`~robust.model.physical.MODAL_SPECS`).
+#: A structure damping ratio of 1 or more (overdamped) is physical and the batched loop
+#: handles it; :meth:`Family.member` builds a :class:`~robust.model.components.StructureParams`,
+#: which holds it below 1.
+PHYSICAL_LIMITS: dict[str, Spec] = {
+    **{f"struct.{n}": POSITIVE for n in _STRUCT},
+    **{f"human.{n}": LITERAL_SPECS[n] for n in _LIT},
+    "human.body_mass": POSITIVE,
+    "human.m_arm": PHYSICAL_SPECS["m_arm"],
+    **{f"human.{n}": MODAL_SPECS[n] for n in _MODAL if n != "m_arm"},
+    "human.h_gain": NONZERO,
+    "human.c_unit": PHYSICAL_SPECS["c_unit"],
+}
+#: Relative tolerance of the bounds check of member values: a value within
+#: ``BOUNDS_RTOL * max(|low|, |high|)`` of the family's range counts as inside it (values
+#: rebuilt from rounded text or as ``scale * nominal`` land a few ulps outside).
+BOUNDS_RTOL = 1e-9
+
+
+def _ndim(x) -> int:
+    try:
+        return int(np.ndim(x))
+    except (TypeError, ValueError):  # ragged nested sequences
+        return -1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,6 +157,23 @@ class Family:
         object.__setattr__(
             self, "body_mass", check_scalar("body_mass", self.body_mass, POSITIVE, owner="Family")
         )
+        for field, cls in (
+            ("valve", ValveCylinderParams),
+            ("struct", StructureParams),
+            ("literal", LiteralHumanParams),
+            ("physical", PhysicalHumanParams),
+            ("calibration", LoopCalibration),
+        ):
+            if not isinstance(getattr(self, field), cls):
+                raise ParameterError(
+                    f"Family.{field} must be {cls.__name__}; "
+                    f"got {type(getattr(self, field)).__name__}"
+                )
+        if isinstance(self.parameters, (str, bytes)) or not isinstance(self.parameters, Sequence):
+            raise ParameterError(
+                "Family.parameters must be a sequence of UncertainParameter; "
+                f"got {type(self.parameters).__name__}"
+            )
         params = tuple(self.parameters)
         allowed = MODEL_PARAMETERS[self.human]
         for p in params:
@@ -124,6 +185,18 @@ class Family:
                 raise ParameterError(
                     f"Family: parameter {p.name!r} is not a parameter of the {self.human} variant; "
                     f"choose from {list(allowed)}"
+                )
+            limit = PHYSICAL_LIMITS[p.name]
+            for edge in ("low", "high"):
+                if not limit.contains(getattr(p, edge)):
+                    raise ParameterError(
+                        f"Family: parameter {p.name!r} {edge}={getattr(p, edge)!r} is not "
+                        f"physical; every value of {p.name} must be {limit.describe()}"
+                    )
+            if limit.nonzero and p.low <= 0.0 <= p.high:
+                raise ParameterError(
+                    f"Family: parameter {p.name!r} range [{p.low!r}, {p.high!r}] contains 0; "
+                    f"every value of {p.name} must be {limit.describe()}"
                 )
         names = [p.name for p in params]
         if len(set(names)) != len(names):
@@ -180,13 +253,88 @@ class Family:
         return self.replace(k_psf=self.k_psf / f)
 
     # -- members -------------------------------------------------------------------------------
-    def model_arrays(self, values: np.ndarray) -> dict[str, np.ndarray]:
+    def check_members(
+        self,
+        values,
+        *,
+        check_bounds: bool = True,
+        row_offset: int = 0,
+        where: str = "Family",
+    ) -> np.ndarray:
+        """Check member values once, vectorised; return them as an (N, d) float array.
+
+        Every value must be finite and physical (:data:`PHYSICAL_LIMITS`: positive
+        masses, gains, natural frequencies and damping ratios, a nonzero ``h_gain``)
+        and, with ``check_bounds``, lie
+        in the family's range ``[low, high]`` of its parameter (to within
+        :data:`BOUNDS_RTOL`). A few comparisons per value: cheap beside the
+        eigenvalues, even for millions of members.
+
+        Parameters
+        ----------
+        values : array_like, shape (N, d)
+            Uncertain-parameter values, columns in the order of :attr:`names`.
+        check_bounds : bool
+            Also require each value within the family's bounds (default). Pass False to
+            analyse members beyond them (scaled boxes for robust margins, sweeps beyond
+            the family); non-physical values are refused either way.
+        row_offset : int
+            Added to the row index in the message (``values`` being a slice of a larger set).
+        where : str
+            Name of the caller, first in the message.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``values`` as a float array of shape (N, d).
+
+        Raises
+        ------
+        ParameterError
+            If ``values`` is not numeric or not of shape (N, d), or a value is non-finite,
+            non-physical or (with ``check_bounds``) outside the family's bounds; the
+            message names the member row, the parameter, what was expected and the value.
+        """
+        names = self.names
+        v = check_columns(
+            f"{where}: member",
+            values,
+            [PHYSICAL_LIMITS[n] for n in names],
+            names,
+            row_offset=row_offset,
+            note=" (not physical)",
+        )
+        if check_bounds and v.size:
+            specs = []
+            for p in self.parameters:
+                tol = BOUNDS_RTOL * max(abs(p.low), abs(p.high))
+                specs.append(Spec(low=p.low - tol, high=p.high + tol))
+            check_columns(
+                f"{where}: member",
+                v,
+                specs,
+                names,
+                row_offset=row_offset,
+                note=(
+                    f" (the bounds of family {self.name!r}; pass check_bounds=False to "
+                    "analyse members beyond them)"
+                ),
+            )
+        return v
+
+    def model_arrays(
+        self, values: np.ndarray, *, check_bounds: bool = True
+    ) -> dict[str, np.ndarray]:
         """Every model parameter of every member, as arrays.
 
         Parameters
         ----------
         values : ndarray, shape (N, d)
-            Uncertain-parameter values, columns in the order of :attr:`names`.
+            Uncertain-parameter values, columns in the order of :attr:`names`; checked
+            by :meth:`check_members`.
+        check_bounds : bool
+            Require the values within the family's bounds (default); physical limits
+            are checked either way.
 
         Returns
         -------
@@ -194,13 +342,17 @@ class Family:
             ``"struct.<field>"`` and ``"human.<field>"`` (fields of
             :class:`~robust.model.components.StructureParams` and of the variant's human
             parameters) -> array of shape (N,).
+
+        Raises
+        ------
+        ParameterError
+            As :meth:`check_members`.
         """
-        v = np.asarray(values, float)
-        if v.ndim != 2 or v.shape[1] != len(self.parameters):
-            raise ParameterError(
-                f"Family.model_arrays: values must have shape (N, {len(self.parameters)}); "
-                f"got {v.shape}"
-            )
+        v = self.check_members(values, check_bounds=check_bounds, where="Family.model_arrays")
+        return self._model_arrays(v)
+
+    def _model_arrays(self, v: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`model_arrays` of values that passed :meth:`check_members` (no check)."""
         n = v.shape[0]
         cols = {name: v[:, j] for j, name in enumerate(self.names)}
         out = {}
@@ -231,13 +383,24 @@ class Family:
                 out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.physical, f)))
         return out
 
-    def member(self, values: Sequence[float] | Mapping[str, float]) -> BDFTLoop:
+    def member(
+        self, values: Sequence[float] | Mapping[str, float], *, check_bounds: bool = True
+    ) -> BDFTLoop:
         """The python-control loop of one member (slow; for checks and single members).
 
         Parameters
         ----------
         values : sequence of float (length d) or mapping name -> value
             Uncertain-parameter values; missing names take the nominal.
+        check_bounds : bool
+            Require the values within the family's bounds (default); physical limits
+            are checked either way (:meth:`check_members`).
+
+        Raises
+        ------
+        ParameterError
+            For unknown names, a wrong number of values, or values that fail
+            :meth:`check_members`.
         """
         if isinstance(values, Mapping):
             unknown = set(values) - set(self.names)
@@ -246,9 +409,20 @@ class Family:
                     f"Family.member: unknown parameters {sorted(unknown)}; have {list(self.names)}"
                 )
             row = [values.get(p.name, p.nominal) for p in self.parameters]
+        elif isinstance(values, (str, bytes)) or _ndim(values) != 1:
+            raise ParameterError(
+                f"Family.member: values must be a sequence of {len(self.names)} numbers or a "
+                f"mapping name -> value; got {values!r}"
+            )
         else:
             row = list(values)
-        arrays = self.model_arrays(np.asarray(row, float)[None, :])
+        if len(row) != len(self.names):
+            raise ParameterError(
+                f"Family.member: values must have {len(self.names)} entries "
+                f"({list(self.names)}); got {len(row)}"
+            )
+        v = self.check_members([row], check_bounds=check_bounds, where="Family.member")
+        arrays = self._model_arrays(v)
         one = {k: float(a[0]) for k, a in arrays.items()}
         struct = StructureParams(**{f: one[f"struct.{f}"] for f in _STRUCT})
         if self.human == "literal":

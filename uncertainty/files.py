@@ -22,15 +22,19 @@ the field.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import control as ct
 import numpy as np
 
-from robust.errors import ArtifactError, BDFTError
+from robust.errors import ArtifactError, BDFTError, ParameterError
 from robust.export import load_artifact
+from robust.model.components import StructureParams, ValveCylinderParams
+from robust.model.human import LiteralHumanParams
 from robust.sysid import read_component_fit
+from uncertainty.family import HUMAN_VARIANTS
 
 __all__ = ["load_controller", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
 
@@ -154,11 +158,16 @@ def load_component_fit(path):
 
     Raises
     ------
+    ParameterError
+        If ``path`` is not a str or path-like object.
     ArtifactError
         Unreadable file, wrong ``kind``, unknown ``form``, ``params_class`` not
         matching the form, missing or unexpected parameter names, invalid values.
     """
-
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterError(
+            f"load_component_fit: path must be a str or os.PathLike; got {type(path).__name__}"
+        )
     return read_component_fit(path)
 
 
@@ -181,13 +190,41 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
 
     Raises
     ------
+    ParameterError
+        If ``human`` is not a known variant, ``fits`` is not a sequence of component
+        fits (objects with a known ``form`` and its parameter object), naming the entry.
     ArtifactError
         If two fits have the same form, or a ``human`` fit is given for a family
         whose variant is not ``"literal"``.
     """
+    if human not in HUMAN_VARIANTS:
+        raise ParameterError(
+            f"family_nominals: human must be one of {HUMAN_VARIANTS}; got {human!r}"
+        )
+    if isinstance(fits, (str, bytes)) or not isinstance(fits, Sequence):
+        raise ParameterError(
+            "family_nominals: fits must be a sequence of robust.sysid.ComponentFit; "
+            f"got {type(fits).__name__}"
+        )
     out = {}
     keys = {"valve": "valve", "structure": "struct", "human": "literal"}
-    for fit in fits:
+    classes = {
+        "valve": ValveCylinderParams,
+        "structure": StructureParams,
+        "human": LiteralHumanParams,
+    }
+    for i, fit in enumerate(fits):
+        form = getattr(fit, "form", None)
+        if not isinstance(form, str) or form not in keys:
+            raise ParameterError(
+                f"family_nominals: fits[{i}] must be a component fit whose form is one of "
+                f"{tuple(keys)}; got {type(fit).__name__} with form {form!r}"
+            )
+        if not isinstance(getattr(fit, "params", None), classes[form]):
+            raise ParameterError(
+                f"family_nominals: fits[{i}].params must be {classes[form].__name__} for "
+                f"form {form!r}; got {type(getattr(fit, 'params', None)).__name__}"
+            )
         key = keys[fit.form]
         if key in out:
             raise ArtifactError(

@@ -15,13 +15,14 @@ import math
 import numpy as np
 from scipy import stats
 
-from robust.checks import POSITIVE, check_scalar
+from robust.checks import POSITIVE, Spec, check_array, check_scalar
 from robust.errors import ParameterError
 
 __all__ = ["DISTRIBUTIONS", "UncertainParameter"]
 
 #: Supported distributions.
 DISTRIBUTIONS = ("uniform", "loguniform", "truncnormal")
+_UNIT = Spec(low=0.0, high=1.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +73,11 @@ class UncertainParameter:
                 f"UncertainParameter.name must be a non-empty string; got {self.name!r}"
             )
         owner = f"UncertainParameter {self.name!r}"
+        for field in ("units", "source"):
+            if not isinstance(getattr(self, field), str):
+                raise ParameterError(
+                    f"{owner}: {field} must be a string; got {type(getattr(self, field)).__name__}"
+                )
         for field in ("nominal", "low", "high"):
             object.__setattr__(self, field, check_scalar(field, getattr(self, field), owner=owner))
         if self.distribution not in DISTRIBUTIONS:
@@ -118,8 +124,13 @@ class UncertainParameter:
         numpy.ndarray
             Parameter values in the parameter's units, the shape of ``u``, clipped
             to ``[low, high]``.
+
+        Raises
+        ------
+        ParameterError
+            If an entry of ``u`` is not numeric, non-finite or outside [0, 1].
         """
-        u = np.asarray(u, float)
+        u = check_array(f"UncertainParameter {self.name!r}: ppf quantile u", u, _UNIT)
         if self.distribution == "uniform":
             x = self.low + u * (self.high - self.low)
         elif self.distribution == "loguniform":

@@ -11,7 +11,6 @@ re-drawn exactly.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import math
 from collections.abc import Sequence
 
@@ -21,12 +20,18 @@ from scipy.stats import qmc
 from robust.errors import ParameterError
 from uncertainty.parameters import UncertainParameter
 
-__all__ = ["METHODS", "SampleSet", "sample", "MAX_VERTEX_DIM"]
+__all__ = ["METHODS", "SampleSet", "sample", "MAX_VERTEX_DIM", "MAX_SAMPLE_BYTES", "max_members"]
 
 #: Sampling methods.
 METHODS = ("mc", "lhs", "grid", "vertices")
 #: Largest dimension for which all box vertices are enumerated (2**20 vertices).
 MAX_VERTEX_DIM = 20
+#: Largest sample :func:`sample` draws, in bytes of member values (``members * d * 8``):
+#: 2 GiB, about 24 million members of the 11-parameter physical family (drawing needs
+#: about four times this at its peak). A larger request is refused before anything is
+#: allocated (a hard backstop: ``bdft`` applies its own, smaller memory budget first);
+#: validate a larger family in several samples with different seeds.
+MAX_SAMPLE_BYTES = 2**31
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,13 +97,37 @@ def _resolve_seed(seed) -> int:
     return int(seed)
 
 
+def max_members(d: int) -> int:
+    """Most members of ``d`` parameters one :func:`sample` call draws (:data:`MAX_SAMPLE_BYTES`).
+
+    Parameters
+    ----------
+    d : int
+        Number of uncertain parameters, >= 1.
+    """
+    return MAX_SAMPLE_BYTES // (8 * max(1, int(d)))
+
+
+def _grid_points(n: int, d: int) -> int:
+    return max(2, int(math.floor(n ** (1.0 / d) + 1e-9)))
+
+
+def _members_drawn(method: str, n: int, d: int) -> int:
+    """How many members ``method`` gives for a request of ``n`` (before drawing anything)."""
+    if method == "grid":
+        return _grid_points(n, d) ** d
+    if method == "vertices":
+        return n if d > MAX_VERTEX_DIM else min(n, 2**d)
+    return n
+
+
 def _unit_samples(method: str, n: int, d: int, rng: np.random.Generator) -> np.ndarray:
     if method == "mc":
         return rng.random((n, d))
     if method == "lhs":
         return qmc.LatinHypercube(d=d, seed=rng).random(n)
     if method == "grid":
-        k = max(2, int(math.floor(n ** (1.0 / d) + 1e-9)))
+        k = _grid_points(n, d)
         axes = [np.linspace(0.0, 1.0, k)] * d
         mesh = np.meshgrid(*axes, indexing="ij")
         return np.stack([m.ravel() for m in mesh], axis=1)
@@ -107,7 +136,10 @@ def _unit_samples(method: str, n: int, d: int, rng: np.random.Generator) -> np.n
         raise ParameterError(
             f"vertices: dimension d={d} gives 2**{d} vertices; at most d={MAX_VERTEX_DIM} supported"
         )
-    corners = np.array(list(itertools.product((0.0, 1.0), repeat=d)))
+    # the rows of itertools.product((0, 1), repeat=d), built without Python tuples: bit
+    # d-1-j of the row index is coordinate j
+    idx = np.arange(2**d, dtype=np.int64)
+    corners = ((idx[:, None] >> np.arange(d - 1, -1, -1)) & 1).astype(float)
     if n < len(corners):
         corners = corners[np.sort(rng.choice(len(corners), size=n, replace=False))]
     return corners
@@ -123,7 +155,9 @@ def sample(
     parameters : sequence of UncertainParameter
         The uncertain parameters (names must be unique).
     n : int
-        Number of members, >= 1.
+        Number of members, >= 1. A request whose sample would exceed
+        :data:`MAX_SAMPLE_BYTES` (``members * d * 8`` bytes; see :func:`max_members`) is
+        refused before anything is allocated.
     method : {"mc", "lhs", "grid", "vertices"}
         ``mc``: independent draws. ``lhs``: Latin hypercube
         (:class:`scipy.stats.qmc.LatinHypercube`). ``grid``: ``k`` evenly spaced
@@ -138,10 +172,29 @@ def sample(
     Returns
     -------
     SampleSet
+
+    Raises
+    ------
+    ParameterError
+        If ``parameters`` are not unique :class:`UncertainParameter`, ``n`` is not a
+        positive integer or asks for more than :data:`MAX_SAMPLE_BYTES` of members,
+        ``method`` is unknown or ``seed`` is not a non-negative integer or None.
     """
+    if isinstance(parameters, (str, bytes, UncertainParameter)) or not isinstance(
+        parameters, Sequence
+    ):
+        raise ParameterError(
+            "sample: parameters must be a sequence of UncertainParameter; "
+            f"got {type(parameters).__name__}"
+        )
     params = list(parameters)
     if not params:
         raise ParameterError("sample: need at least one uncertain parameter; got none")
+    for p in params:
+        if not isinstance(p, UncertainParameter):
+            raise ParameterError(
+                f"sample: parameters must be UncertainParameter; got {type(p).__name__}"
+            )
     names = [p.name for p in params]
     if len(set(names)) != len(names):
         raise ParameterError(f"sample: parameter names must be unique; got {names}")
@@ -149,8 +202,22 @@ def sample(
         raise ParameterError(f"sample: n must be a positive integer; got {n!r}")
     if method not in METHODS:
         raise ParameterError(f"sample: method must be one of {METHODS}; got {method!r}")
+    d = len(params)
+    count = _members_drawn(method, int(n), d)
+    if count > max_members(d):
+        what = (
+            f"{count} members ({_grid_points(int(n), d)}**{d} grid points)"
+            if (method == "grid")
+            else f"{count} members"
+        )
+        raise ParameterError(
+            f"sample: n={n!r} asks for {what} of {d} parameters, {count * d * 8 / 2**20:.4g} "
+            f"MiB; at most {max_members(d)} members ({MAX_SAMPLE_BYTES // 2**20} MiB, "
+            "MAX_SAMPLE_BYTES) are drawn at once; validate in several samples with different "
+            "seeds"
+        )
     seed = _resolve_seed(seed)
     rng = np.random.default_rng(seed)
-    u = _unit_samples(method, int(n), len(params), rng)
+    u = _unit_samples(method, int(n), d, rng)
     values = np.column_stack([p.ppf(u[:, j]) for j, p in enumerate(params)])
     return SampleSet(names=tuple(names), values=values, method=method, seed=seed, requested=int(n))

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from robust.checks import check_callable
 from robust.errors import ParameterError
 from uncertainty.batched import BDFT_BAND_HZ, DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
 from uncertainty.family import Family
@@ -83,11 +84,13 @@ def _metrics_on_grid(
     chunk: int,
     progress: Callable[[int], None] | None,
     band_hz=BDFT_BAND_HZ,
+    check_bounds: bool = True,
 ):
     """Validate the base sample at every grid point.
 
     Returns the per-point fraction stable, worst real part and minimum damping, and
-    the settings.
+    the settings. With ``check_bounds=False`` the grid values may leave the family's
+    bounds (they must stay physical).
     """
     fixed = set().union(*(g.keys() for g in grid_values))
     base_params = [p for p in family.parameters if p.name not in fixed]
@@ -109,7 +112,7 @@ def _metrics_on_grid(
             vals[:M, j] = g[name] if name in g else S.column(name)
             vals[M, j] = g.get(name, nominal[name])  # the other parameters at their nominal values
         mr_all, md_all, _ = member_metrics(
-            fam, vals, chunk=chunk, band_hz=band_hz, progress=progress
+            fam, vals, chunk=chunk, band_hz=band_hz, progress=progress, check_bounds=check_bounds
         )
         mr, md = mr_all[:M], md_all[:M]
         rows["nominal_max_real"].append(float(mr_all[M]))
@@ -132,9 +135,12 @@ def _metrics_on_grid(
     return {k: np.asarray(v) for k, v in rows.items()}, settings
 
 
-def _check_members(members):
+def _check_members(members, family=None, progress=None):
     if isinstance(members, bool) or not isinstance(members, (int, np.integer)) or members < 1:
         raise ParameterError(f"members must be a positive integer; got {members!r}")
+    if not isinstance(family, Family):
+        raise ParameterError(f"family must be an uncertainty.Family; got {type(family).__name__}")
+    check_callable("progress", progress)
 
 
 def workspace_sweep(
@@ -170,7 +176,7 @@ def workspace_sweep(
         Named ``"workspace"``; columns ``workspace_factor`` and ``k_psf``, then the
         metrics.
     """
-    _check_members(members)
+    _check_members(members, family, progress)
     f = np.asarray(np.arange(1.0, 10.01, 0.5) if factors is None else factors, float)
     if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
         raise ParameterError(
@@ -235,7 +241,7 @@ def frequency_damping_sweep(
         ``settings["nominal"]`` holds the two nominal values and ``settings["units"]``
         their units.
     """
-    _check_members(members)
+    _check_members(members, family, progress)
     if family.human != "physical":
         raise ParameterError(
             "the frequency x damping sweep needs the physical human; "
@@ -293,7 +299,9 @@ def structure_frequency_sweep(
         A family containing ``struct.f1_hz`` and ``struct.f2_hz``.
     scales : array_like, optional
         Scale factors of both natural frequencies (default: 13 points from the
-        family's lowest ``struct.f1_hz`` over the nominal, to 1).
+        family's lowest ``struct.f1_hz`` over the nominal, to 1). Scales may take the
+        frequencies beyond the family's bounds (the sweep asks for them explicitly);
+        they must be positive.
     members : int
         Members (the other parameters) validated at each frequency.
     method, seed : str, int
@@ -309,7 +317,7 @@ def structure_frequency_sweep(
         Named ``"structure-frequency"``; columns ``scale``, ``f1_hz`` and ``f2_hz``
         (Hz), then the metrics.
     """
-    _check_members(members)
+    _check_members(members, family, progress)
     f1n, f2n = family.struct.f1_hz, family.struct.f2_hz
     if scales is None:
         lo = family.parameter("struct.f1_hz").low / f1n if "struct.f1_hz" in family.names else 0.4
@@ -326,7 +334,14 @@ def structure_frequency_sweep(
         )
     grid = [{"struct.f1_hz": x * f1n, "struct.f2_hz": x * f2n} for x in s]
     rows, settings = _metrics_on_grid(
-        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+        family,
+        grid,
+        members,
+        method=method,
+        seed=seed,
+        chunk=chunk,
+        progress=progress,
+        check_bounds=False,
     )
     cols = {"scale": s, "f1_hz": s * f1n, "f2_hz": s * f2n, **rows}
     return SweepResult(

@@ -41,7 +41,17 @@ import numpy as np
 
 from robust.analysis.realization import minimal_realization
 from robust.analysis.stability import poles_stable, unstable_mask
-from robust.errors import InfeasibleError
+from robust.checks import (
+    NONNEGATIVE,
+    POSITIVE,
+    Spec,
+    check_callable,
+    check_int,
+    check_scalar,
+    check_sign,
+    check_vector,
+)
+from robust.errors import InfeasibleError, ParameterError
 from robust.model.components import (
     K_PSF_NOMINAL,
     PIParams,
@@ -183,7 +193,22 @@ def open_bdft_path(human: HumanModel, pi: PIParams, loop: BDFTLoop | None = None
     A, B, C, D : numpy.ndarray
         Minimal realisation (:func:`robust.analysis.realization.minimal_realization`)
         of the SISO path ``x -> h``; shapes (n, n), (n, 1), (1, n), (1, 1).
+
+    Raises
+    ------
+    ParameterError
+        If ``human``, ``pi`` or ``loop`` is not of its type.
     """
+    if not isinstance(human, HumanModel):
+        raise ParameterError(
+            f"open_bdft_path: human must implement HumanModel; got {type(human).__name__}"
+        )
+    if not isinstance(pi, PIParams):
+        raise ParameterError(f"open_bdft_path: pi must be PIParams; got {type(pi).__name__}")
+    if loop is not None and not isinstance(loop, BDFTLoop):
+        raise ParameterError(
+            f"open_bdft_path: loop must be a BDFTLoop or None; got {type(loop).__name__}"
+        )
     base = loop or BDFTLoop(human=human)
     base = base.replace(human=human)
     blocks = [
@@ -311,6 +336,34 @@ DEFAULT_KP = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0
 DEFAULT_KI_RATIO = (0.0, 0.1, 0.25, 0.5, 1.0, 2.0)
 
 
+def _check_search(
+    human, kp_grid, ki_ratio_grid, signs, gm_db, pm_deg, g_min, g_max, g_points, progress
+) -> None:
+    """Refuse bad options of :func:`calibrate` up front, naming the option."""
+    if human is not None and not isinstance(human, HumanModel):
+        raise ParameterError(
+            f"calibrate: human must implement HumanModel or be None; got {type(human).__name__}"
+        )
+    check_vector("calibrate: kp_grid", kp_grid, POSITIVE)
+    check_vector("calibrate: ki_ratio_grid", ki_ratio_grid, NONNEGATIVE)
+    if isinstance(signs, (str, bytes)) or not hasattr(signs, "__len__") or len(signs) == 0:
+        raise ParameterError(
+            f"calibrate: signs must be a non-empty sequence of junction signs +1/-1; got {signs!r}"
+        )
+    for i, sign in enumerate(signs):
+        check_sign(f"calibrate: junction sign signs[{i}]", sign)
+    check_scalar("calibrate: min_gain_margin_db", gm_db, NONNEGATIVE)
+    check_scalar(
+        "calibrate: min_phase_margin_deg", pm_deg, Spec(low=0.0, high=180.0, high_open=True)
+    )
+    lo = check_scalar("calibrate: g_min", g_min, POSITIVE)
+    hi = check_scalar("calibrate: g_max", g_max, POSITIVE)
+    if not lo < hi:
+        raise ParameterError(f"calibrate: g_min must be below g_max; got {g_min=}, {g_max=}")
+    check_int("calibrate: g_points", g_points, low=2)
+    check_callable("calibrate: progress", progress)
+
+
 def calibrate(
     human: HumanModel | None = None,
     *,
@@ -349,9 +402,28 @@ def calibrate(
 
     Raises
     ------
+    ParameterError
+        Before any search, naming the option: a junction sign other than +1 or -1, an
+        empty grid or a grid entry that is not finite and positive (``kp_grid``) or
+        non-negative (``ki_ratio_grid``), a margin that is not finite and >= 0 (a phase
+        margin of 180 degrees or more), ``g_min``/``g_max`` not ``0 < g_min < g_max``,
+        ``g_points`` not an integer >= 2, ``progress`` not callable, ``human`` not a
+        :class:`~robust.model.human.HumanModel`.
     InfeasibleError
         If no candidate reproduces C1-C3; the message gives the best margin found.
     """
+    _check_search(
+        human,
+        kp_grid,
+        ki_ratio_grid,
+        signs,
+        min_gain_margin_db,
+        min_phase_margin_deg,
+        g_min,
+        g_max,
+        g_points,
+        progress,
+    )
     human = human or LiteralHuman()
     settings = dict(
         kp_grid=list(kp_grid),

@@ -13,6 +13,8 @@ import numpy as np
 
 from robust.analysis.calibration import K_PSF_STABLE
 from robust.analysis.loops import bdft_loop_gain, bdft_ratio, critical_k_psf, loop_poles
+from robust.checks import NONNEGATIVE, POSITIVE, check_vector
+from robust.errors import ParameterError
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.loop import BDFTLoop
 
@@ -113,7 +115,28 @@ def ratio_study(loop: BDFTLoop, factors=WORKSPACE_FACTORS, freqs_hz=RATIO_FREQS_
         ``low_band_dev_db`` (the largest ``|ratio_db|`` below 1 Hz). The ratio is
         computed whether or not the member is stable; it is only meaningful when it
         is.
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop`, ``factors`` is not a
+        non-empty sequence of finite positive numbers, or ``freqs_hz`` is not a
+        non-empty 1-D array of finite frequencies >= 0 with one below 1 Hz.
     """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"ratio_study: loop must be a BDFTLoop; got {type(loop).__name__}")
+    if isinstance(factors, (str, bytes)) or not hasattr(factors, "__iter__"):
+        raise ParameterError(
+            f"ratio_study: factors must be a sequence of workspace factors; got {factors!r}"
+        )
+    factors = list(factors)
+    check_vector("ratio_study: factors", factors, POSITIVE)
+    freqs_hz = check_vector("ratio_study: freqs_hz", freqs_hz, NONNEGATIVE)
+    if not np.any(freqs_hz < C4_LOW_BAND_HZ):
+        raise ParameterError(
+            f"ratio_study: freqs_hz must include frequencies below {C4_LOW_BAND_HZ:g} Hz; "
+            f"got {freqs_hz.min():g} Hz and up"
+        )
     rows = {}
     for fac in factors:
         member = loop.with_workspace_factor(fac)
@@ -151,7 +174,18 @@ def evaluate_claims(loop: BDFTLoop, *, study: dict | None = None) -> dict[str, C
     -------
     dict of str to ClaimResult
         ``"C1"`` to ``"C5"`` in order.
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop` or ``study`` is not a dict.
     """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"evaluate_claims: loop must be a BDFTLoop; got {type(loop).__name__}")
+    if study is not None and not isinstance(study, dict):
+        raise ParameterError(
+            f"evaluate_claims: study must be the dict of ratio_study; got {type(study).__name__}"
+        )
     res = {}
     nominal = loop.replace(k_psf=K_PSF_NOMINAL)
     ps = loop_poles(nominal)

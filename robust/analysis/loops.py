@@ -17,6 +17,16 @@ from robust.analysis.norms import hinf_norm
 from robust.analysis.realization import minimal_realization
 from robust.analysis.reduction import balanced_truncation
 from robust.analysis.stability import poles_stable, unstable_mask
+from robust.checks import (
+    NONNEGATIVE,
+    POSITIVE,
+    Spec,
+    check_int,
+    check_scalar,
+    check_state_space,
+    check_vector,
+)
+from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import pi_controller, structure, valve_cylinder
 from robust.model.loop import BDFTLoop
 
@@ -88,13 +98,30 @@ def closed_loop_poles(sys: ct.StateSpace, *, rtol: float = 1e-9) -> PoleSet:
     rtol : float
         Relative rank tolerance of the minimal realisation
         (:func:`robust.analysis.realization.minimal_realization`).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``sys`` has no finite, conformal ``A, B, C, D`` (the message names the matrix).
+    ParameterError
+        If ``rtol`` is not finite and positive.
     """
-    m = minimal_realization(sys.A, sys.B, sys.C, sys.D, rtol=rtol)
+    A, B, C, D = check_state_space("closed_loop_poles: sys", sys)
+    m = minimal_realization(A, B, C, D, rtol=rtol)
     p = np.linalg.eigvals(m.A) if m.nstates else np.zeros(0, complex)
     order = np.lexsort((p.imag, -p.real))
     return PoleSet(
-        poles=p[order], hidden=np.sort_complex(m.removed_eigenvalues), n_states_full=sys.nstates
+        poles=p[order], hidden=np.sort_complex(m.removed_eigenvalues), n_states_full=A.shape[0]
     )
+
+
+def _check_loop(where: str, loop) -> None:
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"{where}: loop must be a BDFTLoop; got {type(loop).__name__}")
+
+
+def _freqs(where: str, freqs_hz) -> np.ndarray:
+    return check_vector(f"{where}: freqs_hz", freqs_hz, NONNEGATIVE)
 
 
 def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet:
@@ -108,7 +135,13 @@ def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet
         With the feedthrough path.
     controller : control.StateSpace, optional
         Compensator in the loop's convention.
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop`.
     """
+    _check_loop("loop_poles", loop)
     return closed_loop_poles(loop.system(bdft=bdft, controller=controller))
 
 
@@ -125,8 +158,23 @@ def frequency_response(
         Frequencies, Hz.
     inp, out : str
         Input and output signal names.
+
+    Raises
+    ------
+    ParameterError
+        If ``freqs_hz`` is empty, not 1-D or holds a negative or non-finite frequency.
+    ModelStructureError
+        If ``sys`` has no signal ``inp`` or ``out``.
     """
-    w = 2.0 * np.pi * np.asarray(freqs_hz, float)
+    w = 2.0 * np.pi * _freqs("frequency_response", freqs_hz)
+    for label, name, have in (
+        ("input", inp, list(sys.input_labels)),
+        ("output", out, list(sys.output_labels)),
+    ):
+        if name not in have:
+            raise ModelStructureError(
+                f"frequency_response: the system has no {label} {name!r}; its {label}s are {have}"
+            )
     i = sys.input_labels.index(inp)
     o = sys.output_labels.index(out)
     resp = sys(1j * w, squeeze=False)  # shape (noutputs, ninputs, nfreq)
@@ -147,7 +195,15 @@ def bdft_ratio(loop: BDFTLoop, freqs_hz: np.ndarray, *, controller=None) -> np.n
         Frequencies, Hz.
     controller : control.StateSpace, optional
         Compensator in the BDFT loop (the reference has none).
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop` or ``freqs_hz`` is not a
+        non-empty 1-D array of finite frequencies >= 0.
     """
+    _check_loop("bdft_ratio", loop)
+    freqs_hz = _freqs("bdft_ratio", freqs_hz)
     with_b = frequency_response(loop.system(bdft=True, controller=controller), freqs_hz)
     without = frequency_response(loop.system(bdft=False), freqs_hz)
     return with_b / without
@@ -176,7 +232,23 @@ def critical_k_psf(
         Points of the log grid.
     xtol : float
         Relative tolerance of the bisection.
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop`, ``k_min`` and ``k_max``
+        are not ``0 < k_min < k_max``, ``n_grid`` is not an integer >= 2 or ``xtol`` is
+        not in (0, 1).
     """
+    _check_loop("critical_k_psf", loop)
+    k_min = check_scalar("critical_k_psf: k_min", k_min, POSITIVE)
+    k_max = check_scalar("critical_k_psf: k_max", k_max, POSITIVE)
+    if not k_min < k_max:
+        raise ParameterError(f"critical_k_psf: k_min must be below k_max; got {k_min=}, {k_max=}")
+    n_grid = check_int("critical_k_psf: n_grid", n_grid, low=2)
+    xtol = check_scalar(
+        "critical_k_psf: xtol", xtol, Spec(low=0.0, high=1.0, low_open=True, high_open=True)
+    )
     grid = np.geomspace(k_min, k_max, n_grid)
 
     def unstable(k: float) -> bool:
@@ -245,7 +317,29 @@ def reduce_controller(K: ct.StateSpace, loops, *, rtol: float = 0.01):
     (control.StateSpace, float)
         The reduced controller and its error bound (``K`` itself and 0.0 if no smaller
         order qualifies).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``K`` is not a :class:`control.StateSpace` with finite matrices (named).
+    ParameterError
+        If ``loops`` is not a sequence of :class:`~robust.model.loop.BDFTLoop` or ``rtol``
+        is not finite and positive.
     """
+    if not isinstance(K, ct.StateSpace):
+        raise ModelStructureError(
+            f"reduce_controller: K must be a control.StateSpace; got {type(K).__name__}"
+        )
+    check_state_space("reduce_controller: K", K)
+    rtol = check_scalar("reduce_controller: rtol", rtol, POSITIVE)
+    try:
+        loops = list(loops)
+    except TypeError:
+        raise ParameterError(
+            f"reduce_controller: loops must be a sequence of BDFTLoop; got {type(loops).__name__}"
+        ) from None
+    for i, m in enumerate(loops):
+        _check_loop(f"reduce_controller: loops[{i}]", m)
     if K.nstates <= 1:
         return K, 0.0
     size = hinf_norm(K) if poles_stable(K.poles()) else np.inf

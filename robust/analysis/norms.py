@@ -35,6 +35,7 @@ import scipy.linalg as sla
 import scipy.optimize as sopt
 
 from robust.analysis.stability import stability_bound
+from robust.checks import Spec, check_scalar, check_state_space, check_vector
 from robust.errors import ModelStructureError, ParameterError
 
 __all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
@@ -42,23 +43,18 @@ __all__ = ["hinf_norm", "is_stable", "sigma_max", "spectral_abscissa"]
 #: number of local maxima of the Bruinsma-Steinbuch start grid refined before the first
 #: Hamiltonian test
 N_REFINE = 5
+_RTOL = Spec(low=0.0, high=0.1, low_open=True)
 
 
 def _abcd(sys):
-    try:
-        A, B, C, D = (
-            np.atleast_2d(np.asarray(m, dtype=float)) for m in (sys.A, sys.B, sys.C, sys.D)
-        )
-    except AttributeError:
+    A, B, C, D = check_state_space("sys", sys)
+    isctime = getattr(sys, "isctime", None)
+    if not callable(isctime):
         raise ModelStructureError(
-            f"sys must be a control.StateSpace (or have A, B, C, D); got {type(sys).__name__}"
-        ) from None
-    if not sys.isctime():
+            f"sys must be a control.StateSpace (with isctime()); got {type(sys).__name__}"
+        )
+    if not isctime():
         raise ModelStructureError(f"sys must be continuous-time (dt=0); got dt={sys.dt}")
-    if A.size == 0:
-        A = np.zeros((0, 0))
-        B = np.zeros((0, D.shape[1]))
-        C = np.zeros((D.shape[0], 0))
     return A, B, C, D
 
 
@@ -78,7 +74,8 @@ def spectral_abscissa(sys) -> float:
     Raises
     ------
     ModelStructureError
-        If ``sys`` is not a continuous-time state-space system.
+        If ``sys`` is not a continuous-time state-space system with finite, conformal
+        matrices (the message names the matrix).
     """
     A = _abcd(sys)[0]
     if A.shape[0] == 0:
@@ -133,10 +130,13 @@ def sigma_max(sys, omega) -> np.ndarray:
     Raises
     ------
     ModelStructureError
-        If ``sys`` is not a continuous-time state-space system.
+        If ``sys`` is not a continuous-time state-space system with finite, conformal
+        matrices (the message names the matrix).
+    ParameterError
+        If ``omega`` is not a finite scalar or 1-D array.
     """
     A, B, C, D = _abcd(sys)
-    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    omega = check_vector("sigma_max: omega", omega, min_size=0)
     n = A.shape[0]
     out = np.empty(omega.shape)
     if n == 0:
@@ -177,14 +177,14 @@ def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: 
     Raises
     ------
     ModelStructureError
-        If ``sys`` is not a continuous-time state-space system.
+        If ``sys`` is not a continuous-time state-space system, or a matrix contains
+        NaN or inf or the shapes do not fit (the message names the matrix).
     ParameterError
         If ``method`` or ``rtol`` is invalid.
     """
     if method not in ("bb", "grid", "slicot"):
         raise ParameterError(f"method must be 'bb', 'grid' or 'slicot'; got {method!r}")
-    if not (0.0 < rtol <= 0.1):
-        raise ParameterError(f"{rtol=} must be in (0, 0.1]")
+    rtol = check_scalar("hinf_norm: rtol", rtol, _RTOL)
     A, B, C, D = _abcd(sys)
     if A.shape[0] and not is_stable(sys):
         return (np.inf, np.nan) if return_frequency else np.inf

@@ -25,6 +25,8 @@ import dataclasses
 import numpy as np
 import scipy.linalg as sla
 
+from robust.checks import POSITIVE, check_abcd, check_scalar
+
 __all__ = ["MinimalRealization", "minimal_realization", "controllable_part"]
 
 
@@ -103,10 +105,20 @@ def controllable_part(A, B, C, *, rtol: float = 1e-9):
     removed_eigs : numpy.ndarray
         Complex eigenvalues (rad/s) of the removed uncontrollable modes, shape
         (n - r,).
+
+    Raises
+    ------
+    robust.errors.ModelStructureError
+        If a matrix is not numeric, holds NaN or inf, or the shapes do not fit (named).
+    robust.errors.ParameterError
+        If ``rtol`` is not finite and positive.
     """
-    A = np.asarray(A, float)
-    B = np.asarray(B, float)
-    C = np.asarray(C, float)
+    rtol = check_scalar("controllable_part: rtol", rtol, POSITIVE)
+    A, B, C, _ = check_abcd("controllable_part", A, B, C)
+    return _controllable_part(A, B, C, rtol)
+
+
+def _controllable_part(A, B, C, rtol):
     n = A.shape[0]
     if n == 0:
         return A, B, C, np.zeros(0, complex)
@@ -142,14 +154,23 @@ def minimal_realization(A, B, C, D, *, rtol: float = 1e-9) -> MinimalRealization
     -------
     MinimalRealization
         The reduced matrices (in a transformed basis) and the removed eigenvalues.
+
+    Raises
+    ------
+    robust.errors.ModelStructureError
+        If a matrix is not numeric, holds NaN or inf, or the shapes do not fit (named).
+    robust.errors.ParameterError
+        If ``rtol`` is not finite and positive.
     """
-    Ac, Bc, Cc, rem_c = controllable_part(A, B, C, rtol=rtol)
-    Ao, Co_T, Bo_T, rem_o = controllable_part(Ac.T, Cc.T, Bc.T, rtol=rtol)
+    rtol = check_scalar("minimal_realization: rtol", rtol, POSITIVE)
+    A, B, C, D = check_abcd("minimal_realization", A, B, C, D)
+    Ac, Bc, Cc, rem_c = _controllable_part(A, B, C, rtol)
+    Ao, Co_T, Bo_T, rem_o = _controllable_part(Ac.T, Cc.T, Bc.T, rtol)
     return MinimalRealization(
         A=Ao.T,
         B=Bo_T.T,
         C=Co_T.T,
-        D=np.asarray(D, float),
+        D=D,
         removed_eigenvalues=np.concatenate([rem_c, rem_o]),
         n_uncontrollable=len(rem_c),
         n_unobservable=len(rem_o),

@@ -20,6 +20,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
+from robust.checks import NONNEGATIVE, check_abcd, check_int, check_scalar, check_state_space
 from robust.errors import ModelStructureError, ParameterError
 
 __all__ = [
@@ -77,8 +78,13 @@ def stable_unstable_split(A, B, C):
     (Au, Bu, Cu) : tuple of numpy.ndarray
         Part with the other poles (``Re >= 0``), shapes (n - k, n - k),
         (n - k, m), (p, n - k).
+
+    Raises
+    ------
+    ModelStructureError
+        If a matrix is not numeric, holds NaN or inf, or the shapes do not fit (named).
     """
-    A = np.asarray(A, float)
+    A, B, C, _ = check_abcd("stable_unstable_split", A, B, C)
     T, Z, k = sla.schur(A, output="real", sort="lhp")
     n = A.shape[0]
     As, A12, Au = T[:k, :k], T[:k, k:], T[k:, k:]
@@ -108,7 +114,13 @@ def hankel_singular_values(A, B, C) -> np.ndarray:
     numpy.ndarray
         The n Hankel singular values (square roots of the eigenvalues of the product
         of the Gramians), in the system's output units per input unit, decreasing.
+
+    Raises
+    ------
+    ModelStructureError
+        If a matrix is not numeric, holds NaN or inf, or the shapes do not fit (named).
     """
+    A, B, C, _ = check_abcd("hankel_singular_values", A, B, C)
     P = sla.solve_continuous_lyapunov(A, -B @ B.T)
     Q = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
     # singular values of the product of Gramian factors (square-root method), more
@@ -147,15 +159,22 @@ def balanced_truncation(
     Raises
     ------
     ModelStructureError
-        If ``sys`` is not a continuous-time :class:`control.StateSpace`.
+        If ``sys`` is not a continuous-time :class:`control.StateSpace` with finite
+        matrices (the message names the matrix).
     ParameterError
-        If both or neither of ``order`` and ``tol`` are given, or ``order`` is
-        below the number of unstable states or above the order of ``sys``.
+        If both or neither of ``order`` and ``tol`` are given, ``order`` is not an
+        integer, ``tol`` is not finite and >= 0, or ``order`` is below the number of
+        unstable states or above the order of ``sys``.
     """
     if not isinstance(sys, ct.StateSpace) or not sys.isctime():
         raise ModelStructureError("balanced_truncation needs a continuous-time control.StateSpace")
+    check_state_space("balanced_truncation: sys", sys)
     if (order is None) == (tol is None):
         raise ParameterError("balanced_truncation: give exactly one of order or tol")
+    if order is not None:
+        order = check_int("balanced_truncation: order", order)
+    else:
+        tol = check_scalar("balanced_truncation: tol", tol, NONNEGATIVE)
     n = sys.nstates
     (As, Bs, Cs), (Au, Bu, Cu) = stable_unstable_split(sys.A, sys.B, sys.C)
     nu = Au.shape[0]

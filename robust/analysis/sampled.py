@@ -27,7 +27,9 @@ import numpy as np
 
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import poles_stable
-from robust.errors import ModelStructureError
+from robust.checks import check_int, check_state_space
+from robust.errors import ModelStructureError, ParameterError
+from robust.model.loop import BDFTLoop
 from robust.model.wiring import connect
 
 __all__ = ["SampledDataCheck", "sampled_data_check", "open_plant", "CHECK_BAND_HZ"]
@@ -79,7 +81,20 @@ def open_plant(loop, K):
         One family member.
     K : control.StateSpace
         The controller whose signals are cut open (loop convention).
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop`.
+    ModelStructureError
+        If ``K`` is not a :class:`control.StateSpace`.
     """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"open_plant: loop must be a BDFTLoop; got {type(loop).__name__}")
+    if not isinstance(K, ct.StateSpace):
+        raise ModelStructureError(
+            f"open_plant: K must be a control.StateSpace; got {type(K).__name__}"
+        )
     outs = list(K.output_labels)
     blocks = loop.blocks(bdft=True, reference_correction="r_corr" in outs)
     ignore = ["f"] if loop.human.has_force_port and "f" not in outs else []
@@ -105,8 +120,28 @@ def sampled_data_check(loop, K, Kd, *, n_freq: int = 200) -> SampledDataCheck:
     Kd : control.StateSpace
         Its discrete equivalent, same signal names, ``dt > 0``.
     n_freq : int
-        Frequencies of the response comparison over :data:`CHECK_BAND_HZ`.
+        Frequencies of the response comparison over :data:`CHECK_BAND_HZ`, >= 2.
+
+    Raises
+    ------
+    ModelStructureError
+        If ``K`` or ``Kd`` is not a :class:`control.StateSpace` with finite matrices
+        (named), ``Kd`` is not discrete-time with a sample time, or their signals differ.
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop` or ``n_freq`` is not an
+        integer >= 2.
     """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(
+            f"sampled_data_check: loop must be a BDFTLoop; got {type(loop).__name__}"
+        )
+    for name, sys in (("K", K), ("Kd", Kd)):
+        if not isinstance(sys, ct.StateSpace):
+            raise ModelStructureError(
+                f"sampled_data_check: {name} must be a control.StateSpace; got {type(sys).__name__}"
+            )
+        check_state_space(f"sampled_data_check: {name}", sys)
+    n_freq = check_int("sampled_data_check: n_freq", n_freq, low=2)
     if not (Kd.isdtime(strict=True) and Kd.dt > 0):
         raise ModelStructureError(
             f"Kd must be a discrete-time controller with a sample time; got dt={Kd.dt}"

@@ -14,8 +14,8 @@ import numpy as np
 from scipy.signal import chirp
 
 from robust.analysis.realization import minimal_realization
-from robust.checks import POSITIVE, check_scalar
-from robust.errors import ParameterError
+from robust.checks import POSITIVE, check_scalar, check_vector
+from robust.errors import DataError, ParameterError
 from robust.model.loop import BDFTLoop
 
 __all__ = ["SweptSine", "swept_sine", "TimeResponse", "simulate_swept_sine", "simulate"]
@@ -120,6 +120,24 @@ class TimeResponse:
         return self.outputs[name]
 
 
+def _check_signals(t, u) -> tuple[np.ndarray, np.ndarray]:
+    """``t`` and ``u`` as float arrays, checked finite, 1-D, equally long and equally spaced."""
+    t = check_vector("simulate: time vector t", t, min_size=2, increasing=True, error=DataError)
+    u = check_vector("simulate: input signal u", u, min_size=0, error=DataError)
+    if u.shape != t.shape:
+        raise DataError(
+            f"simulate: input signal u must have one sample per time in t ({t.size}); got {u.size}"
+        )
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    if not np.allclose(np.diff(t), dt):  # the test of control.forced_response
+        step = np.diff(t)
+        raise DataError(
+            f"simulate: time vector t must be equally spaced; got steps from {step.min():g} "
+            f"to {step.max():g} s"
+        )
+    return t, u
+
+
 def simulate(
     loop: BDFTLoop, t: np.ndarray, u: np.ndarray, *, bdft: bool = True, controller=None
 ) -> TimeResponse:
@@ -147,7 +165,21 @@ def simulate(
     -------
     TimeResponse
         ``t``, ``u`` and every loop output over ``t``.
+
+    Raises
+    ------
+    DataError
+        If ``t`` or ``u`` is not numeric, holds NaN or inf (the message names the
+        signal and the first bad sample), is not 1-D, or they differ in length; if
+        ``t`` has fewer than 2 samples or is not increasing and equally spaced.
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop` or ``bdft`` is not a bool.
     """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"simulate: loop must be a BDFTLoop; got {type(loop).__name__}")
+    if not isinstance(bdft, (bool, np.bool_)):
+        raise ParameterError(f"simulate: bdft must be a bool; got {bdft!r}")
+    t, u = _check_signals(t, u)
     sys = loop.system(bdft=bdft, controller=controller)
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
     # only the input u is driven here
@@ -179,7 +211,17 @@ def simulate_swept_sine(
     -------
     with_bdft, without_bdft : TimeResponse
         The two simulations, on the same time grid.
+
+    Raises
+    ------
+    ParameterError
+        If ``loop`` is not a :class:`~robust.model.loop.BDFTLoop` or ``sweep`` is not a
+        :class:`SweptSine`.
     """
+    if sweep is not None and not isinstance(sweep, SweptSine):
+        raise ParameterError(
+            f"simulate_swept_sine: sweep must be a SweptSine or None; got {type(sweep).__name__}"
+        )
     sweep = sweep or SweptSine()
     t, u = sweep.signal()
     return (

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from robust.checks import NONNEGATIVE, check_scalar
+
 __all__ = ["STABILITY_TOL", "stable_mask", "unstable_mask", "poles_stable", "stability_bound"]
 
 #: Half-width of the marginal band around the imaginary axis, rad/s.
@@ -30,9 +32,14 @@ def stability_bound(margin: float = 0.0) -> float:
     Parameters
     ----------
     margin : float
-        Required decay rate, rad/s (0: plain stability).
+        Required decay rate, rad/s, finite and >= 0 (0: plain stability).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``margin`` is not a finite number >= 0.
     """
-    return -max(float(margin), STABILITY_TOL)
+    return -max(check_scalar("margin", margin, NONNEGATIVE), STABILITY_TOL)
 
 
 def stable_mask(poles, *, margin: float = 0.0) -> np.ndarray:

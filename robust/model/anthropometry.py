@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from robust.checks import POSITIVE, check_array
+
 __all__ = ["SEGMENT_MASS_FRACTIONS", "NOMINAL_BODY_MASS", "segment_masses"]
 
 #: Segment mass / body mass (Winter 2009, Table 4.1).
@@ -39,10 +41,16 @@ def segment_masses(body_mass):
         ``arm`` (upper arm + forearm + hand of the operating arm), and for the
         3-DOF exploration ``upper_arm`` and ``forearm_hand``; all in kg.
         The thighs and legs rest on the seat and are not part of the chain.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a body mass is not a finite positive number.
     """
     fr = SEGMENT_MASS_FRACTIONS
     arm = fr["upper_arm"] + fr["forearm"] + fr["hand"]
-    bm = np.asarray(body_mass, float) if np.ndim(body_mass) else float(body_mass)
+    checked = check_array("segment_masses: body_mass", body_mass, POSITIVE)
+    bm = checked if np.ndim(body_mass) else float(checked)
     return {
         "trunk": (fr["trunk"] + fr["head_neck"] + arm) * bm,
         "arm": arm * bm,

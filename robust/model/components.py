@@ -25,7 +25,7 @@ import math
 import control as ct
 import numpy as np
 
-from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
+from robust.checks import DAMPING_RATIO, POSITIVE, Spec, check_scalar, validate_fields
 
 __all__ = [
     "ValveCylinderParams",
@@ -36,6 +36,7 @@ __all__ = [
     "pi_controller",
     "position_scale",
     "K_PSF_NOMINAL",
+    "STRUCTURE_SPECS",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -43,7 +44,16 @@ TWO_PI = 2.0 * math.pi
 #: Nominal position scale factor: Omni fore-aft workspace (71 mm) over cylinder travel.
 K_PSF_NOMINAL = 0.1097
 
-_DAMPING = Spec(low=0.0, high=1.0, low_open=True, high_open=True)
+_DAMPING = DAMPING_RATIO
+
+#: What each :class:`StructureParams` field must satisfy (the family's physical limits too).
+STRUCTURE_SPECS = {
+    "k_s": POSITIVE,
+    "zeta1": _DAMPING,
+    "zeta2": _DAMPING,
+    "f1_hz": POSITIVE,
+    "f2_hz": POSITIVE,
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,16 +104,7 @@ class StructureParams:
     f2_hz: float = 6.5
 
     def __post_init__(self):
-        validate_fields(
-            self,
-            {
-                "k_s": POSITIVE,
-                "zeta1": _DAMPING,
-                "zeta2": _DAMPING,
-                "f1_hz": POSITIVE,
-                "f2_hz": POSITIVE,
-            },
-        )
+        validate_fields(self, STRUCTURE_SPECS)
 
 
 @dataclasses.dataclass(frozen=True)

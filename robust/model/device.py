@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
+from robust.errors import ParameterError
 
 __all__ = ["DeviceLimits", "ForceCheck", "check_force"]
 
@@ -117,9 +118,24 @@ def check_force(force_n: np.ndarray, limits: DeviceLimits | None = None) -> Forc
         Force samples, N (a non-finite sample makes both figures infinite).
     limits : DeviceLimits, optional
         Device limits (default: the Omni's).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``force_n`` is not numeric or ``limits`` is not a :class:`DeviceLimits`.
     """
+    if limits is not None and not isinstance(limits, DeviceLimits):
+        raise ParameterError(
+            f"check_force: limits must be DeviceLimits or None; got {type(limits).__name__}"
+        )
     limits = limits or DeviceLimits()
-    f = np.asarray(force_n, float)
+    try:
+        f = np.asarray(force_n, float)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"check_force: force_n must be a numeric array of forces in N; "
+            f"got {type(force_n).__name__}"
+        ) from None
     if f.size == 0:
         peak = rms = 0.0
     elif not np.all(np.isfinite(f)):

@@ -20,6 +20,7 @@ from typing import Protocol, runtime_checkable
 import control as ct
 
 from robust.checks import POSITIVE, validate_fields
+from robust.errors import ParameterError
 from robust.model.physical import EQN5_FIT, PhysicalHuman, nominal_params
 
 __all__ = [
@@ -28,7 +29,11 @@ __all__ = [
     "LiteralHuman",
     "human_variant",
     "HUMAN_VARIANT_NAMES",
+    "LITERAL_SPECS",
 ]
+
+#: What each :class:`LiteralHumanParams` field must satisfy (the family's physical limits too).
+LITERAL_SPECS = {"k_h": POSITIVE, "z1": POSITIVE, "p1": POSITIVE}
 
 
 @runtime_checkable
@@ -74,7 +79,7 @@ class LiteralHumanParams:
     p1: float = 1.57
 
     def __post_init__(self):
-        validate_fields(self, {"k_h": POSITIVE, "z1": POSITIVE, "p1": POSITIVE})
+        validate_fields(self, LITERAL_SPECS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +107,12 @@ class LiteralHuman:
     params: LiteralHumanParams = dataclasses.field(default_factory=LiteralHumanParams)
     variant: str = dataclasses.field(default="literal", init=False)
     has_force_port: bool = dataclasses.field(default=False, init=False)
+
+    def __post_init__(self):
+        if not isinstance(self.params, LiteralHumanParams):
+            raise ParameterError(
+                f"LiteralHuman.params must be LiteralHumanParams; got {type(self.params).__name__}"
+            )
 
     def transfer_function(self) -> ct.TransferFunction:
         """Eqn 5 as a transfer function ``H/C`` (order 4: double pole at 0 and at ``-p1``)."""
@@ -154,8 +165,8 @@ def human_variant(name: str) -> HumanModel:
 
     Raises
     ------
-    ValueError
-        If ``name`` is not one of :data:`HUMAN_VARIANT_NAMES`.
+    ParameterError
+        (a ``ValueError``) If ``name`` is not one of :data:`HUMAN_VARIANT_NAMES`.
     """
     if name == "literal":
         return LiteralHuman()
@@ -165,4 +176,4 @@ def human_variant(name: str) -> HumanModel:
         return PhysicalHuman(nominal_params("no-backrest"), variant=name)
     if name == "eqn5-fit":
         return PhysicalHuman(EQN5_FIT, variant=name)
-    raise ValueError(f"human variant must be one of {HUMAN_VARIANT_NAMES}; got {name!r}")
+    raise ParameterError(f"human variant must be one of {HUMAN_VARIANT_NAMES}; got {name!r}")

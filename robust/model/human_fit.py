@@ -40,6 +40,17 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from robust.checks import (
+    NONNEGATIVE,
+    NONZERO,
+    POSITIVE,
+    check_array,
+    check_int,
+    check_scalar,
+    check_sign,
+    check_vector,
+)
+from robust.errors import ParameterError
 from robust.jsonio import atomic_write_text
 from robust.model.anthropometry import NOMINAL_BODY_MASS, segment_masses
 from robust.model.human import LiteralHumanParams
@@ -74,6 +85,27 @@ K_BOUNDS = (10.0, 1.0e5)
 C_BOUNDS = (1.0, 3.0e3)
 
 
+def _band(where: str, band_hz) -> tuple[float, float]:
+    b = check_vector(f"{where}: band_hz", band_hz, POSITIVE, min_size=2)
+    if b.size != 2 or not b[0] < b[1]:
+        raise ParameterError(
+            f"{where}: band_hz must be a pair (lo, hi) of frequencies with 0 < lo < hi Hz; "
+            f"got {band_hz!r}"
+        )
+    return float(b[0]), float(b[1])
+
+
+def _fit_options(where: str, band_hz, n_freq, seed, n_starts, target) -> None:
+    _band(where, band_hz)
+    check_int(f"{where}: n_freq", n_freq, low=2)
+    check_int(f"{where}: seed", seed, low=0)
+    check_int(f"{where}: n_starts", n_starts, low=1)
+    if target is not None and not isinstance(target, LiteralHumanParams):
+        raise ParameterError(
+            f"{where}: target must be LiteralHumanParams or None; got {type(target).__name__}"
+        )
+
+
 def fit_frequencies(band_hz=FIT_BAND_HZ, n: int = N_FREQ) -> np.ndarray:
     """Log-spaced fit frequencies in Hz, shape (n,).
 
@@ -83,7 +115,14 @@ def fit_frequencies(band_hz=FIT_BAND_HZ, n: int = N_FREQ) -> np.ndarray:
         First and last frequency, Hz; :data:`FIT_BAND_HZ` by default.
     n : int, optional
         Number of frequencies; :data:`N_FREQ` by default.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``band_hz`` is not ``0 < lo < hi`` (finite) or ``n`` is not an integer >= 2.
     """
+    _band("fit_frequencies", band_hz)
+    n = check_int("fit_frequencies: n", n, low=2)
     return np.geomspace(band_hz[0], band_hz[1], n)
 
 
@@ -102,9 +141,18 @@ def eqn5_response(f_hz: np.ndarray, params: LiteralHumanParams | None = None) ->
     numpy.ndarray
         Complex response ``H/C`` at ``s = j 2 pi f``, the shape of ``f_hz``, in the
         paper's units of ``h`` per unit of ``c``.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a frequency is zero or non-finite, or ``params`` is not ``LiteralHumanParams``.
     """
+    if params is not None and not isinstance(params, LiteralHumanParams):
+        raise ParameterError(
+            f"eqn5_response: params must be LiteralHumanParams or None; got {type(params).__name__}"
+        )
     p = params or LiteralHumanParams()
-    s = 2j * np.pi * np.asarray(f_hz, float)
+    s = 2j * np.pi * check_array("eqn5_response: f_hz", f_hz, NONZERO)
     return p.k_h * (s + p.z1) ** 2 / (s**2 * (s + p.p1) ** 2)
 
 
@@ -130,11 +178,22 @@ def chain_response(f_hz, masses, stiffnesses, dampings) -> np.ndarray:
     -------
     numpy.ndarray
         Complex ``z_last / a`` at ``s = j 2 pi f``, in m/(m/s^2), shape (F,).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a frequency is non-finite, a mass, stiffness or damping is not finite and
+        positive, or the three chain arrays differ in length (the message names the array).
     """
-    m = np.asarray(masses, float)
-    k = np.asarray(stiffnesses, float)
-    c = np.asarray(dampings, float)
-    s = 2j * np.pi * np.asarray(f_hz, float)
+    m = check_vector("chain_response: masses", masses, POSITIVE)
+    k = check_vector("chain_response: stiffnesses", stiffnesses, POSITIVE)
+    c = check_vector("chain_response: dampings", dampings, POSITIVE)
+    if not m.size == k.size == c.size:
+        raise ParameterError(
+            "chain_response: masses, stiffnesses and dampings must have one entry per mass; "
+            f"got {m.size}, {k.size}, {c.size}"
+        )
+    s = 2j * np.pi * check_vector("chain_response: f_hz", f_hz)
     Z = _chain_impedance(m, k, c, s)  # (F, n, n)
     rhs = np.broadcast_to(-m, (len(s), len(m)))[..., None].astype(complex)
     return np.linalg.solve(Z, rhs)[:, -1, 0]
@@ -193,14 +252,25 @@ def fit_chain(
         paper's ``h`` units per metre per paper's acceleration unit),
         ``err_db_max``, ``err_db_rms``, ``err_deg_max``, ``err_deg_rms``,
         ``at_bounds`` (names of parameters that ended on a search bound).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a mass is not finite and positive, ``band_hz``, ``n_freq``, ``seed``,
+        ``n_starts``, ``target`` or ``phase_weight`` (finite, >= 0) is invalid, or
+        ``sign`` is neither None nor +1/-1 (it must be given with a ``phase_weight``).
     """
-    m = np.asarray(masses, float)
+    m = check_vector("fit_chain: masses", masses, POSITIVE)
+    _fit_options("fit_chain", band_hz, n_freq, seed, n_starts, target)
+    check_scalar("fit_chain: phase_weight", phase_weight, NONNEGATIVE)
+    if sign is not None:
+        check_sign("fit_chain: sign", sign)
     n = len(m)
     f = fit_frequencies(band_hz, n_freq)
     target_resp = eqn5_response(f, target)
     target_db = 20.0 * np.log10(np.abs(target_resp))
     if phase_weight and sign not in (1.0, -1.0):
-        raise ValueError(
+        raise ParameterError(
             f"fit_chain: phase_weight={phase_weight!r} needs sign=+1 or -1; got sign={sign!r}"
         )
 
@@ -297,7 +367,21 @@ def fit_in_box(
         ``f_trunk_hz``, ``zeta_trunk``), ``body_mass``, ``m_trunk``, ``h_gain``
         (signed), the errors ``err_db_max``, ``err_db_rms``, ``err_deg_max``,
         ``err_deg_rms`` over the band, and ``at_bounds`` (parameters on a box bound).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``box`` lacks a range of :data:`BOX_FIT_NAMES`, ``body_mass`` is not finite
+        and positive, or ``band_hz``, ``n_freq``, ``seed``, ``n_starts`` or ``target`` is
+        invalid.
     """
+    check_scalar("fit_in_box: body_mass", body_mass, POSITIVE)
+    _fit_options("fit_in_box", band_hz, n_freq, seed, n_starts, target)
+    missing = [n for n in BOX_FIT_NAMES if not hasattr(box, "__getitem__") or n not in box]
+    if missing:
+        raise ParameterError(
+            f"fit_in_box: box must map every name of {BOX_FIT_NAMES} to a range; missing {missing}"
+        )
     f = fit_frequencies(band_hz, n_freq)
     target_resp = eqn5_response(f, target)
     m_trunk = float(segment_masses(body_mass)["trunk"])

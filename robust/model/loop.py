@@ -128,6 +128,16 @@ class BDFTLoop:
 
     def __post_init__(self):
         validate_fields(self, {"k_psf": POSITIVE})
+        for field, cls in (
+            ("valve", ValveCylinderParams),
+            ("struct", StructureParams),
+            ("calibration", LoopCalibration),
+        ):
+            if not isinstance(getattr(self, field), cls):
+                raise ParameterError(
+                    f"BDFTLoop.{field} must be {cls.__name__}; "
+                    f"got {type(getattr(self, field)).__name__}"
+                )
         if not isinstance(self.human, HumanModel):
             raise ParameterError(
                 "BDFTLoop.human must implement robust.model.human.HumanModel; "

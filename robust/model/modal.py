@@ -17,7 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from robust.checks import POSITIVE, check_array
+
 __all__ = ["modal_to_physical", "physical_to_modal"]
+
+
+def _positive(owner: str, **arrays) -> list[np.ndarray]:
+    """Every argument as a float array, checked finite and strictly positive (named)."""
+    return [check_array(f"{owner}: {k}", v, POSITIVE) for k, v in arrays.items()]
 
 
 def modal_to_physical(m_trunk, m_arm, f_trunk_hz, zeta_trunk, f_arm_hz, zeta_arm):
@@ -36,15 +43,28 @@ def modal_to_physical(m_trunk, m_arm, f_trunk_hz, zeta_trunk, f_arm_hz, zeta_arm
     -------
     k_trunk, c_trunk, k_arm, c_arm : float or ndarray
         N/m, N s/m, N/m, N s/m (broadcast shapes).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If an argument is not finite and strictly positive (the message names it).
     """
-    m_t, m_a = np.asarray(m_trunk, float), np.asarray(m_arm, float)
-    w_t = 2.0 * np.pi * np.asarray(f_trunk_hz, float)
-    w_a = 2.0 * np.pi * np.asarray(f_arm_hz, float)
+    m_t, m_a, f_t, z_t, f_a, z_a = _positive(
+        "modal_to_physical",
+        m_trunk=m_trunk,
+        m_arm=m_arm,
+        f_trunk_hz=f_trunk_hz,
+        zeta_trunk=zeta_trunk,
+        f_arm_hz=f_arm_hz,
+        zeta_arm=zeta_arm,
+    )
+    w_t = 2.0 * np.pi * f_t
+    w_a = 2.0 * np.pi * f_a
     M = m_t + m_a
     k_t = M * w_t**2
-    c_t = 2.0 * np.asarray(zeta_trunk, float) * M * w_t
+    c_t = 2.0 * z_t * M * w_t
     k_a = m_a * w_a**2
-    c_a = 2.0 * np.asarray(zeta_arm, float) * m_a * w_a
+    c_a = 2.0 * z_a * m_a * w_a
     return k_t, c_t, k_a, c_a
 
 
@@ -65,14 +85,26 @@ def physical_to_modal(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm):
     Returns
     -------
     f_trunk_hz, zeta_trunk, f_arm_hz, zeta_arm : float or ndarray
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If an argument is not finite and strictly positive (the message names it).
     """
-    m_t, m_a = np.asarray(m_trunk, float), np.asarray(m_arm, float)
+    m_t, m_a, k_t, c_t, k_a, c_a = _positive(
+        "physical_to_modal",
+        m_trunk=m_trunk,
+        m_arm=m_arm,
+        k_trunk=k_trunk,
+        c_trunk=c_trunk,
+        k_arm=k_arm,
+        c_arm=c_arm,
+    )
     M = m_t + m_a
-    k_t, k_a = np.asarray(k_trunk, float), np.asarray(k_arm, float)
     w_t, w_a = np.sqrt(k_t / M), np.sqrt(k_a / m_a)
     return (
         w_t / (2.0 * np.pi),
-        np.asarray(c_trunk, float) / (2.0 * M * w_t),
+        c_t / (2.0 * M * w_t),
         w_a / (2.0 * np.pi),
-        np.asarray(c_arm, float) / (2.0 * m_a * w_a),
+        c_a / (2.0 * m_a * w_a),
     )

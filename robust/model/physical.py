@@ -51,7 +51,7 @@ import math
 import control as ct
 import numpy as np
 
-from robust.checks import POSITIVE, Spec, check_scalar, validate_fields
+from robust.checks import FINITE, NONZERO, POSITIVE, check_array, check_scalar, validate_fields
 from robust.errors import ParameterError
 from robust.model._human_fit_data import FIT_RESULT
 from robust.model.anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
@@ -69,6 +69,8 @@ __all__ = [
     "fit_summary",
     "EQN5_FIT",
     "nominal_params",
+    "PHYSICAL_SPECS",
+    "MODAL_SPECS",
 ]
 
 _TWO = FIT_RESULT["two_dof"]
@@ -84,7 +86,25 @@ _K_T, _C_T, _K_A, _C_A = (
         _NOMINAL["zeta_arm"],
     )
 )
-_NONZERO = Spec()
+#: What each :class:`PhysicalHumanParams` field must satisfy.
+PHYSICAL_SPECS = {
+    "m_trunk": POSITIVE,
+    "m_arm": POSITIVE,
+    "k_trunk": POSITIVE,
+    "c_trunk": POSITIVE,
+    "k_arm": POSITIVE,
+    "c_arm": POSITIVE,
+    "h_gain": NONZERO,
+    "c_unit": POSITIVE,
+}
+#: What the modal parameters of :meth:`PhysicalHumanParams.from_modes` must satisfy (natural
+#: frequencies and damping ratios strictly positive: a non-positive one is not a body).
+MODAL_SPECS = {
+    "f_trunk_hz": POSITIVE,
+    "zeta_trunk": POSITIVE,
+    "f_arm_hz": POSITIVE,
+    "zeta_arm": POSITIVE,
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,19 +143,7 @@ class PhysicalHumanParams:
     c_unit: float = 1.0
 
     def __post_init__(self):
-        validate_fields(
-            self,
-            {
-                "m_trunk": POSITIVE,
-                "m_arm": POSITIVE,
-                "k_trunk": POSITIVE,
-                "c_trunk": POSITIVE,
-                "k_arm": POSITIVE,
-                "c_arm": POSITIVE,
-                "h_gain": _NONZERO,
-                "c_unit": POSITIVE,
-            },
-        )
+        validate_fields(self, {**PHYSICAL_SPECS, "h_gain": FINITE})
         if self.h_gain == 0.0:
             raise ParameterError("PhysicalHumanParams.h_gain must be nonzero; got 0.0")
 
@@ -167,13 +175,14 @@ class PhysicalHumanParams:
         c_unit : float
             m/s^2 per paper's unit of ``c``.
         """
-        for name, v in (
-            ("f_trunk_hz", f_trunk_hz),
-            ("zeta_trunk", zeta_trunk),
-            ("f_arm_hz", f_arm_hz),
-            ("zeta_arm", zeta_arm),
-        ):
-            check_scalar(name, v, POSITIVE, owner="PhysicalHumanParams.from_modes")
+        modal = {
+            "f_trunk_hz": f_trunk_hz,
+            "zeta_trunk": zeta_trunk,
+            "f_arm_hz": f_arm_hz,
+            "zeta_arm": zeta_arm,
+        }
+        for name, v in modal.items():
+            check_scalar(name, v, MODAL_SPECS[name], owner="PhysicalHumanParams.from_modes")
         k_t, c_t, k_a, c_a = modal_to_physical(
             m_trunk, m_arm, f_trunk_hz, zeta_trunk, f_arm_hz, zeta_arm
         )
@@ -279,13 +288,40 @@ def physical_human_matrices(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_ga
     -------
     A, B, C, D : ndarray
         Shapes (N, 4, 4), (N, 4, 2), (N, 1, 4), (N, 1, 2); N = 1 for scalars.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If an argument is not finite, has the wrong sign (:data:`PHYSICAL_SPECS`) or
+        does not broadcast to shape (N,); the message names it.
     """
-    args = np.broadcast_arrays(
-        *[
-            np.atleast_1d(np.asarray(v, float))
-            for v in (m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_gain, c_unit)
-        ]
-    )
+    given = {
+        "m_trunk": m_trunk,
+        "m_arm": m_arm,
+        "k_trunk": k_trunk,
+        "c_trunk": c_trunk,
+        "k_arm": k_arm,
+        "c_arm": c_arm,
+        "h_gain": h_gain,
+        "c_unit": c_unit,
+    }
+    checked = [
+        np.atleast_1d(check_array(f"physical_human_matrices: {k}", v, PHYSICAL_SPECS[k]))
+        for k, v in given.items()
+    ]
+    try:
+        args = np.broadcast_arrays(*checked)
+    except ValueError:
+        shapes = {k: a.shape for k, a in zip(given, checked)}
+        raise ParameterError(
+            f"physical_human_matrices: the parameters must broadcast to one shape (N,); "
+            f"got shapes {shapes}"
+        ) from None
+    if args[0].ndim != 1:
+        raise ParameterError(
+            f"physical_human_matrices: the parameters must be scalars or 1-D; got shape "
+            f"{args[0].shape}"
+        )
     mt, ma, kt, ct_, ka, ca, g, cu = args
     n = mt.shape[0]
     A = np.zeros((n, 4, 4))

@@ -33,7 +33,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 
 import control as ct
 import numpy as np
@@ -44,6 +44,7 @@ __all__ = [
     "Junction",
     "figure5_junctions",
     "expand",
+    "interconnection_matrix",
     "connect",
     "renamed",
     "CONTROLLER_FORCE",
@@ -293,3 +294,50 @@ def renamed(
         name=name or sys.name,
     )
     return out
+
+
+def interconnection_matrix(
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    junctions: Iterable[Junction],
+    *,
+    zero: Iterable[str] = EXOGENOUS,
+) -> np.ndarray:
+    """Constant ``M`` with ``u = M y``: every block input from the block outputs.
+
+    Each block input is expanded through the junctions (:func:`expand`) with the
+    signals in ``zero`` held at zero.
+
+    Parameters
+    ----------
+    inputs : sequence of str
+        The dynamic blocks' inputs, stacked in block order (length ``m``).
+    outputs : sequence of str
+        The dynamic blocks' outputs, stacked in block order (length ``p``).
+    junctions : iterable of Junction
+        The junction table (:func:`figure5_junctions`).
+    zero : iterable of str
+        Signals set to zero (default: the loop's exogenous inputs).
+
+    Returns
+    -------
+    ndarray, shape (m, p)
+
+    Raises
+    ------
+    ModelStructureError
+        If a block input needs a signal that no block provides.
+    """
+    outs = list(outputs)
+    col = {s: j for j, s in enumerate(outs)}
+    table = tuple(junctions)
+    M = np.zeros((len(inputs), len(outs)))
+    for i, s in enumerate(inputs):
+        for src, coef in expand(s, table, zero=zero).items():
+            if src not in col:
+                raise ModelStructureError(
+                    f"block input {s!r} needs the signal {src!r}, which no block provides "
+                    f"(block outputs: {outs})"
+                )
+            M[i, col[src]] += coef
+    return M

@@ -28,8 +28,15 @@ import numpy as np
 import scipy.signal as sps
 
 from robust.analysis.realization import minimal_realization
-from robust.checks import NONNEGATIVE, POSITIVE, check_scalar, validate_fields
-from robust.errors import ModelStructureError, ParameterError
+from robust.checks import (
+    NONNEGATIVE,
+    POSITIVE,
+    check_abcd,
+    check_array,
+    check_scalar,
+    validate_fields,
+)
+from robust.errors import DataError, ModelStructureError, ParameterError
 from robust.model.components import (
     StructureParams,
     ValveCylinderParams,
@@ -396,12 +403,28 @@ def simulate_response(system, u: np.ndarray, fs: float) -> np.ndarray:
     -------
     numpy.ndarray, same shape as ``u``
         Output samples (first-order-hold discretisation, see the module notes).
+
+    Raises
+    ------
+    DataError
+        If ``u`` is not numeric, not 1-D or 2-D, or holds NaN or inf (the message names
+        the first bad sample).
+    ModelStructureError
+        If ``system`` is not a continuous SISO system with finite matrices.
+    ParameterError
+        If ``fs`` is not finite and positive.
     """
     _siso_labels(system)
     fs = check_scalar("fs", fs, POSITIVE)
     ss = ct.ss(system)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    u = np.asarray(u, dtype=float)
+    check_abcd("simulate_response: system", a, b, c, d)
+    u = check_array("simulate_response: input u", u, error=DataError)
+    if u.ndim not in (1, 2):
+        raise DataError(
+            f"simulate_response: input u must be 1-D or 2-D (records x samples); got shape "
+            f"{u.shape}"
+        )
     if a.shape[0] == 0:
         return d[0, 0] * u
     ad, bd, cd, dd, _ = sps.cont2discrete((a, b, c, d), 1.0 / fs, method="foh")
@@ -490,7 +513,26 @@ def simulate_experiment(
     Returns
     -------
     Experiment
+
+    Raises
+    ------
+    ParameterError
+        If ``protocol`` is not a :class:`ChirpProtocol`, ``rng`` not a numpy Generator,
+        both ``seed`` and ``rng`` are given, a noisy experiment has neither, or
+        ``excitation`` has the wrong shape.
+    DataError
+        If ``excitation`` holds NaN or inf (named).
     """
+    if protocol is not None and not isinstance(protocol, ChirpProtocol):
+        raise ParameterError(
+            f"simulate_experiment: protocol must be a ChirpProtocol or None; "
+            f"got {type(protocol).__name__}"
+        )
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        raise ParameterError(
+            f"simulate_experiment: rng must be a numpy.random.Generator or None; "
+            f"got {type(rng).__name__}"
+        )
     protocol = protocol or ChirpProtocol()
     system = select_path(system, input, output)
     in_name, out_name = _siso_labels(system)
@@ -513,7 +555,7 @@ def simulate_experiment(
     if excitation is None:
         u = np.broadcast_to(protocol.excitation(), shape).copy()
     else:
-        u = np.asarray(excitation, dtype=float)
+        u = check_array("simulate_experiment: excitation", excitation, error=DataError)
         if u.ndim == 1:
             u = np.broadcast_to(u, (protocol.n_records, u.size)).copy()
         if u.shape != shape:

@@ -52,7 +52,8 @@ import numpy as np
 import scipy.optimize
 
 from robust.analysis.stability import unstable_mask
-from robust.errors import InfeasibleError, ParameterError, SolverError
+from robust.checks import POSITIVE, Spec, check_array, check_int, check_scalar
+from robust.errors import DataError, InfeasibleError, ParameterError, SolverError
 from robust.sysid.forms import (
     FORM_SPECS,
     FORMS,
@@ -173,8 +174,19 @@ class FitResult:
         return {k: float(v) for k, v in dataclasses.asdict(self.params).items()}
 
     def frequency_response(self, f_hz) -> np.ndarray:
-        """Model response at frequencies ``f_hz`` (Hz), complex, shape like ``f_hz``."""
-        f = np.asarray(f_hz, dtype=float)
+        """Model response at frequencies ``f_hz`` (Hz), complex, shape like ``f_hz``.
+
+        Parameters
+        ----------
+        f_hz : array_like
+            Finite frequencies, Hz, any shape.
+
+        Raises
+        ------
+        ParameterError
+            If a frequency is not numeric or not finite.
+        """
+        f = check_array("FitResult.frequency_response: f_hz", f_hz)
         return np.asarray(self.system(1j * TWO_PI * f), dtype=complex).reshape(f.shape)
 
     def to_dict(self) -> dict:
@@ -198,6 +210,9 @@ class FitResult:
 # --------------------------------------------------------------------------------------
 # The fit
 # --------------------------------------------------------------------------------------
+_UNIT_OPEN = Spec(low=0.0, high=1.0, low_open=True, high_open=True)
+
+
 def coherence_threshold(n_effective: float, significance: float) -> float:
     """Coherence that a zero-coherence estimate exceeds with probability ``significance``.
 
@@ -212,7 +227,14 @@ def coherence_threshold(n_effective: float, significance: float) -> float:
         Effective number of independent averages ``n_d`` of the estimate.
     significance : float
         Probability, in (0, 1), that a zero-coherence estimate exceeds the threshold.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_effective`` is not finite and positive or ``significance`` not in (0, 1).
     """
+    n_effective = check_scalar("coherence_threshold: n_effective", n_effective, POSITIVE)
+    significance = check_scalar("coherence_threshold: significance", significance, _UNIT_OPEN)
     nd = max(float(n_effective), 1.0 + 1e-9)
     return 1.0 - significance ** (1.0 / (nd - 1.0))
 
@@ -341,8 +363,16 @@ def fit_frequency_response(
     SolverError
         If the nonlinear least squares fails or returns non-finite parameters.
     ParameterError
-        For a bad form, weighting or threshold.
+        For a bad form, weighting, threshold, ``n_subbands`` or ``starts`` (integers >= 1)
+        or an ``estimate`` that is not a :class:`FrequencyResponseEstimate`.
     """
+    if not isinstance(estimate, FrequencyResponseEstimate):
+        raise ParameterError(
+            "fit_frequency_response: estimate must be a FrequencyResponseEstimate; "
+            f"got {type(estimate).__name__}"
+        )
+    check_int("fit_frequency_response: n_subbands", n_subbands, low=1)
+    check_int("fit_frequency_response: starts", starts, low=1)
     parsed = parse_form(form)
     lo, hi = check_band(band_hz)
     if not (isinstance(min_coherence, (int, float)) and 0.0 <= min_coherence < 1.0):
@@ -429,7 +459,8 @@ def _fit_fixed(spec, f, s, hm, coh, w, lo, hi, n_sub, initial, starts) -> FitRes
             p_lin[[i for i, nm in enumerate(spec.names) if not nm.startswith("zeta")]] <= 0
         ):
             raise SolverError("linear estimate gave non-physical parameters")
-    except (SolverError, np.linalg.LinAlgError):
+    except (SolverError, np.linalg.LinAlgError, DataError, ParameterError):
+        # (a zero of H1 gives an infinite weight, which levy_sk refuses)
         p_lin = _generic_start(spec, f, hm)
     p_lin = _physical(spec, p_lin)
     if spec.name == "structure" and p_lin[3] > p_lin[4]:

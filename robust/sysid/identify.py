@@ -9,14 +9,49 @@ from __future__ import annotations
 import dataclasses
 import os
 
+import numpy as np
+
+from robust.errors import DataError
 from robust.sysid.datafile import load_channels, select_channels
 from robust.sysid.fit import FitResult, fit_frequency_response
-from robust.sysid.spectral import FrequencyResponseEstimate, check_band, estimate_frequency_response
+from robust.sysid.spectral import (
+    FrequencyResponseEstimate,
+    _as_records,
+    check_band,
+    estimate_frequency_response,
+)
 
 __all__ = ["MIN_PERIODS", "Identification", "identify_file", "identify_records"]
 
 #: A record must hold at least this many periods of the band's lowest frequency.
 MIN_PERIODS = 2.0
+#: A record whose peak-to-peak spread is at most this fraction of its largest magnitude
+#: is constant: it carries no power at any frequency above DC.
+_CONSTANT_RTOL = 1e-12
+
+
+def _check_not_constant(records, role: str, name: str) -> None:
+    """Name a dead (constant, zero-power) channel instead of letting the fit blame coherence."""
+    recs = _as_records(role, records)
+    dead = []
+    for k, r in enumerate(recs):
+        scale = float(np.max(np.abs(r))) if r.size else 0.0
+        if r.size == 0 or float(np.ptp(r)) <= _CONSTANT_RTOL * scale:
+            dead.append(k)
+    if not dead:
+        return
+    value = float(recs[dead[0]][0]) if recs[dead[0]].size else 0.0
+    which = "every record" if len(dead) == len(recs) else f"record(s) {dead} of {len(recs)}"
+    expected = (
+        "an excitation (a chirp) with power across the band"
+        if role == "input"
+        else "a measured response that varies"
+    )
+    raise DataError(
+        f"{role} channel {name!r} is dead: constant, with zero power, in {which} "
+        f"(record {dead[0]} holds {value:g} throughout); expected {expected}. "
+        "Check the channel name, the sensor and its cable"
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,11 +162,15 @@ def identify_records(
     Raises
     ------
     DataError
-        Bad records (see the estimator), or a band outside the data.
+        Bad records (see the estimator), a constant (zero-power) input or output
+        record (the message names the channel and the records), or a band outside
+        the data.
     InfeasibleError, SolverError
         If the fit cannot be made.
     """
     check_band(band_hz)
+    _check_not_constant(u, "input", input_name)
+    _check_not_constant(y, "output", output_name)
     est = estimate_frequency_response(u, y, fs, nperseg=nperseg, window=window, detrend=detrend)
     fit = fit_frequency_response(
         est,

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from robust.errors import InfeasibleError, SolverError
+from robust.checks import NONNEGATIVE, POSITIVE, check_int, check_scalar, check_vector
+from robust.errors import DataError, InfeasibleError, ParameterError, SolverError
 
 __all__ = ["levy_sk"]
 
@@ -54,12 +55,42 @@ def levy_sk(
 
     Raises
     ------
+    DataError
+        If ``omega`` is not a 1-D array of finite positive frequencies, or ``h`` is not
+        numeric, holds NaN or inf, or differs in length from ``omega`` (named).
+    ParameterError
+        If ``m``, ``n`` or ``iterations`` is not a non-negative integer (``n >= 1``),
+        ``weights`` holds a negative or non-finite weight or has the wrong length, or
+        ``tol`` is not finite and >= 0.
+    InfeasibleError
+        If there are fewer equations than coefficients.
     SolverError
         If the linear problem is rank deficient at every pass.
     """
-    omega = np.asarray(omega, dtype=float)
-    h = np.asarray(h, dtype=complex)
-    w = np.ones_like(omega) if weights is None else np.asarray(weights, dtype=float)
+    omega = check_vector("levy_sk: omega", omega, POSITIVE, error=DataError)
+    try:
+        h = np.asarray(h, dtype=complex)
+    except (TypeError, ValueError):
+        raise DataError(f"levy_sk: h must be a numeric array; got {type(h).__name__}") from None
+    if h.shape != omega.shape:
+        raise DataError(
+            f"levy_sk: h must have one value per frequency, shape {omega.shape}; got {h.shape}"
+        )
+    if not np.all(np.isfinite(h)):
+        i = int(np.flatnonzero(~np.isfinite(h))[0])
+        raise DataError(f"levy_sk: h[{i}] must be finite; got {h[i]!r}")
+    m = check_int("levy_sk: m", m, low=0)
+    n = check_int("levy_sk: n", n, low=1)
+    iterations = check_int("levy_sk: iterations", iterations, low=0)
+    tol = check_scalar("levy_sk: tol", tol, NONNEGATIVE)
+    if weights is None:
+        w = np.ones_like(omega)
+    else:
+        w = check_vector("levy_sk: weights", weights, NONNEGATIVE)
+        if w.shape != omega.shape:
+            raise ParameterError(
+                f"levy_sk: weights must have one entry per frequency ({omega.size}); got {w.size}"
+            )
     if n + m + 1 > 2 * omega.size:
         raise InfeasibleError(
             f"a {m}/{n} rational model has {m + n + 1} coefficients but only "

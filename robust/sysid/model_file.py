@@ -27,6 +27,7 @@ import math
 import os
 from pathlib import Path
 
+from robust.checks import POSITIVE, check_int, check_scalar
 from robust.errors import ArtifactError, ParameterError
 from robust.jsonio import atomic_write_json
 from robust.model.components import StructureParams, ValveCylinderParams
@@ -102,8 +103,22 @@ def save_component_fit(
     Raises
     ------
     ParameterError
-        If ``fit`` is a general rational fit (only the paper's forms map to plant parameters).
+        If ``fit`` is not a fit result or is a general rational fit (only the paper's
+        forms map to plant parameters), ``fs`` is not finite and positive, ``seed`` is
+        neither None nor a non-negative integer, or ``source`` is not a string; checked
+        before anything is written.
     """
+    if not hasattr(fit, "form") or not hasattr(fit, "params_dict"):
+        raise ParameterError(
+            f"save_component_fit: fit must be a robust.sysid.FitResult; got {type(fit).__name__}"
+        )
+    check_scalar("save_component_fit: fs", fs, POSITIVE)
+    if seed is not None:
+        check_int("save_component_fit: seed", seed, low=0)
+    if not isinstance(source, str):
+        raise ParameterError(
+            f"save_component_fit: source must be a string; got {type(source).__name__}"
+        )
     if fit.form not in _CLASSES:
         raise ParameterError(
             f"only the forms {tuple(_CLASSES)} can be saved as component models; got {fit.form!r}"

@@ -9,10 +9,23 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from robust.checks import Spec, check_scalar
+from robust.errors import ParameterError
 from robust.sysid.fit import FitResult
-from robust.sysid.spectral import FrequencyResponseEstimate
+from robust.sysid.spectral import FrequencyResponseEstimate, check_band
 
 __all__ = ["bode_figure", "coherence_figure"]
+
+
+def _check_plot_args(where: str, estimate, band_hz, f_range_hz) -> None:
+    if not isinstance(estimate, FrequencyResponseEstimate):
+        raise ParameterError(
+            f"{where}: estimate must be a FrequencyResponseEstimate; got {type(estimate).__name__}"
+        )
+    if band_hz is not None:
+        check_band(band_hz)
+    if f_range_hz is not None:
+        check_band(f_range_hz)
 
 
 def _plot_mask(est: FrequencyResponseEstimate, f_range):
@@ -53,6 +66,11 @@ def bode_figure(
     matplotlib.figure.Figure
         Two axes: magnitude (dB) and phase (degrees) against frequency (Hz, log).
     """
+    _check_plot_args("bode_figure", estimate, band_hz, f_range_hz)
+    if fit is not None and not isinstance(fit, FitResult):
+        raise ParameterError(
+            f"bode_figure: fit must be a FitResult or None; got {type(fit).__name__}"
+        )
     m = _plot_mask(estimate, f_range_hz)
     f = estimate.f_hz[m]
     fig = Figure(figsize=(7.5, 6.0), layout="constrained")
@@ -158,6 +176,9 @@ def coherence_figure(
     -------
     matplotlib.figure.Figure
     """
+    _check_plot_args("coherence_figure", estimate, band_hz, f_range_hz)
+    if threshold is not None:
+        check_scalar("coherence_figure: threshold", threshold, Spec(low=0.0, high=1.0))
     m = _plot_mask(estimate, f_range_hz)
     f = estimate.f_hz[m]
     fig = Figure(figsize=(7.5, 3.0), layout="constrained")

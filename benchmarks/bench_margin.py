@@ -1,0 +1,59 @@
+"""Benchmark: robust-margin bounds of the default family, open loop and every shipped design.
+
+For each loop: the upper bound (worst-case search) and the certified lower bound
+(interval enclosure + Lyapunov LMI per sub-box), their times, and the gap. Targets:
+upper bound under 30 s, certified lower bound under 5 minutes, on 2 cores.
+
+    python benchmarks/bench_margin.py [--samples N] [--max-boxes B] [--designs a,b,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+from designs import design_names, run_design
+from uncertainty import default_family
+from uncertainty.margins import margin_lower_bound, margin_upper_bound
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=1000, help="search members per scale")
+    ap.add_argument("--max-boxes", type=int, default=24, help="sub-boxes per scale")
+    ap.add_argument("--design-samples", type=int, default=500, help="design sample size")
+    ap.add_argument("--designs", default=",".join(design_names()), help="comma-separated")
+    args = ap.parse_args()
+    fam = default_family()
+    loops = [("open loop", fam, None)]
+    for name in [n for n in args.designs.split(",") if n]:
+        t = time.perf_counter()
+        r = run_design(name, samples=args.design_samples, seed=0, held_out=100)
+        print(f"# designed {name} in {time.perf_counter() - t:.1f} s", flush=True)
+        loops.append((name, r.family, r.controller))
+    print(
+        f"{'loop':18s} {'upper':>9s} {'t_up[s]':>8s} {'lower':>9s} {'t_low[s]':>9s} "
+        f"{'gap up/low':>10s} {'boxes':>6s}"
+    )
+    for label, family, K in loops:
+        t0 = time.perf_counter()
+        up, crit, _ = margin_upper_bound(family, controller=K, samples=args.samples, seed=0)
+        t1 = time.perf_counter()
+        low, cert = margin_lower_bound(
+            family, controller=K, k_hint=min(up, 8.0), max_boxes=args.max_boxes
+        )
+        t2 = time.perf_counter()
+        boxes = sum(h.get("boxes", 0) for h in cert["history"])
+        gap = up / low if low > 0 else float("inf")
+        print(
+            f"{label:18s} {up:9.4g} {t1 - t0:8.1f} {low:9.4g} {t2 - t1:9.1f} {gap:10.3g} "
+            f"{boxes:6d}",
+            flush=True,
+        )
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"process peak resident memory: {peak:.0f} MiB")
+
+
+if __name__ == "__main__":
+    main()
