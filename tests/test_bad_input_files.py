@@ -569,3 +569,30 @@ def test_random_matrices_raise_only_artifact_errors(tmp_path_factory, document, 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _loads_or_artifact_error(load_artifact, path)
+
+
+@PROPERTY
+@given(data=st.binary(max_size=300))
+def test_random_bytes_raise_only_artifact_errors_in_the_controller_loader(tmp_path_factory, data):
+    path = tmp_path_factory.getbasetemp() / "random-controller.json"
+    path.write_bytes(data)
+    _loads_or_artifact_error(load_controller, path)
+
+
+@PROPERTY
+@given(data=st.data())
+def test_mutated_bare_controllers_raise_only_artifact_errors(tmp_path_factory, data):
+    # a bare state-space controller file (no kind) with one field replaced by anything
+    bare = {
+        "A": [[-1.0, 0.0], [0.0, -2.0]],
+        "B": [[1.0], [0.5]],
+        "C": [[1.0, 1.0]],
+        "D": [[0.0]],
+        "inputs": ["x"],
+        "outputs": ["f"],
+    }
+    field = data.draw(st.sampled_from(sorted(bare)), label="field")
+    bare[field] = data.draw(json_values, label="value")
+    path = tmp_path_factory.getbasetemp() / "bare.json"
+    path.write_text(json.dumps(bare))
+    _loads_or_artifact_error(load_controller, path)

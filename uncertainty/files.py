@@ -47,10 +47,14 @@ def _read_json(path, what: str) -> dict:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ArtifactError(f"{what} {str(p)!r} cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ArtifactError(f"{what} {str(p)!r} is not UTF-8 text: {exc.reason}") from None
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ArtifactError(f"{what} {str(p)!r} is not valid JSON: {exc}") from None
+    except (RecursionError, ValueError) as exc:  # nesting too deep, integer too long
+        raise ArtifactError(f"{what} {str(p)!r} cannot be parsed as JSON: {exc}") from None
     if not isinstance(obj, dict):
         raise ArtifactError(f"{what} {str(p)!r} must hold a JSON object; got {type(obj).__name__}")
     return obj
@@ -62,12 +66,18 @@ def _matrix(obj: dict, key: str, where: str, shape: tuple[int | None, int | None
     raw = obj[key]
     try:
         m = np.array(raw, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, RecursionError):
         raise ArtifactError(
             f"{where}: {key} must be a numeric matrix (list of rows); got {raw!r:.80}"
         ) from None
     if m.size == 0:
-        m = m.reshape(tuple(0 if s is None else s for s in shape))
+        target = tuple(0 if s is None else s for s in shape)
+        if int(np.prod(target)) != 0:
+            raise ArtifactError(
+                f"{where}: {key} is empty; expected shape "
+                f"{tuple('n' if s is None else s for s in shape)}"
+            )
+        m = m.reshape(target)
     if m.ndim != 2:
         raise ArtifactError(f"{where}: {key} must be 2-D (a list of rows); got shape {m.shape}")
     for axis, want in enumerate(shape):
@@ -84,7 +94,11 @@ def _matrix(obj: dict, key: str, where: str, shape: tuple[int | None, int | None
 def _labels(obj: dict, key: str, where: str) -> list[str]:
     v = obj.get(key)
     if not isinstance(v, list) or not v or not all(isinstance(s, str) for s in v):
-        raise ArtifactError(f"{where}: {key!r} must be a non-empty list of signal names; got {v!r}")
+        raise ArtifactError(
+            f"{where}: {key!r} must be a non-empty list of signal names; got {v!r:.80}"
+        )
+    if len(set(v)) != len(v):
+        raise ArtifactError(f"{where}: {key!r} must name each signal once; got {v!r:.80}")
     return v
 
 
@@ -134,9 +148,12 @@ def load_controller(path) -> ct.StateSpace:
     B = _matrix(obj, "B", where, (n, len(inputs)))
     C = _matrix(obj, "C", where, (len(outputs), n))
     D = _matrix(obj, "D", where, (len(outputs), len(inputs)))
-    return ct.ss(
-        A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller"))
-    )
+    try:
+        return ct.ss(
+            A, B, C, D, inputs=inputs, outputs=outputs, name=str(obj.get("name", "controller"))
+        )
+    except ValueError as exc:
+        raise ArtifactError(f"{where}: not a valid state-space controller: {exc}") from None
 
 
 def load_component_fit(path):

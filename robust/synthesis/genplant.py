@@ -35,6 +35,29 @@ from robust.errors import ModelStructureError
 __all__ = ["GeneralizedPlant", "as_generalized_plant"]
 
 
+def _as_statespace(sys, name: str = "sys") -> control.StateSpace:
+    """``control.ss(sys)`` for an LTI system; anything else is a ModelStructureError."""
+    if not isinstance(sys, (control.StateSpace, control.TransferFunction)):
+        raise ModelStructureError(
+            f"{name} must be a control.StateSpace or control.TransferFunction (or a "
+            f"GeneralizedPlant); got {type(sys).__name__}"
+        )
+    if isinstance(sys, control.TransferFunction):
+        for part in ("num", "den"):
+            coeffs = [np.asarray(c, dtype=float) for row in getattr(sys, part) for c in row]
+            if not all(np.all(np.isfinite(c)) for c in coeffs):
+                raise ModelStructureError(
+                    f"{name}: the transfer function's {part} contains non-finite values "
+                    "(NaN or inf); clean them first"
+                )
+    try:
+        return control.ss(sys)
+    except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
+        raise ModelStructureError(
+            f"{name} could not be converted to state space: {type(exc).__name__}: {exc}"
+        ) from None
+
+
 @dataclasses.dataclass(frozen=True)
 class GeneralizedPlant:
     """A state-space system with named exogenous, control, performance and measured signals.
@@ -102,9 +125,10 @@ class GeneralizedPlant:
         Raises
         ------
         ModelStructureError
-            If a name is unknown, listed twice, or an input/output is left unlisted.
+            If ``sys`` is not an LTI system, a name is unknown, listed twice, or an
+            input/output is left unlisted.
         """
-        sys = control.ss(sys)
+        sys = _as_statespace(sys)
         ins, outs = list(sys.input_labels), list(sys.output_labels)
         w, u, z, y = (list(x) for x in (w, u, z, y))
         cls._check_partition("input", ins, {"w": w, "u": u})
@@ -142,9 +166,9 @@ class GeneralizedPlant:
         Raises
         ------
         ModelStructureError
-            If a count is not an integer in its range.
+            If ``sys`` is not an LTI system or a count is not an integer in its range.
         """
-        sys = control.ss(sys)
+        sys = _as_statespace(sys, "P")
         for label, val, top in (("nmeas", nmeas, sys.noutputs), ("ncon", ncon, sys.ninputs)):
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or not 0 < val < top:
                 raise ModelStructureError(

@@ -36,6 +36,7 @@ __all__ = [
     "bounded_real_lmi",
     "closed_loop_matrices",
     "nullspace",
+    "projection_certificate",
     "projection_lmis",
     "reconstruct_controller",
     "structured_nullspace",
@@ -120,6 +121,10 @@ class ProjectionLMIs:
         well-conditioned ``R, S`` before controller reconstruction).
     constraints : list of cvxpy constraints
     objective : cvxpy.Minimize
+    lmi_r, lmi_s, coupling : cvxpy constraint or None
+        The projected LMI in ``R`` (``N12``), the one in ``S`` (``N21``; None when
+        ``N21`` is empty) and ``[[R, I], [I, S]] >= 0``: their dual values feed
+        :func:`projection_certificate`.
     """
 
     R: cp.Variable
@@ -128,6 +133,9 @@ class ProjectionLMIs:
     gamma_floor: cp.Parameter
     constraints: list
     objective: cp.Minimize
+    lmi_r: object = None
+    lmi_s: object = None
+    coupling: object = None
 
 
 def nullspace(M: np.ndarray, *, rtol: float = 1e-10) -> np.ndarray:
@@ -237,6 +245,7 @@ def projection_lmis(
         cons.append(L1 << -margin * np.eye(L1.shape[0]))
     else:
         cons.append(cp.bmat([[-g * Iw]]) << -margin * np.eye(nw))
+    lmi_r, lmi_s = cons[0], None
     if N21.shape[1] > 0:
         T2 = sla.block_diag(N21, Iz)
         M2 = cp.bmat(
@@ -244,12 +253,192 @@ def projection_lmis(
         )
         L2 = _sym(T2.T @ M2 @ T2)
         cons.append(L2 << -margin * np.eye(L2.shape[0]))
+        lmi_s = cons[-1]
     In = np.eye(n)
     cons.append(cp.bmat([[R, In], [In, S]]) >> 0)
+    coupling = cons[-1]
     cons.append(g >= gfloor)
     if gamma_cap is not None:
         cons.append(g <= gamma_cap)
-    return ProjectionLMIs(R, S, g, gfloor, cons, cp.Minimize(g))
+    return ProjectionLMIs(R, S, g, gfloor, cons, cp.Minimize(g), lmi_r, lmi_s, coupling)
+
+
+def _jacobi_max_eig(M, *, smallest: bool = False) -> float:
+    """Largest (or smallest) eigenvalue of ``D^-1/2 M D^-1/2``, ``D = |diag(M)|``.
+
+    The diagonal congruence keeps the inertia, so the sign of the result decides
+    definiteness as for ``M`` itself, but the number is relative to the scale of
+    each row and column: a tolerance on it means the same for a well and a badly
+    scaled matrix (unlike a tolerance relative to ``||M||``).
+    """
+    M = _sym(np.asarray(M, float))
+    if M.size == 0:
+        return -1.0 if not smallest else 1.0
+    d = np.abs(np.diag(M))
+    d = np.sqrt(np.maximum(d, 1e-300 + 1e-14 * d.max()))
+    w = np.linalg.eigvalsh(M / d[:, None] / d[None, :])
+    return float(w.min() if smallest else w.max())
+
+
+def projection_certificate(
+    blocks: PlantBlocks, R, S, gamma: float, *, duals=None
+) -> dict[str, float]:
+    """Independent numpy check of a solution ``(R, S, gamma)`` of :func:`projection_lmis`.
+
+    Nothing is decided here (the caller applies its tolerances); the numbers are
+    computed from the plant data and the solver's variables only, with other
+    null-space bases than the SDP used (orthonormal ones, :func:`nullspace`), so
+    they check the solver's answer and cvxpy's formulation together.
+
+    Primal side -- is ``gamma`` attained?  [GA94] Thm 4.3 asks for ``R > 0``,
+    ``S > 0``, ``[[R, I], [I, S]] >= 0`` and both projected LMIs ``< 0`` (without
+    the strictness margin).  Eigenvalues of matrices that must be definite are
+    reported after the diagonal congruence ``D^-1/2 M D^-1/2`` (``D = |diag M|``),
+    which keeps their sign but makes them relative to each row's scale.
+
+    Dual side -- is ``gamma`` optimal?  For any ``Z1, Z2 >= 0`` (shaped like the
+    projected LMIs) weak duality gives a lower bound on every feasible gamma of the
+    problem *without* margin, i.e. on the H-infinity norm of every controller:
+    with ``W = T1 Z1 T1'`` (``T1 = blkdiag(N12, I)``, the SDP's basis), ``V = T2 Z2
+    T2'`` and the gradients ``G_R = A' W11 + W11 A + W12 C1 + C1' W12'``, ``G_S = A
+    V11 + V11 A' + V12 B1' + B1 V12'``, the coupling multiplier ``Z3 = [[G_R, X],
+    [X', G_S]]`` cancels every ``R`` and ``S`` term, and the best ``X`` with
+    ``Z3 >= 0`` (``X = -L_R Q L_S'``, ``G = L L'``, ``Q`` the orthogonal polar factor)
+    leaves::
+
+        gamma >= (2<W13, B1> + 2<W23, D11> + 2<V13, C1'> + 2<V23, D11'>
+                  + 2 ||L_S' L_R||_*) / (tr W22 + tr W33 + tr V22 + tr V33).
+
+    The bound is exact when ``G_R, G_S >= 0``; the solver's duals satisfy this only
+    to its tolerance, so negative eigenvalues are clipped and the term they leave,
+    ``<G_R-, R> + <G_S-, S>`` at the solver's ``R, S``, is subtracted (a first-order
+    account of the clipping, reported as ``dual_clip``).
+
+    Parameters
+    ----------
+    blocks : PlantBlocks
+        Plant data the LMIs were built from (``D22 = 0``).
+    R, S : numpy.ndarray, shape (n, n)
+        Values of the variables.
+    gamma : float
+        The level to check (the solver's optimum).
+    duals : tuple of (numpy.ndarray or None), optional
+        Dual values ``(Z1, Z2)`` of :attr:`ProjectionLMIs.lmi_r` and
+        :attr:`ProjectionLMIs.lmi_s` (``Z2`` None when ``N21`` is empty); without
+        them the dual bound is NaN.
+
+    Returns
+    -------
+    dict of str to float
+        ``finite`` (1.0 or 0.0), ``R_min_eig``, ``S_min_eig`` (smallest eigenvalues),
+        ``coupling_min_eig`` (smallest normalised eigenvalue of ``[[R, I], [I, S]]``),
+        ``lmi_r_max_eig``, ``lmi_s_max_eig`` (largest normalised eigenvalues of the
+        projected LMIs at ``gamma``), ``dual_bound`` (lower bound on gamma, NaN if
+        not available), ``dual_bound_clipped`` (before the clipping correction) and
+        ``dual_clip`` (largest clipped eigenvalue relative to the gradient's norm).
+    """
+    A, B1, B2, C1, C2, D11, D12, D21 = (
+        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
+    )
+    n, nw, _nu, nz, _ny = blocks.sizes
+    nan = float("nan")
+    out = {
+        "finite": 0.0,
+        "R_min_eig": nan,
+        "S_min_eig": nan,
+        "coupling_min_eig": nan,
+        "lmi_r_max_eig": nan,
+        "lmi_s_max_eig": nan,
+        "dual_bound": nan,
+        "dual_bound_clipped": nan,
+        "dual_clip": nan,
+    }
+    R, S = np.asarray(R, float), np.asarray(S, float)
+    g = float(gamma)
+    if (
+        R.shape != (n, n)
+        or S.shape != (n, n)
+        or not (np.all(np.isfinite(R)) and np.all(np.isfinite(S)) and np.isfinite(g))
+    ):
+        return out
+    out["finite"] = 1.0
+    R, S = _sym(R), _sym(S)
+    In = np.eye(n)
+    out["R_min_eig"] = float(np.linalg.eigvalsh(R).min()) if n else 1.0
+    out["S_min_eig"] = float(np.linalg.eigvalsh(S).min()) if n else 1.0
+    out["coupling_min_eig"] = _jacobi_max_eig(np.block([[R, In], [In, S]]), smallest=True)
+    Iw, Iz = np.eye(nw), np.eye(nz)
+    M1 = np.block([[A @ R + R @ A.T, R @ C1.T, B1], [C1 @ R, -g * Iz, D11], [B1.T, D11.T, -g * Iw]])
+    M2 = np.block([[A.T @ S + S @ A, S @ B1, C1.T], [B1.T @ S, -g * Iw, D11.T], [C1, D11, -g * Iz]])
+    T1 = sla.block_diag(nullspace(np.hstack([B2.T, D12.T])), Iw)
+    T2 = sla.block_diag(nullspace(np.hstack([C2, D21])), Iz)
+    out["lmi_r_max_eig"] = _jacobi_max_eig(T1.T @ M1 @ T1)
+    out["lmi_s_max_eig"] = _jacobi_max_eig(T2.T @ M2 @ T2)
+    if duals is not None:
+        out.update(_dual_bound(blocks, R, S, *duals))
+    return out
+
+
+def _psd_split(Z):
+    """``(Z+, Z-)``: the positive and negative semidefinite parts of ``sym(Z)``."""
+    w, V = np.linalg.eigh(_sym(np.asarray(Z, float)))
+    return (V * np.maximum(w, 0.0)) @ V.T, (V * np.minimum(w, 0.0)) @ V.T, w
+
+
+def _dual_bound(blocks, R, S, Z1, Z2):
+    """The weak-duality lower bound of :func:`projection_certificate` (see there)."""
+    A, B1, B2, C1, C2, D11, D12, D21 = (
+        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
+    )
+    n, nw, _nu, nz, _ny = blocks.sizes
+    T1 = sla.block_diag(structured_nullspace(B2.T, D12.T), np.eye(nw))
+    T2 = sla.block_diag(structured_nullspace(C2, D21), np.eye(nz))
+    Z1 = np.zeros((T1.shape[1],) * 2) if Z1 is None else np.asarray(Z1, float)
+    Z2 = np.zeros((T2.shape[1],) * 2) if Z2 is None else np.asarray(Z2, float)
+    nan = float("nan")
+    bad = {"dual_bound": nan, "dual_bound_clipped": nan, "dual_clip": nan}
+    if Z1.shape != (T1.shape[1],) * 2 or Z2.shape != (T2.shape[1],) * 2:
+        return bad
+    if not (np.all(np.isfinite(Z1)) and np.all(np.isfinite(Z2))):
+        return bad
+    W = T1 @ _psd_split(Z1)[0] @ T1.T
+    V = T2 @ _psd_split(Z2)[0] @ T2.T
+    x, z1, w1 = slice(0, n), slice(n, n + nz), slice(n + nz, n + nz + nw)
+    GR = _sym(A.T @ W[x, x] + W[x, x] @ A + W[x, z1] @ C1 + C1.T @ W[x, z1].T)
+    w2, z2 = slice(n, n + nw), slice(n + nw, n + nw + nz)
+    GS = _sym(A @ V[x, x] + V[x, x] @ A.T + V[x, w2] @ B1.T + B1 @ V[x, w2].T)
+    const = 2.0 * (
+        np.sum(W[x, w1] * B1)
+        + np.sum(W[z1, w1] * D11)
+        + np.sum(V[x, z2] * C1.T)
+        + np.sum(V[w2, z2] * D11.T)
+    )
+    tau = np.trace(W[z1, z1]) + np.trace(W[w1, w1]) + np.trace(V[w2, w2]) + np.trace(V[z2, z2])
+    if not tau > 0:
+        return bad
+    GRp, GRm, eR = _psd_split(GR)
+    GSp, GSm, eS = _psd_split(GS)
+    clip = max(
+        0.0,
+        float(-eR.min(initial=0.0) / max(np.abs(eR).max(initial=0.0), 1e-300)),
+        float(-eS.min(initial=0.0) / max(np.abs(eS).max(initial=0.0), 1e-300)),
+    )
+    LR = _psd_factor(GRp)
+    LS = _psd_factor(GSp)
+    nuc = float(np.linalg.svd(LS.T @ LR, compute_uv=False).sum()) if n else 0.0
+    clipped = (const + 2.0 * nuc) / tau
+    correction = (np.sum(GRm * R) + np.sum(GSm * S)) / tau  # <= 0
+    return {
+        "dual_bound": float(max(clipped + correction, 0.0)),
+        "dual_bound_clipped": float(max(clipped, 0.0)),
+        "dual_clip": clip,
+    }
+
+
+def _psd_factor(G):
+    """``L`` with ``L L' = G`` for a positive semidefinite ``G`` (from its eigenvalues)."""
+    w, V = np.linalg.eigh(_sym(G))
+    return V * np.sqrt(np.maximum(w, 0.0))
 
 
 def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):

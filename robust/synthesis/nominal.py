@@ -26,20 +26,29 @@ import numpy as np
 
 from robust.analysis.norms import hinf_norm, spectral_abscissa
 from robust.analysis.stability import stability_bound
+from robust.checks import POSITIVE, Spec, check_scalar
 from robust.errors import InfeasibleError, ParameterError, SolverError, VerificationError
 from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import as_generalized_plant
-from robust.synthesis.lmi import PlantBlocks, projection_lmis, reconstruct_controller
+from robust.synthesis.lmi import (
+    PlantBlocks,
+    projection_certificate,
+    projection_lmis,
+    reconstruct_controller,
+)
 from robust.synthesis.scaling import ControllerMatrices, D22Removal, PlantScaling
-from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, solve_problem
+from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, check_solvers, solve_problem
 
 __all__ = [
     "BACKOFF_SCHEDULE",
+    "CERT_GAP_RTOL",
+    "CERT_PRIMAL_TOL",
     "DEFAULT_BACKOFF",
     "GAP_TOL_CENTRE",
     "GAP_TOL_MINIMISE",
     "MARGIN_FACTOR",
     "MU_FACTORS",
+    "SCALING_ATTEMPTS",
     "HinfResult",
     "LMISynthesisProblem",
     "hinfsyn_lmi",
@@ -58,6 +67,17 @@ MU_FACTORS = (2.0, 1.1, 10.0)
 DEFAULT_BACKOFF = 0.003
 #: further back-off factors tried, relative to ``backoff``, if a reconstruction fails verification
 BACKOFF_SCHEDULE = (1.0, 3.0, 10.0, 30.0)
+#: scalings tried in turn by ``hinfsyn_lmi(scale=True)``: the full plant scaling
+#: (``PlantScaling.fit``), the state transformation only (``PlantScaling.state_only``),
+#: none; the first that gives a verified controller and a certified gamma_opt is used
+SCALING_ATTEMPTS = ("full", "state", "none")
+#: tolerance of the primal check of gamma_opt: the normalised eigenvalues (diagonal
+#: congruence, see ``robust.synthesis.lmi.projection_certificate``) of the projected LMIs
+#: must be at most this, those of ``[[R, I], [I, S]]`` at least minus this
+CERT_PRIMAL_TOL = 1e-6
+#: relative tolerance of the dual check of gamma_opt: the weak-duality lower bound must lie
+#: within this of gamma_opt, and gamma_opt may exceed the verified closed-loop norm by at most this
+CERT_GAP_RTOL = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,9 +94,11 @@ class HinfResult:
         H-infinity norm of the closed loop, computed afterwards by the
         Bruinsma-Steinbuch iteration; ``gamma <= gamma_bound * (1 + verify_rtol)``.
     gamma_opt : float
-        Optimal gamma of the LMI problem (before back-off).  The strict LMIs are
-        enforced with a margin, so this sits slightly above the true infimum
-        (by a relative amount of order ``MARGIN_FACTOR * tol / gamma`` in scaled units).
+        Optimal gamma of the LMI problem (before back-off): no controller achieves
+        a smaller norm (to ``CERT_GAP_RTOL``).  Reported only when certified
+        (``gamma_opt_certified``); NaN otherwise.  The strict LMIs are enforced
+        with a margin, so this sits slightly above the true infimum (by a relative
+        amount of order ``MARGIN_FACTOR * tol / gamma`` in scaled units).
     closed_loop : control.StateSpace
         ``F_l(P, K)`` from w to z.
     spectral_abscissa : float
@@ -85,18 +107,37 @@ class HinfResult:
     solver, status : str
         Solver and cvxpy status of the solve that produced the reconstructed point.
     iterations : int
-        Solver iterations summed over all solves.
+        Solver iterations summed over all solves (all scaling attempts).
     solve_time, wall_time : float
         Seconds in the solver(s), and for the whole call.
     backoff : float
-        Relative back-off used: ``gamma_bound / gamma_opt - 1``.
+        Relative back-off used: ``gamma_bound`` over the LMI optimum of the
+        attempt that produced ``K``, minus 1.
     condition : dict
         Condition numbers met during reconstruction (``cond_X``, ``cond_Phi``,
         ``cond_LPL``, ``cond_I_D22Dk``) and the bounded-real residual ``lmi_max_eig``.
     order : int
         Controller order.
     attempts : tuple of str
-        Log of the reconstruction attempts (what failed and why).
+        Log of every scaling attempt, solve and reconstruction (what failed and
+        why), each line prefixed by the scaling, e.g. ``"[full] ..."``.
+    gamma_opt_certified : bool
+        True when the LMI optimum passed the independent check of
+        :func:`robust.synthesis.lmi.projection_certificate` (primal point feasible
+        to ``CERT_PRIMAL_TOL``, dual lower bound within ``CERT_GAP_RTOL``) and does
+        not exceed the verified ``gamma`` by more than ``CERT_GAP_RTOL``.
+    certificate : dict
+        The numbers of that check for the attempt that produced ``K``
+        (:func:`robust.synthesis.lmi.projection_certificate`; ``dual_bound`` and
+        ``gamma_lmi`` -- the solver's optimum, certified or not -- in original
+        units), and the tolerances used.
+    scaling : str
+        The scaling attempt that produced ``K``: ``"full"``
+        (:meth:`PlantScaling.fit <robust.synthesis.scaling.PlantScaling.fit>`),
+        ``"state"`` (:meth:`~robust.synthesis.scaling.PlantScaling.state_only`) or
+        ``"none"``; see ``SCALING_ATTEMPTS``.
+    notes : tuple of str
+        Plain-language remarks: fallbacks taken, why ``gamma_opt`` is not certified.
     """
 
     K: control.StateSpace
@@ -114,6 +155,10 @@ class HinfResult:
     condition: dict
     order: int
     attempts: tuple
+    gamma_opt_certified: bool = False
+    certificate: dict = dataclasses.field(default_factory=dict)
+    scaling: str = "full"
+    notes: tuple = ()
 
 
 def _verify(gp, K, gamma_bound, verify_rtol):
@@ -132,6 +177,58 @@ def _verify(gp, K, gamma_bound, verify_rtol):
             f"by more than {verify_rtol:g}",
         )
     return (cl, sa, g), ""
+
+
+def _check_flag(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(
+            f"hinfsyn_lmi: {name} must be True or False; got {value!r} ({type(value).__name__})"
+        )
+
+
+def _check_options(backoff, verify_rtol, gamma_max, solvers, scale, verbose):
+    """Validate the numeric and flag options of :func:`hinfsyn_lmi` before any work."""
+    backoff = check_scalar("backoff", backoff, Spec(0.0, 1.0, True, True), owner="hinfsyn_lmi")
+    verify_rtol = check_scalar(
+        "verify_rtol", verify_rtol, Spec(0.0, 0.1, True, True), owner="hinfsyn_lmi"
+    )
+    if gamma_max is not None:
+        gamma_max = check_scalar("gamma_max", gamma_max, POSITIVE, owner="hinfsyn_lmi")
+    solvers = check_solvers(solvers, name="hinfsyn_lmi: solvers", sdp=True)
+    _check_flag("scale", scale)
+    _check_flag("verbose", verbose)
+    return backoff, verify_rtol, gamma_max, solvers
+
+
+def _scaling(label, b0):
+    if label == "full":
+        return PlantScaling.fit(b0)
+    if label == "state":
+        return PlantScaling.state_only(b0)
+    _n, _nw, nu, _nz, ny = b0.sizes
+    return PlantScaling.identity(b0.A.shape[0], nu, ny)
+
+
+@dataclasses.dataclass
+class _Attempt:
+    """One scaling attempt of :func:`hinfsyn_lmi` (mutable bookkeeping, never returned)."""
+
+    label: str
+    sc: PlantScaling
+    bs: PlantBlocks
+    prob: LMISynthesisProblem | None = None
+    sol: object = None
+    g_opt_s: float = float("nan")
+    R: np.ndarray | None = None
+    S: np.ndarray | None = None
+    cert: dict = dataclasses.field(default_factory=dict)
+    cert_fails: list = dataclasses.field(default_factory=list)
+    found: tuple | None = None
+    reconstructed: bool = False
+
+    @property
+    def certified(self) -> bool:
+        return self.sol is not None and not self.cert_fails
 
 
 def hinfsyn_lmi(
@@ -165,16 +262,20 @@ def hinfsyn_lmi(
         controller ill-conditioned; a small back-off fixes it.  If verification
         fails, larger back-offs ``backoff * BACKOFF_SCHEDULE`` are tried in turn.
     gamma_max : float, optional
-        Required performance: the LMI problem gets ``gamma <= gamma_max`` and
-        :class:`~robust.errors.InfeasibleError` is raised if no controller achieves it.
+        Required performance (a positive finite number): the LMI problem gets
+        ``gamma <= gamma_max`` and :class:`~robust.errors.InfeasibleError` is
+        raised if no controller achieves it.
     verify_rtol : float
         The verified closed-loop norm may exceed ``gamma_bound`` by at most this
-        relative amount (the tolerance of the independent norm computation).
+        relative amount (the tolerance of the independent norm computation), in (0, 0.1).
     solvers : sequence of str
-        cvxpy solvers in order of preference (default Clarabel, then SCS).
+        cvxpy solvers in order of preference (default Clarabel, then SCS); each
+        must be one cvxpy knows and able to solve SDPs.
     scale : bool
         Transform states (balanced realization), and scale time, inputs and
-        outputs before solving (:class:`robust.synthesis.scaling.PlantScaling`).
+        outputs before solving (:class:`robust.synthesis.scaling.PlantScaling`),
+        falling back to other scalings (``SCALING_ATTEMPTS``) when that attempt
+        fails; False solves the unscaled problem only.
     verbose : bool
         Solver output.
 
@@ -185,16 +286,19 @@ def hinfsyn_lmi(
     Raises
     ------
     ParameterError
-        ``backoff``, ``verify_rtol`` or ``gamma_max`` out of range.
+        ``backoff``, ``verify_rtol`` or ``gamma_max`` not a finite number in range,
+        ``solvers`` empty, unknown or unable to solve SDPs, ``scale`` or
+        ``verbose`` not a bool.
     ModelStructureError
-        Discrete-time plant, bad partition sizes.
+        ``P`` not a system, non-finite plant matrices, discrete-time plant, bad
+        partition sizes.
     AssumptionError
         (A, B2) not stabilisable, (C2, A) not detectable, D12 / D21 rank deficient.
     InfeasibleError
         ``gamma_max`` is below the optimal gamma (the message says which LMI
         condition could not be met).
     SolverError
-        No solver returned an answer.
+        No solver returned an answer, under any scaling.
     VerificationError
         No reconstructed controller passed the independent check.
 
@@ -202,7 +306,8 @@ def hinfsyn_lmi(
     -----
     Steps:
 
-    1. assumption checks (:func:`robust.synthesis.assumptions.check_hinf_assumptions`):
+    1. option checks, then assumption checks
+       (:func:`robust.synthesis.assumptions.check_hinf_assumptions`):
        continuous time, (A, B2) stabilisable, (C2, A) detectable (PBH tests on
        the modes that are not stable), D12 full column rank and D21 full row
        rank.  Singular problems are refused rather than regularised: add a
@@ -224,17 +329,34 @@ def hinfsyn_lmi(
        [GA94] Thm 4.3 LMIs, strict inequalities enforced with a margin of
        ``MARGIN_FACTOR`` times the solver's feasibility tolerance; Clarabel
        first, SCS if Clarabel fails (:func:`robust.synthesis.solve.solve_problem`).
-    4. reconstruction at ``(1 + backoff) * gamma_opt`` from that solution by the
+    4. certification of the optimum (:func:`robust.synthesis.lmi.projection_certificate`,
+       in numpy from the solver's variables): ``R > 0``, ``S > 0``, the normalised
+       eigenvalues of ``[[R, I], [I, S]]`` above ``-CERT_PRIMAL_TOL`` and of the
+       projected LMIs at ``gamma_opt`` below ``CERT_PRIMAL_TOL``, and a weak-duality
+       lower bound from the solver's dual variables within ``CERT_GAP_RTOL`` of
+       ``gamma_opt``.
+    5. reconstruction at ``(1 + backoff) * gamma_opt`` from that solution by the
        explicit formula of [IS94] (:func:`robust.synthesis.lmi.reconstruct_controller`),
-       for each of ``MU_FACTORS``; the best verified controller is kept.
-    5. only if no reconstruction verifies: re-solve the same compiled problem
-       with ``gamma_floor`` at the backed-off level (the interior-point answer
-       is then centred in that slice of the feasible set) and reconstruct
-       again; then larger back-offs.
+       for each of ``MU_FACTORS``; the best verified controller is kept.  Only
+       if no reconstruction verifies: re-solve the same compiled problem with
+       ``gamma_floor`` at the backed-off level (the interior-point answer is then
+       centred in that slice of the feasible set) and reconstruct again; then
+       larger back-offs.
     6. verification of every candidate: closed-loop poles stable
        (:func:`robust.analysis.stability.stability_bound`), and the
        Bruinsma-Steinbuch norm of the closed loop at most
-       ``gamma_bound * (1 + verify_rtol)``.
+       ``gamma_bound * (1 + verify_rtol)``; a certified ``gamma_opt`` must also
+       not exceed that norm by more than ``CERT_GAP_RTOL``.
+    7. fallbacks (``scale=True``): steps 3-6 run for each scaling of
+       ``SCALING_ATTEMPTS`` in turn -- the full scaling, the state transformation
+       only, no scaling -- until one gives a verified controller *and* a
+       certified ``gamma_opt``.  A scaling whose solve fails or whose optimum is
+       not certified (typically a solver status "optimal_inaccurate") is set
+       aside without reconstruction; only if no scaling certifies are the set-aside
+       solutions reconstructed, in the same order.  Among verified controllers one
+       with a certified ``gamma_opt`` is preferred, then the smallest verified
+       norm.  ``scaling``, ``attempts`` and ``notes`` of the result say what
+       happened; an uncertified ``gamma_opt`` is reported as NaN.
 
     Examples
     --------
@@ -249,27 +371,61 @@ def hinfsyn_lmi(
     True
     """
     t_start = time.perf_counter()
-    if not 0.0 < backoff < 1.0:
-        raise ParameterError(f"backoff must be in (0, 1); got {backoff!r}")
-    if not 0.0 < verify_rtol < 0.1:
-        raise ParameterError(f"verify_rtol must be in (0, 0.1); got {verify_rtol!r}")
-    if gamma_max is not None and not (np.isfinite(gamma_max) and gamma_max > 0):
-        raise ParameterError(f"gamma_max must be a positive finite number; got {gamma_max!r}")
+    backoff, verify_rtol, gamma_max, solvers = _check_options(
+        backoff, verify_rtol, gamma_max, solvers, scale, verbose
+    )
     gp = as_generalized_plant(P, nmeas, ncon)
     check_hinf_assumptions(gp)
     loop = D22Removal(gp.D22)
     b0 = PlantBlocks.from_generalized_plant(loop.apply(gp))
-    if scale:
-        sc = PlantScaling.fit(b0)
-    else:
-        sc = PlantScaling.identity(gp.nx, gp.nu, gp.ny)
-    bs = sc.apply(b0)
-    cap = None if gamma_max is None else sc.apply_gamma(gamma_max)
     margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
-    prob = LMISynthesisProblem(bs, margin=margin, gamma_cap=cap)
+    labels = SCALING_ATTEMPTS if scale else ("none",)
+    stats, log, done, errors = [], [], [], []
+    ctx = (gp, loop, backoff, verify_rtol, solvers, verbose, stats, log)
+    # phase 1: solve and certify each scaling in turn; reconstruct only certified optima
+    for label in labels:
+        sc = _scaling(label, b0)
+        att = _Attempt(label, sc, sc.apply(b0))
+        try:
+            _solve_attempt(att, gamma_max, margin, solvers, verbose, stats, log)
+        except SolverError as exc:
+            errors.append((label, exc))
+            continue
+        except InfeasibleError as exc:
+            if gamma_max is not None:
+                raise  # gamma_max is below the optimum: the same under every scaling
+            errors.append((label, exc))
+            continue
+        done.append(att)
+        if att.certified:
+            _reconstruct_attempt(att, *ctx)
+            if att.found is not None and att.certified:
+                break
+    # phase 2: nothing certified and verified -- reconstruct what was set aside
+    if not any(a.found is not None and a.certified for a in done):
+        for att in done:
+            if not att.reconstructed:
+                _reconstruct_attempt(att, *ctx)
+            if att.found is not None:
+                break
+    found = [a for a in done if a.found is not None]
+    if not found:
+        _raise_no_controller(done, errors, log)
+    best = min(found, key=lambda a: (not a.certified, a.found[1][2]))
+    return _result(best, labels, done, errors, stats, log, t_start)
+
+
+def _solve_attempt(att, gamma_max, margin, solvers, verbose, stats, log):
+    """Step 3 and 4 for one scaling: solve the SDP, certify its optimum (no reconstruction)."""
+    cap = None if gamma_max is None else att.sc.apply_gamma(gamma_max)
+    att.prob = LMISynthesisProblem(att.bs, margin=margin, gamma_cap=cap)
     try:
-        sol = prob.solve(gamma_floor=0.0, solvers=solvers, verbose=verbose)
+        sol = att.prob.solve(gamma_floor=0.0, solvers=solvers, verbose=verbose)
+    except SolverError as exc:
+        log.append(f"[{att.label}] {exc}")
+        raise
     except InfeasibleError as exc:
+        log.append(f"[{att.label}] {exc}")
         if gamma_max is None:
             raise
         raise InfeasibleError(
@@ -277,46 +433,166 @@ def hinfsyn_lmi(
             "bounded-real LMIs of GA94 Thm 4.3 with the coupling [[R, I], [I, S]] >= 0 are "
             f"infeasible at that level. Raise gamma_max or relax the weights ({exc})"
         ) from None
-    lmis = prob.lmis
-    g_opt_s = float(lmis.gamma.value)
-    R1, S1 = lmis.R.value, lmis.S.value
-    stats = [sol]
-    log = []
+    stats.append(sol)
+    lmis = att.prob.lmis
+    att.sol = sol
+    att.g_opt_s = float(lmis.gamma.value)
+    att.R, att.S = lmis.R.value, lmis.S.value
+    duals = (
+        lmis.lmi_r.dual_value,
+        None if lmis.lmi_s is None else lmis.lmi_s.dual_value,
+    )
+    cert = projection_certificate(att.bs, att.R, att.S, att.g_opt_s, duals=duals)
+    att.cert_fails = _certificate_failures(cert, att.g_opt_s)
+    cert = dict(cert)
+    for key in ("dual_bound", "dual_bound_clipped"):
+        cert[key] = att.sc.invert_gamma(cert[key])
+    cert.update(
+        gamma_lmi=att.sc.invert_gamma(att.g_opt_s),
+        primal_tol=CERT_PRIMAL_TOL,
+        gap_rtol=CERT_GAP_RTOL,
+        solver_status=sol.status,
+    )
+    att.cert = cert
+    verdict = "certified" if att.certified else "NOT certified: " + "; ".join(att.cert_fails)
+    log.append(
+        f"[{att.label}] {sol.solver} {sol.status} "
+        f"(solvers: {', '.join(f'{n} {o}' for n, o in sol.attempts)}); "
+        f"gamma_opt {cert['gamma_lmi']:.6g} {verdict}"
+    )
+
+
+def _certificate_failures(cert, g):
+    """The conditions of step 4 of :func:`hinfsyn_lmi` that ``cert`` fails (scaled units)."""
+    tol, rtol = CERT_PRIMAL_TOL, CERT_GAP_RTOL
+    if not cert["finite"]:
+        return ["the solver's R, S or gamma are not finite"]
+    fails = []
+    if not cert["R_min_eig"] > 0:
+        fails.append(f"R > 0 fails (smallest eigenvalue {cert['R_min_eig']:.3g})")
+    if not cert["S_min_eig"] > 0:
+        fails.append(f"S > 0 fails (smallest eigenvalue {cert['S_min_eig']:.3g})")
+    if not cert["coupling_min_eig"] >= -tol:
+        fails.append(
+            "[[R, I], [I, S]] >= 0 fails (smallest normalised eigenvalue "
+            f"{cert['coupling_min_eig']:.3g} < -{tol:g})"
+        )
+    for key, what in (("lmi_r_max_eig", "R"), ("lmi_s_max_eig", "S")):
+        if not cert[key] <= tol:
+            fails.append(
+                f"the projected LMI in {what} is not negative definite at gamma_opt "
+                f"(largest normalised eigenvalue {cert[key]:.3g} > {tol:g})"
+            )
+    lb, lbc = cert["dual_bound"], cert["dual_bound_clipped"]
+    if not np.isfinite(lb):
+        fails.append("no usable dual variables, so optimality cannot be checked")
+    elif not (lb >= g * (1.0 - rtol) and lbc <= g * (1.0 + rtol)):
+        fails.append(
+            f"the dual lower bound is {lb / g:.6g} x gamma_opt (clipped: {lbc / g:.6g}); "
+            f"it must lie within {rtol:g} of it for gamma_opt to be the optimum"
+        )
+    return fails
+
+
+def _reconstruct_attempt(att, gp, loop, backoff, verify_rtol, solvers, verbose, stats, log):
+    """Steps 5 and 6 for one solved scaling: back-off schedule, centring, verification."""
+    att.reconstructed = True
+    sc, bs, prob, g_opt_s = att.sc, att.bs, att.prob, att.g_opt_s
+    tag = f"[{att.label}] "
     for factor in BACKOFF_SCHEDULE:
         b = backoff * factor
         if b >= 1.0:
             break
         gb_s = (1.0 + b) * g_opt_s
-        candidates = [("optimal-point", R1, S1, gb_s, sol)]
+        candidates = [("optimal-point", att.R, att.S, gb_s, att.sol)]
+        sub = []
         for label, R, S, gs, s_used in _candidate_points(
-            candidates, prob, gb_s, solvers, verbose, stats, log
+            candidates, prob, gb_s, solvers, verbose, stats, sub
         ):
             best = _best_reconstruction(
-                gp, loop, bs, sc, R, S, gs, verify_rtol, log, f"backoff {b:g}, {label}"
+                gp, loop, bs, sc, R, S, gs, verify_rtol, sub, f"backoff {b:g}, {label}"
             )
-            if best is None:
-                continue
-            K, (cl, sa, g), info = best
-            return HinfResult(
-                K=K,
-                gamma_bound=sc.invert_gamma(gs),
-                gamma=g,
-                gamma_opt=sc.invert_gamma(g_opt_s),
-                closed_loop=cl,
-                spectral_abscissa=sa,
-                solver=s_used.solver,
-                status=s_used.status,
-                iterations=int(sum(s.iterations or 0 for s in stats)),
-                solve_time=float(sum(s.solve_time for s in stats)),
-                wall_time=time.perf_counter() - t_start,
-                backoff=gs / g_opt_s - 1.0,
-                condition=info,
-                order=int(K.nstates),
-                attempts=tuple(log),
+            if best is not None:
+                att.found = (*best, gs, s_used)
+                break
+        log.extend(tag + line for line in sub)
+        if att.found is not None:
+            break
+    if att.found is None or not att.certified:
+        return
+    g_opt, g_ver = sc.invert_gamma(g_opt_s), att.found[1][2]
+    if not g_opt <= g_ver * (1.0 + CERT_GAP_RTOL):
+        att.cert_fails.append(
+            f"gamma_opt {g_opt:.6g} exceeds the verified norm {g_ver:.6g} of the rebuilt "
+            f"controller by more than {CERT_GAP_RTOL:g}: it is not a lower bound"
+        )
+        log.append(tag + "gamma_opt NOT certified: " + att.cert_fails[-1])
+
+
+def _raise_no_controller(done, errors, log):
+    """The error when no scaling attempt gave a verified controller."""
+    tried = ", ".join([a.label for a in done] + [lab for lab, _ in errors])
+    if not done:
+        if any(isinstance(e, InfeasibleError) for _, e in errors):
+            raise InfeasibleError(
+                f"hinfsyn_lmi: the LMI problem was declared infeasible (scalings tried: {tried}); "
+                "attempts: " + "; ".join(log)
             )
+        raise SolverError(
+            f"hinfsyn_lmi: no scaling gave a usable solve (scalings tried: {tried}); "
+            "attempts: " + "; ".join(log)
+        )
+    g = ", ".join(f"{a.label}: {a.sc.invert_gamma(a.g_opt_s):.6g}" for a in done)
     raise VerificationError(
         "hinfsyn_lmi: no reconstructed controller passed the independent check "
-        f"(optimal LMI gamma {sc.invert_gamma(g_opt_s):.6g}); attempts: " + "; ".join(log)
+        f"(optimal LMI gamma by scaling, uncertified: {g}); attempts: " + "; ".join(log)
+    )
+
+
+def _result(best, labels, done, errors, stats, log, t_start):
+    """The :class:`HinfResult` of the chosen attempt, with notes on fallbacks and certification."""
+    K, (cl, sa, g), info, gs, s_used = best.found
+    sc = best.sc
+    notes = []
+    if best.label != labels[0]:
+        failed = [f"{lab} (solve failed: {type(e).__name__})" for lab, e in errors]
+        failed += [
+            f"{a.label} ({'gamma_opt not certified' if not a.certified else 'no verified K'})"
+            for a in done
+            if a is not best and labels.index(a.label) < labels.index(best.label)
+        ]
+        notes.append(
+            f"fallback: the controller comes from the '{best.label}' scaling; "
+            f"earlier attempts: {', '.join(failed) or 'none'}"
+        )
+    if best.certified:
+        g_opt = sc.invert_gamma(best.g_opt_s)
+    else:
+        g_opt = float("nan")
+        notes.append(
+            f"gamma_opt is not reported (NaN): the LMI optimum {best.cert['gamma_lmi']:.6g} "
+            "of this attempt failed the independent check: " + "; ".join(best.cert_fails)
+        )
+    return HinfResult(
+        K=K,
+        gamma_bound=sc.invert_gamma(gs),
+        gamma=g,
+        gamma_opt=g_opt,
+        closed_loop=cl,
+        spectral_abscissa=sa,
+        solver=s_used.solver,
+        status=s_used.status,
+        iterations=int(sum(s.iterations or 0 for s in stats)),
+        solve_time=float(sum(s.solve_time for s in stats)),
+        wall_time=time.perf_counter() - t_start,
+        backoff=gs / best.g_opt_s - 1.0,
+        condition=info,
+        order=int(K.nstates),
+        attempts=tuple(log),
+        gamma_opt_certified=best.certified,
+        certificate=dict(best.cert, scaling=best.label),
+        scaling=best.label,
+        notes=tuple(notes),
     )
 
 

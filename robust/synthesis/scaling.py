@@ -778,6 +778,28 @@ class PlantScaling:
         return cls(state, time, channels, performance)
 
     @classmethod
+    def state_only(cls, blocks: PlantBlocks) -> PlantScaling:
+        """Only the state transformation of :meth:`fit`; time, channels and gamma unscaled.
+
+        A fallback of :func:`robust.synthesis.nominal.hinfsyn_lmi`: when the time
+        scale of :meth:`fit` (the spectral radius) spreads a plant's poles over
+        many decades (near-integrators next to fast poles), the balanced
+        coordinates alone may give the better-conditioned SDP.
+
+        Parameters
+        ----------
+        blocks : PlantBlocks
+            Plant to scale.
+        """
+        _n, _nw, nu, _nz, ny = blocks.sizes
+        return cls(
+            StateScaling.fit(blocks),
+            TimeScaling(1.0),
+            ChannelScaling.identity(nu, ny),
+            PerformanceScaling(1.0, 1.0),
+        )
+
+    @classmethod
     def identity(cls, n: int, nu: int, ny: int) -> PlantScaling:
         """No scaling at all (every map is the identity, exactly).
 

@@ -4,6 +4,7 @@
 solver's status to :mod:`robust.errors` exceptions and returns the statistics.
 An answer flagged inaccurate is returned (with ``accurate=False``) so that the
 caller's independent verification decides; it is never trusted on its own.
+:func:`check_solvers` validates a list of solver names before any work is done.
 """
 
 from __future__ import annotations
@@ -13,10 +14,13 @@ import time
 import warnings
 
 import cvxpy as cp
+import numpy as np
+from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
 
+from robust.checks import Spec, check_scalar
 from robust.errors import InfeasibleError, ParameterError, SolverError
 
-__all__ = ["DEFAULT_SOLVERS", "SOLVER_TOL", "SolveResult", "solve_problem"]
+__all__ = ["DEFAULT_SOLVERS", "SOLVER_TOL", "SolveResult", "check_solvers", "solve_problem"]
 
 DEFAULT_SOLVERS = ("CLARABEL", "SCS")
 
@@ -34,6 +38,84 @@ _SOLVER_OPTS = {
     },
     "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 50000},
 }
+
+
+def _sdp_capable() -> set[str]:
+    """Names of the cvxpy conic solvers that accept semidefinite (PSD) cones."""
+    return {
+        name
+        for name, solver in SOLVER_MAP_CONIC.items()
+        if any(c.__name__ in ("PSD", "SvecPSD") for c in solver.SUPPORTED_CONSTRAINTS)
+    }
+
+
+def check_solvers(solvers, *, name: str = "solvers", sdp: bool = False) -> tuple[str, ...]:
+    """Validate a sequence of cvxpy solver names; return them upper-cased, in order.
+
+    A name cvxpy does not know is an error (a typo would otherwise only show up as
+    "not installed" after the problem was built); a known solver that is not
+    installed here is accepted (:func:`solve_problem` skips it and says so).
+
+    Parameters
+    ----------
+    solvers : sequence of str
+        Solver names in order of preference, e.g. ``("CLARABEL", "SCS")``; case
+        does not matter.  A bare string is refused (wrap a single name in a tuple).
+    name : str
+        Name of the parameter, for messages (e.g. ``"hinfsyn_lmi: solvers"``).
+    sdp : bool
+        Also require every solver to handle semidefinite cones (the LMI problems).
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    ParameterError
+        If ``solvers`` is not a non-empty sequence of strings, names a solver cvxpy
+        does not know, or (``sdp=True``) a solver that cannot solve SDPs.
+    """
+    installed = list(cp.installed_solvers())
+    if isinstance(solvers, (str, bytes)):
+        raise ParameterError(
+            f"{name} must be a sequence of cvxpy solver names such as {DEFAULT_SOLVERS}; "
+            f"got the string {solvers!r} (wrap a single name in a tuple: ({solvers!r},))"
+        )
+    try:
+        names = list(solvers)
+    except TypeError:
+        raise ParameterError(
+            f"{name} must be a sequence of cvxpy solver names such as {DEFAULT_SOLVERS}; "
+            f"got {solvers!r} ({type(solvers).__name__})"
+        ) from None
+    if not names:
+        raise ParameterError(
+            f"{name} must name at least one cvxpy solver (e.g. {DEFAULT_SOLVERS}); "
+            "got an empty sequence"
+        )
+    bad = [s for s in names if not isinstance(s, str)]
+    if bad:
+        raise ParameterError(
+            f"{name} must contain solver names (str); got {bad[0]!r} ({type(bad[0]).__name__})"
+        )
+    names = [s.upper() for s in names]
+    known = set(cp.settings.SOLVERS) | set(SOLVER_MAP_CONIC) | set(installed)
+    unknown = [s for s in names if s not in known]
+    if unknown:
+        raise ParameterError(
+            f"{name}: {unknown} {'is not a solver' if len(unknown) == 1 else 'are not solvers'} "
+            f"cvxpy knows; expected names such as {DEFAULT_SOLVERS} (installed here: {installed})"
+        )
+    if sdp:
+        capable = _sdp_capable()
+        no_sdp = [s for s in names if s not in capable]
+        if no_sdp:
+            raise ParameterError(
+                f"{name}: {no_sdp} cannot solve semidefinite programs (the LMIs need PSD "
+                f"cones); installed solvers that can: {sorted(capable & set(installed))}"
+            )
+    return tuple(dict.fromkeys(names))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,13 +181,28 @@ def solve_problem(
 
     Raises
     ------
+    ParameterError
+        If ``problem`` is not a cvxpy Problem, ``step`` not a string, ``gap_tol``
+        not a number in (0, 1), ``verbose`` not a bool, or ``solvers`` invalid
+        (:func:`check_solvers`).
     InfeasibleError
         If a solver certifies infeasibility (or unboundedness) of the problem.
     SolverError
         If every solver failed to return a usable answer.
     """
-    if not solvers:
-        raise ParameterError("solvers must name at least one cvxpy solver; got an empty sequence")
+    if not isinstance(problem, cp.Problem):
+        raise ParameterError(
+            f"solve_problem: problem must be a cvxpy.Problem; got {type(problem).__name__}"
+        )
+    if not isinstance(step, str):
+        raise ParameterError(
+            f"solve_problem: step must be a str naming the step; got {type(step).__name__}"
+        )
+    solvers = check_solvers(solvers, name=f"{step}: solvers")
+    if gap_tol is not None:
+        check_scalar("gap_tol", gap_tol, Spec(0.0, 1.0, True, True), owner="solve_problem")
+    if not isinstance(verbose, (bool, np.bool_)):
+        raise ParameterError(f"{step}: verbose must be a bool; got {verbose!r}")
     installed = set(cp.installed_solvers())
     attempts = []
     t0 = time.perf_counter()
