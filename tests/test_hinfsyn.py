@@ -100,6 +100,10 @@ def test_result_fields_and_generalized_plant_input():
     assert {"cond_X", "cond_Phi", "cond_LPL", "lmi_max_eig"} <= set(res.condition)
     assert 0 < res.backoff < 0.1
     assert res.K.ninputs == 2 and res.K.noutputs == 2
+    # the first scaling attempt produced it, and its optimum passed the independent check
+    assert res.scaling == "full" and res.gamma_opt_certified and res.notes == ()
+    assert res.certificate["gamma_lmi"] == res.gamma_opt
+    assert res.certificate["dual_bound"] <= res.gamma * (1 + 1e-9)
     gp = GeneralizedPlant.from_system(
         P, w=["w0", "w1", "w2", "w3"], u=["u0", "u1"], z=["z0", "z1", "z2", "z3"], y=["y0", "y1"]
     )
@@ -259,10 +263,19 @@ def test_scs_fallback_when_clarabel_fails(monkeypatch):
 
 
 def test_no_usable_solver_raises_solver_error():
-    from robust.errors import SolverError
+    import cvxpy as cp
 
-    with pytest.raises(SolverError, match=r"no solver returned a usable answer.*not installed"):
+    from robust.errors import ParameterError, SolverError
+
+    # a name cvxpy does not know is bad input, refused before any work
+    with pytest.raises(ParameterError, match=r"solvers: \['NOT_A_SOLVER'\] is not a solver"):
         hinfsyn_lmi(dgkf_scalar_plant(0.0), 1, 1, solvers=("NOT_A_SOLVER",))
+    # a known SDP solver that is not installed here: every scaling attempt finds no solver
+    missing = [s for s in ("MOSEK", "COPT", "SDPA", "CVXOPT") if s not in cp.installed_solvers()]
+    if not missing:
+        pytest.skip("every candidate SDP solver is installed")
+    with pytest.raises(SolverError, match=r"no solver returned a usable answer.*not installed"):
+        hinfsyn_lmi(dgkf_scalar_plant(0.0), 1, 1, solvers=(missing[0],))
 
 
 def test_scherer_gahinet_chilali_example_against_slicot():

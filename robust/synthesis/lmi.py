@@ -274,6 +274,8 @@ def _jacobi_max_eig(M, *, smallest: bool = False) -> float:
     M = _sym(np.asarray(M, float))
     if M.size == 0:
         return -1.0 if not smallest else 1.0
+    if not np.all(np.isfinite(M)):
+        return float("nan")
     d = np.abs(np.diag(M))
     d = np.sqrt(np.maximum(d, 1e-300 + 1e-14 * d.max()))
     w = np.linalg.eigvalsh(M / d[:, None] / d[None, :])
@@ -364,18 +366,27 @@ def projection_certificate(
     out["finite"] = 1.0
     R, S = _sym(R), _sym(S)
     In = np.eye(n)
-    out["R_min_eig"] = float(np.linalg.eigvalsh(R).min()) if n else 1.0
-    out["S_min_eig"] = float(np.linalg.eigvalsh(S).min()) if n else 1.0
-    out["coupling_min_eig"] = _jacobi_max_eig(np.block([[R, In], [In, S]]), smallest=True)
-    Iw, Iz = np.eye(nw), np.eye(nz)
-    M1 = np.block([[A @ R + R @ A.T, R @ C1.T, B1], [C1 @ R, -g * Iz, D11], [B1.T, D11.T, -g * Iw]])
-    M2 = np.block([[A.T @ S + S @ A, S @ B1, C1.T], [B1.T @ S, -g * Iw, D11.T], [C1, D11, -g * Iz]])
-    T1 = sla.block_diag(nullspace(np.hstack([B2.T, D12.T])), Iw)
-    T2 = sla.block_diag(nullspace(np.hstack([C2, D21])), Iz)
-    out["lmi_r_max_eig"] = _jacobi_max_eig(T1.T @ M1 @ T1)
-    out["lmi_s_max_eig"] = _jacobi_max_eig(T2.T @ M2 @ T2)
-    if duals is not None:
-        out.update(_dual_bound(blocks, R, S, *duals))
+    # overflow (absurdly large solver values) leaves NaN entries, which fail every check
+    with np.errstate(all="ignore"):
+        out["R_min_eig"] = float(np.linalg.eigvalsh(R).min()) if n else 1.0
+        out["S_min_eig"] = float(np.linalg.eigvalsh(S).min()) if n else 1.0
+        out["coupling_min_eig"] = _jacobi_max_eig(np.block([[R, In], [In, S]]), smallest=True)
+        Iw, Iz = np.eye(nw), np.eye(nz)
+        M1 = np.block(
+            [[A @ R + R @ A.T, R @ C1.T, B1], [C1 @ R, -g * Iz, D11], [B1.T, D11.T, -g * Iw]]
+        )
+        M2 = np.block(
+            [[A.T @ S + S @ A, S @ B1, C1.T], [B1.T @ S, -g * Iw, D11.T], [C1, D11, -g * Iz]]
+        )
+        T1 = sla.block_diag(nullspace(np.hstack([B2.T, D12.T])), Iw)
+        T2 = sla.block_diag(nullspace(np.hstack([C2, D21])), Iz)
+        out["lmi_r_max_eig"] = _jacobi_max_eig(T1.T @ M1 @ T1)
+        out["lmi_s_max_eig"] = _jacobi_max_eig(T2.T @ M2 @ T2)
+        if duals is not None:
+            try:
+                out.update(_dual_bound(blocks, R, S, *duals))
+            except (np.linalg.LinAlgError, ValueError):
+                pass  # non-finite intermediate results: no bound (NaN)
     return out
 
 

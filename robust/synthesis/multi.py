@@ -20,6 +20,7 @@ import numpy as np
 
 from robust.analysis.norms import hinf_norm, spectral_abscissa
 from robust.analysis.stability import stability_bound
+from robust.checks import POSITIVE, Spec, check_scalar
 from robust.errors import (
     AssumptionError,
     InfeasibleError,
@@ -29,11 +30,11 @@ from robust.errors import (
     VerificationError,
 )
 from robust.synthesis.assumptions import check_hinf_assumptions
-from robust.synthesis.genplant import as_generalized_plant
+from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.lmi import PlantBlocks, bounded_real_lmi, closed_loop_matrices
 from robust.synthesis.nominal import MARGIN_FACTOR, hinfsyn_lmi
 from robust.synthesis.scaling import ControllerMatrices, PlantScaling
-from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, solve_problem
+from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, check_solvers, solve_problem
 
 __all__ = ["MultiHinfResult", "hinfsyn_multi"]
 
@@ -72,6 +73,9 @@ class MultiHinfResult:
         The common scaling used (:meth:`robust.synthesis.scaling.PlantScaling.as_dict`):
         time scale ``w0`` (rad/s), scalars ``sw``, ``sz``
         (gamma_scaled = gamma * sw / sz) and per-channel ``su``, ``sy``.
+    notes : tuple of str
+        What went wrong on the way and the fallback taken (e.g. the final analysis
+        step solved without scaling because the scaled one failed).
     """
 
     K: control.StateSpace
@@ -85,6 +89,7 @@ class MultiHinfResult:
     wall_time: float
     method: str
     scaling: dict
+    notes: tuple = ()
 
     @property
     def gamma(self) -> float:
@@ -138,6 +143,68 @@ def _k_step(blocks, Ps, Om0, nk, margin, trust, solvers, verbose):
 
 def _sym_np(P):
     return (np.asarray(P) + np.asarray(P).T) / 2
+
+
+def _check_options(plants, max_iter, rtol, trust, verify_rtol, solvers, verbose):
+    """Validate the options of :func:`hinfsyn_multi` before any work; return the checked ones."""
+    if isinstance(plants, (GeneralizedPlant, control.InputOutputSystem)):
+        raise ModelStructureError(
+            "hinfsyn_multi: plants must be a sequence of plants (one per member); got a single "
+            f"{type(plants).__name__}: wrap it in a list"
+        )
+    if isinstance(plants, (str, bytes)):
+        raise ModelStructureError(
+            f"hinfsyn_multi: plants must be a sequence of plants; got the string {plants!r}"
+        )
+    try:
+        plants = list(plants)
+    except TypeError:
+        raise ModelStructureError(
+            "hinfsyn_multi: plants must be a sequence of plants (control.StateSpace or "
+            f"GeneralizedPlant); got {type(plants).__name__}"
+        ) from None
+    if isinstance(max_iter, (bool, np.bool_)) or not (
+        isinstance(max_iter, (int, np.integer)) and max_iter >= 0
+    ):
+        raise ParameterError(
+            f"hinfsyn_multi: max_iter must be a nonnegative integer; got {max_iter!r} "
+            f"({type(max_iter).__name__})"
+        )
+    rtol = check_scalar("rtol", rtol, Spec(0.0, 1.0, False, True), owner="hinfsyn_multi")
+    trust = check_scalar("trust", trust, POSITIVE, owner="hinfsyn_multi")
+    verify_rtol = check_scalar(
+        "verify_rtol", verify_rtol, Spec(0.0, 0.1, True, True), owner="hinfsyn_multi"
+    )
+    solvers = check_solvers(solvers, name="hinfsyn_multi: solvers", sdp=True)
+    if not isinstance(verbose, (bool, np.bool_)):
+        raise ParameterError(f"hinfsyn_multi: verbose must be True or False; got {verbose!r}")
+    return plants, int(max_iter), rtol, trust, verify_rtol, solvers
+
+
+def _check_k0(K0, gp):
+    """``K0`` as a continuous-time state-space controller from y to u, with finite matrices."""
+    if not isinstance(K0, (control.StateSpace, control.TransferFunction)):
+        raise ParameterError(
+            "hinfsyn_multi: K0 must be a control.StateSpace or TransferFunction controller "
+            f"from y to u; got {type(K0).__name__}"
+        )
+    for part in ("num", "den") if isinstance(K0, control.TransferFunction) else ():
+        if not all(np.all(np.isfinite(np.asarray(c, float))) for r in getattr(K0, part) for c in r):
+            raise ParameterError(f"hinfsyn_multi: K0's {part} contains NaN or inf")
+    K = control.ss(K0)
+    for name in ("A", "B", "C", "D"):
+        if not np.all(np.isfinite(np.asarray(getattr(K, name), float))):
+            raise ParameterError(f"hinfsyn_multi: K0.{name} must be finite; got NaN or inf entries")
+    if not K.isctime():
+        raise ModelStructureError(
+            f"hinfsyn_multi: K0 must be a continuous-time controller; got dt={K.dt}"
+        )
+    if K.ninputs != gp.ny or K.noutputs != gp.nu:
+        raise ModelStructureError(
+            f"hinfsyn_multi: K0 must have {gp.ny} input(s) (y) and {gp.nu} output(s) (u); "
+            f"got {K.ninputs} and {K.noutputs}"
+        )
+    return K
 
 
 def _initial_controller(gps, solvers, log):
@@ -245,17 +312,23 @@ def hinfsyn_multi(
     Raises
     ------
     ModelStructureError
-        Members with different signal counts, discrete time, or an empty set.
+        ``plants`` not a sequence of plants, members with different signal counts,
+        discrete time, or an empty set; ``K0`` of the wrong size or discrete time.
     AssumptionError
         A member is not stabilisable/detectable, or has ``D22 != 0``.
     ParameterError
-        ``max_iter`` is not a nonnegative integer.
+        ``max_iter`` is not a nonnegative integer, ``rtol`` not in [0, 1), ``trust``
+        not positive, ``verify_rtol`` not in (0, 0.1), ``solvers`` empty, unknown or
+        unable to solve SDPs, ``verbose`` not a bool, ``K0`` not a system or not finite.
     InfeasibleError
         No initial controller stabilises every member.
     VerificationError
         The final certificate or a member's independent norm check fails.
     """
     t_start = time.perf_counter()
+    plants, max_iter, rtol, trust, verify_rtol, solvers = _check_options(
+        plants, max_iter, rtol, trust, verify_rtol, solvers, verbose
+    )
     gps = [as_generalized_plant(P, nmeas, ncon) for P in plants]
     if not gps:
         raise ModelStructureError("plants must contain at least one member; got an empty sequence")
@@ -274,8 +347,6 @@ def hinfsyn_multi(
                 f"member {i}: hinfsyn_multi requires D22 = 0; "
                 f"got max |D22| = {np.abs(gp.D22).max():.3g}"
             )
-    if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 0):
-        raise ParameterError(f"max_iter must be a nonnegative integer; got {max_iter!r}")
     log: list[str] = []
     if K0 is None:
         init = _initial_controller(gps, solvers, log)
@@ -287,7 +358,7 @@ def hinfsyn_multi(
             )
         K = init[0]
     else:
-        K = control.ss(K0)
+        K = _check_k0(K0, gps[0])
     sa, norms = _cl_norms(gps, K)
     if not np.all(sa < stability_bound()):
         raise InfeasibleError(
@@ -326,8 +397,18 @@ def hinfsyn_multi(
         history.append(best)
         if improvement < rtol:
             break
-    gamma_bound_s, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
-    gamma_bound = common.invert_gamma(gamma_bound_s)
+    notes = []
+    try:
+        gamma_bound_s, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
+        gamma_bound = common.invert_gamma(gamma_bound_s)
+        certificates = tuple(s.invert_certificate(P) for s, P in zip(scalings, Ps))
+    except SolverError as exc:
+        # fallback: the same analysis step on the unscaled members (certificates are then
+        # in original coordinates already)
+        notes.append(f"final analysis step failed with the common scaling ({exc}); solved unscaled")
+        Om_raw = ControllerMatrices.from_statespace(K).omega()
+        gamma_bound, Ps, s3 = _p_step(member_blocks, Om_raw, nk, margin, solvers, verbose)
+        certificates = tuple(_sym_np(P) for P in Ps)
     solve_time += s3.solve_time
     sa, norms = _cl_norms(gps, K)
     bad = [
@@ -345,7 +426,7 @@ def hinfsyn_multi(
         gamma_bound=gamma_bound,
         gammas=norms,
         spectral_abscissas=sa,
-        certificates=tuple(s.invert_certificate(P) for s, P in zip(scalings, Ps)),
+        certificates=certificates,
         history=tuple(history),
         iterations=it,
         solve_time=solve_time,
@@ -355,6 +436,7 @@ def hinfsyn_multi(
             "with per-member bounded-real certificates"
         ),
         scaling=common.as_dict(),
+        notes=tuple(notes + log),
     )
 
 

@@ -10,7 +10,11 @@ eigenvalues (stable in the sense of :mod:`robust.analysis.stability`), and the
 closed loop's H-infinity norm by the Bruinsma-Steinbuch Hamiltonian iteration
 (:func:`robust.analysis.norms.hinf_norm`), which must not exceed ``gamma_bound``
 by more than ``verify_rtol``.  Otherwise :class:`~robust.errors.VerificationError`
-is raised; nothing unverified is returned.
+is raised; nothing unverified is returned.  The LMI optimum ``gamma_opt`` is reported
+only when its certificate passes an independent numpy check
+(:func:`robust.synthesis.lmi.projection_certificate`); otherwise it is NaN and the
+result says why.  When a scaled problem fails or its optimum is not certified, other
+scalings are tried (``SCALING_ATTEMPTS``) and the result records which one was used.
 
 References: see :mod:`robust.synthesis.lmi`.
 """
@@ -27,7 +31,13 @@ import numpy as np
 from robust.analysis.norms import hinf_norm, spectral_abscissa
 from robust.analysis.stability import stability_bound
 from robust.checks import POSITIVE, Spec, check_scalar
-from robust.errors import InfeasibleError, ParameterError, SolverError, VerificationError
+from robust.errors import (
+    InfeasibleError,
+    ModelStructureError,
+    ParameterError,
+    SolverError,
+    VerificationError,
+)
 from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.lmi import (
@@ -44,6 +54,7 @@ __all__ = [
     "CERT_GAP_RTOL",
     "CERT_PRIMAL_TOL",
     "DEFAULT_BACKOFF",
+    "GAMMA_CAP_MAX",
     "GAP_TOL_CENTRE",
     "GAP_TOL_MINIMISE",
     "MARGIN_FACTOR",
@@ -67,6 +78,8 @@ MU_FACTORS = (2.0, 1.1, 10.0)
 DEFAULT_BACKOFF = 0.003
 #: further back-off factors tried, relative to ``backoff``, if a reconstruction fails verification
 BACKOFF_SCHEDULE = (1.0, 3.0, 10.0, 30.0)
+#: largest scaled gamma_max put into the SDP as a constraint (a looser one cannot bind)
+GAMMA_CAP_MAX = 1e8
 #: scalings tried in turn by ``hinfsyn_lmi(scale=True)``: the full plant scaling
 #: (``PlantScaling.fit``), the state transformation only (``PlantScaling.state_only``),
 #: none; the first that gives a verified controller and a certified gamma_opt is used
@@ -162,14 +175,19 @@ class HinfResult:
 
 
 def _verify(gp, K, gamma_bound, verify_rtol):
-    cl = gp.closed_loop(K)
-    sa = spectral_abscissa(cl)
-    if not sa < stability_bound():
-        return None, (
-            f"closed loop unstable (max real part of poles {sa:.3g} rad/s; "
-            f"stable means below {stability_bound():.3g})"
-        )
-    g = hinf_norm(cl)
+    try:
+        # overflow here means a controller (or plant) too badly scaled to be checked: refuse it
+        with np.errstate(over="raise", invalid="raise"):
+            cl = gp.closed_loop(K)
+            sa = spectral_abscissa(cl)
+            if not sa < stability_bound():
+                return None, (
+                    f"closed loop unstable (max real part of poles {sa:.3g} rad/s; "
+                    f"stable means below {stability_bound():.3g})"
+                )
+            g = hinf_norm(cl)
+    except (FloatingPointError, np.linalg.LinAlgError, ModelStructureError) as exc:
+        return None, f"closed loop could not be checked ({type(exc).__name__}: {exc})"
     if not g <= gamma_bound * (1.0 + verify_rtol):
         return (
             None,
@@ -375,7 +393,23 @@ def hinfsyn_lmi(
         backoff, verify_rtol, gamma_max, solvers, scale, verbose
     )
     gp = as_generalized_plant(P, nmeas, ncon)
-    check_hinf_assumptions(gp)
+    if gp.nx == 0:
+        raise ModelStructureError(
+            "hinfsyn_lmi: P must have at least one state (the LMIs are in n x n matrices); "
+            "got a static plant. A static problem needs a static gain: add the dynamics "
+            "(e.g. an actuator or sensor lag) to the generalized plant"
+        )
+    try:
+        # absurd magnitudes overflow in the rank tests and the scaling: say so, by name
+        with np.errstate(over="raise", invalid="raise"):
+            check_hinf_assumptions(gp)
+    except (FloatingPointError, np.linalg.LinAlgError) as exc:
+        raise ModelStructureError(
+            "hinfsyn_lmi: P's matrices are too badly scaled to be checked (largest entry "
+            f"{max(np.abs(m).max(initial=0.0) for m in gp.blocks().values()):.3g}; "
+            f"{type(exc).__name__}: {exc}). Express the signals in units that bring the "
+            "entries nearer 1"
+        ) from None
     loop = D22Removal(gp.D22)
     b0 = PlantBlocks.from_generalized_plant(loop.apply(gp))
     margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
@@ -384,8 +418,14 @@ def hinfsyn_lmi(
     ctx = (gp, loop, backoff, verify_rtol, solvers, verbose, stats, log)
     # phase 1: solve and certify each scaling in turn; reconstruct only certified optima
     for label in labels:
-        sc = _scaling(label, b0)
-        att = _Attempt(label, sc, sc.apply(b0))
+        try:
+            with np.errstate(over="raise", invalid="raise"):
+                sc = _scaling(label, b0)
+                att = _Attempt(label, sc, sc.apply(b0))
+        except (FloatingPointError, np.linalg.LinAlgError) as exc:
+            log.append(f"[{label}] scaling failed: {type(exc).__name__}: {exc}")
+            errors.append((label, SolverError(f"scaling failed: {exc}")))
+            continue
         try:
             _solve_attempt(att, gamma_max, margin, solvers, verbose, stats, log)
         except SolverError as exc:
@@ -418,6 +458,13 @@ def hinfsyn_lmi(
 def _solve_attempt(att, gamma_max, margin, solvers, verbose, stats, log):
     """Step 3 and 4 for one scaling: solve the SDP, certify its optimum (no reconstruction)."""
     cap = None if gamma_max is None else att.sc.apply_gamma(gamma_max)
+    if cap is not None and not cap <= GAMMA_CAP_MAX:
+        # a requirement this loose cannot bind, and such coefficients break the solvers
+        log.append(
+            f"[{att.label}] gamma_max={gamma_max:g} is {cap:.3g} in scaled units, above "
+            f"{GAMMA_CAP_MAX:g}: solved without the cap"
+        )
+        cap = None
     att.prob = LMISynthesisProblem(att.bs, margin=margin, gamma_cap=cap)
     try:
         sol = att.prob.solve(gamma_floor=0.0, solvers=solvers, verbose=verbose)
@@ -446,9 +493,9 @@ def _solve_attempt(att, gamma_max, margin, solvers, verbose, stats, log):
     att.cert_fails = _certificate_failures(cert, att.g_opt_s)
     cert = dict(cert)
     for key in ("dual_bound", "dual_bound_clipped"):
-        cert[key] = att.sc.invert_gamma(cert[key])
+        cert[key] = float(att.sc.invert_gamma(cert[key]))
     cert.update(
-        gamma_lmi=att.sc.invert_gamma(att.g_opt_s),
+        gamma_lmi=float(att.sc.invert_gamma(att.g_opt_s)),
         primal_tol=CERT_PRIMAL_TOL,
         gap_rtol=CERT_GAP_RTOL,
         solver_status=sol.status,
@@ -542,10 +589,14 @@ def _raise_no_controller(done, errors, log):
             f"hinfsyn_lmi: no scaling gave a usable solve (scalings tried: {tried}); "
             "attempts: " + "; ".join(log)
         )
-    g = ", ".join(f"{a.label}: {a.sc.invert_gamma(a.g_opt_s):.6g}" for a in done)
+    g = ", ".join(
+        f"{a.label} {a.sc.invert_gamma(a.g_opt_s):.6g}"
+        f" ({'certified' if a.certified else 'not certified'})"
+        for a in done
+    )
     raise VerificationError(
         "hinfsyn_lmi: no reconstructed controller passed the independent check "
-        f"(optimal LMI gamma by scaling, uncertified: {g}); attempts: " + "; ".join(log)
+        f"(optimal LMI gamma by scaling: {g}); attempts: " + "; ".join(log)
     )
 
 

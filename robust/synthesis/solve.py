@@ -220,6 +220,14 @@ def solve_problem(
         except cp.error.SolverError as exc:
             attempts.append((name, f"solver error: {exc}"))
             continue
+        except BaseException as exc:
+            # a solver written in Rust (Clarabel, via pyo3) reports an internal failure as a
+            # PanicException, which derives from BaseException: a failed solve, not a reason
+            # to bring the whole program down
+            if type(exc).__name__ != "PanicException":
+                raise
+            attempts.append((name, f"solver crashed: {str(exc).splitlines()[0][:200]}"))
+            continue
         status = problem.status
         attempts.append((name, status))
         if status in (cp.INFEASIBLE, cp.UNBOUNDED):
