@@ -62,7 +62,7 @@ from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
-from robust.model.wiring import CONTROLLER_FORCE, expand, figure5_junctions
+from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
 from uncertainty.family import Family
 from uncertainty.sampling import SampleSet
 
@@ -73,6 +73,7 @@ __all__ = [
     "Block",
     "loop_blocks",
     "closed_loop_matrices",
+    "interconnection",
     "batched_poles",
     "ValidationResult",
     "validate_family",
@@ -347,17 +348,23 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
     return blocks
 
 
-def _interconnection(family: Family, blocks: list[Block], controller) -> np.ndarray:
-    """Constant ``M`` with ``u = M y`` (block inputs from block outputs).
+def interconnection(family: Family, blocks: list[Block], controller=None) -> np.ndarray:
+    """Constant ``M`` with ``u = M y`` (block inputs from block outputs) of the family's loop.
 
     Every block input is expanded through the Figure 5 junction table
     (:func:`robust.model.wiring.figure5_junctions`, the same table
     :class:`robust.model.loop.BDFTLoop` is built from) with the exogenous inputs
-    ``u`` and ``f_ext`` at zero.
+    ``u`` and ``f_ext`` at zero (:func:`robust.model.wiring.interconnection_matrix`).
+
+    Parameters
+    ----------
+    family : Family
+        The family (its position scale factor, calibration and human variant).
+    blocks : list of Block
+        The loop's blocks, as :func:`loop_blocks` returns them.
+    controller : control.StateSpace, optional
+        The compensator among the blocks (its outputs decide the junctions).
     """
-    outs = [s for b in blocks for s in b.outputs]
-    ins = [s for b in blocks for s in b.inputs]
-    col = {s: j for j, s in enumerate(outs)}
     ctrl_outs = () if controller is None else tuple(controller.output_labels)
     force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
     cal = family.calibration
@@ -367,16 +374,9 @@ def _interconnection(family: Family, blocks: list[Block], controller) -> np.ndar
         reference_correction="r_corr" in ctrl_outs,
         force_terms=force if family.human == "physical" else (),
     )
-    M = np.zeros((len(ins), len(outs)))
-    for i, s in enumerate(ins):
-        for src, coef in expand(s, junctions).items():
-            if src not in col:
-                raise ModelStructureError(
-                    f"batched loop: block input {s!r} needs the signal {src!r}, which no block "
-                    f"provides (block outputs: {outs})"
-                )
-            M[i, col[src]] += coef
-    return M
+    ins = [s for b in blocks for s in b.inputs]
+    outs = [s for b in blocks for s in b.outputs]
+    return interconnection_matrix(ins, outs, junctions)
 
 
 def closed_loop_matrices(
@@ -424,7 +424,7 @@ def _closed_loop(family: Family, values: np.ndarray, controller) -> np.ndarray:
     """:func:`closed_loop_matrices` of checked values."""
     N = values.shape[0]
     blocks = _loop_blocks(family, values, controller)
-    M = _interconnection(family, blocks, controller)
+    M = interconnection(family, blocks, controller)
     ns = [b.nstates for b in blocks]
     ni = [len(b.inputs) for b in blocks]
     no = [len(b.outputs) for b in blocks]

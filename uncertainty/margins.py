@@ -69,9 +69,8 @@ from robust.analysis.intervals import Interval, norm2_bound
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError, ParameterError
-from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
 from robust.synthesis.solve import solve_problem
-from uncertainty.batched import closed_loop_matrices, loop_blocks
+from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
 from uncertainty.family import Family
 
 __all__ = [
@@ -630,18 +629,7 @@ def closed_loop_enclosure(
             )
         else:
             mats.append(tuple(Interval.point(x[0]) for x in (b.A, b.B, b.C, b.D)))
-    ins = [s for b in blocks for s in b.inputs]
-    outs = [s for b in blocks for s in b.outputs]
-    ctrl_outs = () if controller is None else tuple(controller.output_labels)
-    force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
-    cal = family.calibration
-    junctions = figure5_junctions(
-        k_psf=family.k_psf,
-        handle_gain=cal.handle_sign * cal.loop_scale,
-        reference_correction="r_corr" in ctrl_outs,
-        force_terms=force if family.human == "physical" else (),
-    )
-    M = interconnection_matrix(ins, outs, junctions)
+    M = interconnection(family, blocks, controller)
     A, B, C, D = (_blockdiag([m[i] for m in mats]) for i in range(4))
     DM = D @ M
     # length of the finite series from the sparsity pattern of D M (nilpotent: no cycle)
