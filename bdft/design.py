@@ -4,9 +4,17 @@ from __future__ import annotations
 
 import sys
 
-from bdft.args import UsageError, check_artifact_targets, members, members_help, seed
+from bdft.args import (
+    UsageError,
+    check_artifact_targets,
+    integer,
+    members,
+    members_help,
+    seed,
+)
 from bdft.common import print_json
 from designs.registry import design_names, run_design
+from uncertainty.margins import DEFAULT_BOXES
 
 __all__ = ["register", "run"]
 
@@ -52,6 +60,13 @@ def register(sub) -> None:
         help="artifact folder; NAME.json and NAME.mat there are replaced only when they are "
         "previous artifacts (default: %(default)s)",
     )
+    p.add_argument(
+        "--margin-boxes",
+        type=integer("--margin-boxes", low=0, high=100_000),
+        default=DEFAULT_BOXES,
+        help="sub-boxes per scale of the certified robust margin of the design (0: not "
+        "computed; default: %(default)s)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -68,7 +83,8 @@ def run(args) -> int:
     args : argparse.Namespace
         Parsed ``bdft design`` options: ``name`` (a design name, or ``None`` with
         ``list``), ``list``, ``samples`` (family members to validate on), ``seed``,
-        ``method`` (sampling method), ``out`` (artifact folder) and ``json``.
+        ``method`` (sampling method), ``out`` (artifact folder), ``margin_boxes``
+        (sub-boxes per scale of the certified robust margin, 0 skips it) and ``json``.
 
     Returns
     -------
@@ -96,7 +112,12 @@ def run(args) -> int:
         file=sys.stderr,
     )
     res = run_design(
-        args.name, samples=args.samples, seed=args.seed, method=args.method, out_dir=args.out
+        args.name,
+        samples=args.samples,
+        seed=args.seed,
+        method=args.method,
+        out_dir=args.out,
+        margin_boxes=args.margin_boxes,
     )
     obj = res.to_json()
     if args.json:
@@ -116,6 +137,10 @@ def run(args) -> int:
             "artifact",
         ):
             print(f"{key:20s} {obj[key]}")
+        margin = res.details.get("robust_margin")
+        if margin:
+            print(f"{'margin, certified':20s} {margin['lower']:.4g}")
+            print(f"{'margin, upper':20s} {margin['upper']:.4g}")
         for note in obj["notes"]:
             print(f"note: {note}")
     return 0

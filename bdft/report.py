@@ -5,12 +5,20 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bdft.args import check_artifact_targets, check_report_dir, members, members_help, seed
+from bdft.args import (
+    check_artifact_targets,
+    check_report_dir,
+    integer,
+    members,
+    members_help,
+    seed,
+)
 from bdft.common import print_json
 from designs.registry import design_names
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from uncertainty import default_family
+from uncertainty.margins import DEFAULT_BOXES
 
 __all__ = ["register", "run"]
 
@@ -49,6 +57,13 @@ def register(sub) -> None:
         "file; the artifacts go to <out>-artifacts (default: %(default)s)",
     )
     p.add_argument(
+        "--margin-boxes",
+        type=integer("--margin-boxes", low=0, high=100_000),
+        default=DEFAULT_BOXES,
+        help="sub-boxes per scale of the certified robust margin of each design (0: not "
+        "computed; default: %(default)s)",
+    )
+    p.add_argument(
         "--json", action="store_true", help="print one JSON object with every design's summary"
     )
     p.set_defaults(func=run)
@@ -66,8 +81,9 @@ def run(args) -> int:
     args : argparse.Namespace
         Parsed ``bdft report`` options: ``samples`` (family members every design is
         validated on), ``seed`` (sampling seed), ``out`` (report folder: a new folder or
-        a previous report; it and the artifacts' folder are checked before any work)
-        and ``json``.
+        a previous report; it and the artifacts' folder are checked before any work),
+        ``margin_boxes`` (sub-boxes per scale of each design's certified robust margin,
+        0 skips it) and ``json``.
 
     Returns
     -------
@@ -83,7 +99,13 @@ def run(args) -> int:
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
     check_artifact_targets("--out", art_dir, design_names())
-    runs = run_all_designs(samples=args.samples, seed=args.seed, out_dir=art_dir, progress=progress)
+    runs = run_all_designs(
+        samples=args.samples,
+        seed=args.seed,
+        out_dir=art_dir,
+        progress=progress,
+        margin_boxes=args.margin_boxes,
+    )
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
     path = write_design_report(runs, out, samples=args.samples, seed=args.seed, coverage=coverage)
     print(f"[bdft report] written to {path}", file=sys.stderr)

@@ -1,10 +1,12 @@
 """Benchmark: robust-margin bounds of the default family, open loop and every shipped design.
 
 For each loop: the upper bound (worst-case search) and the certified lower bound
-(interval enclosure + Lyapunov LMI per sub-box), their times, and the gap. Targets:
+(verified eigenvalue enclosures over sub-boxes by default, or the Lyapunov route), their
+times, and the gap. Targets:
 upper bound under 30 s, certified lower bound under 5 minutes, on 2 cores.
 
-    python benchmarks/bench_margin.py [--samples N] [--max-boxes B] [--designs a,b,...]
+    python benchmarks/bench_margin.py [--samples N] [--max-boxes B] [--method M]
+                                      [--designs a,b,...]
 """
 
 from __future__ import annotations
@@ -15,13 +17,19 @@ import time
 
 from designs import design_names, run_design
 from uncertainty import default_family
-from uncertainty.margins import margin_lower_bound, margin_upper_bound
+from uncertainty.margins import (
+    DEFAULT_BOXES,
+    LOWER_METHODS,
+    margin_lower_bound,
+    margin_upper_bound,
+)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=1000, help="search members per scale")
-    ap.add_argument("--max-boxes", type=int, default=24, help="sub-boxes per scale")
+    ap.add_argument("--max-boxes", type=int, default=DEFAULT_BOXES, help="sub-boxes per scale")
+    ap.add_argument("--method", default="eigenvalues", choices=LOWER_METHODS)
     ap.add_argument("--design-samples", type=int, default=500, help="design sample size")
     ap.add_argument("--designs", default=",".join(design_names()), help="comma-separated")
     args = ap.parse_args()
@@ -32,6 +40,7 @@ def main() -> None:
         r = run_design(name, samples=args.design_samples, seed=0, held_out=100)
         print(f"# designed {name} in {time.perf_counter() - t:.1f} s", flush=True)
         loops.append((name, r.family, r.controller))
+    print(f"# lower bound: {args.method}, {args.max_boxes} sub-boxes per scale")
     print(
         f"{'loop':18s} {'upper':>9s} {'t_up[s]':>8s} {'lower':>9s} {'t_low[s]':>9s} "
         f"{'gap up/low':>10s} {'boxes':>6s}"
@@ -41,7 +50,11 @@ def main() -> None:
         up, crit, _ = margin_upper_bound(family, controller=K, samples=args.samples, seed=0)
         t1 = time.perf_counter()
         low, cert = margin_lower_bound(
-            family, controller=K, k_hint=min(up, 8.0), max_boxes=args.max_boxes
+            family,
+            controller=K,
+            k_hint=min(up, 8.0),
+            max_boxes=args.max_boxes,
+            method=args.method,
         )
         t2 = time.perf_counter()
         boxes = sum(h.get("boxes", 0) for h in cert["history"])

@@ -140,8 +140,9 @@ def run_design(
         Members of the held-out validation sample.
     margin_boxes : int
         Sub-boxes per scale of the certified robust margin
-        (:func:`uncertainty.margins.robust_margin`, open left half-plane); 0 skips the
-        margin. Both bounds and the critical member go into ``details["robust_margin"]``.
+        (:func:`uncertainty.margins.robust_margin`, open left half-plane, eigenvalue
+        method); 0 skips the margin. Both bounds, the critical member, the method and the
+        certificate's summary go into ``details["robust_margin"]``.
 
     Returns
     -------
