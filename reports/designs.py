@@ -131,6 +131,14 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
         up = m["upper"] if math.isfinite(m["upper"]) else 10.0
         ax.plot([lo, up], [i, i], "-", lw=6, color="0.75", solid_capstyle="butt")
         ax.plot([lo], [i], "o", color="tab:green", label="certified lower" if i == 0 else None)
+        if m["lower"] <= 0:
+            ax.annotate(
+                "0: no scale > 0 certified",
+                (lo, i),
+                xytext=(6, 6),
+                textcoords="offset points",
+                fontsize=7,
+            )
         ax.plot(
             [up], [i], "x", color="tab:red", label="upper (violating member)" if i == 0 else None
         )
@@ -138,13 +146,14 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
     ax.set_xscale("log")
     ax.set_yticks(range(len(margins)), list(margins))
     ax.set_xlabel("robust margin (scale of the family's box; 1 = whole family)")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     page.figure(
         fig,
-        "margins.png",
+        "margins",
         "Robust margin of every design: the true margin lies between the certified lower "
-        "bound (green) and the upper bound (red); the dashed line is the whole family.",
+        "bound (green; a bound of 0 is drawn at 1e-4) and the upper bound (red); the dashed "
+        "line is the whole family.",
     )
     plt.close(fig)
 
