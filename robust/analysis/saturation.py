@@ -1,0 +1,208 @@
+"""The loop with the handle force saturated at the device's peak and the controller at 1 kHz.
+
+The linear checks (poles, margins) say nothing about the device's force limit: a
+controller that asks for more than the Omni gives runs, in the hardware, through a
+saturation, and the paper's rig oscillated in limit cycles. Here one member's loop is
+simulated as the real-time target runs it:
+
+* the plant (the member's Figure 5 loop cut open at the controller,
+  :func:`robust.analysis.sampled.open_plant`) is discretised exactly for inputs held
+  between samples (zero-order hold, ``control.sample_system``);
+* the discrete controller runs at its own sample time on the sampled measurements;
+* its force output ``f`` is clipped to ``+- peak_force_n`` before it reaches the plant
+  (other outputs, e.g. ``r_corr``, are not limited);
+* when the plant feeds the controller's outputs straight through to its inputs, the
+  controller's outputs act one sample late (a computation delay), which breaks the
+  algebraic loop.
+
+After the intended motion the input is held at zero for ``settle_s``. The result flags a
+**divergence** (non-finite values, or a state norm that ends more than 1e3 times its
+largest value during the motion) and a **sustained oscillation** (a limit cycle or an
+undamped mode: the RMS of the cylinder position over the last second of the settling
+phase is more than half of its RMS over the first second, and not negligible, above
+1e-6 of its RMS during the motion).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control as ct
+import numpy as np
+
+from robust.analysis.sampled import open_plant
+from robust.checks import POSITIVE, check_scalar, check_vector
+from robust.errors import ModelStructureError, ParameterError
+
+__all__ = ["SaturationCheck", "saturated_response"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SaturationCheck:
+    """Outcome of :func:`saturated_response` on one member.
+
+    Parameters
+    ----------
+    diverged : bool
+        Non-finite values or unbounded growth.
+    sustained : bool
+        The response does not die out after the motion stops (limit cycle or undamped).
+    saturated_fraction : float
+        Fraction of samples at which the force was clipped.
+    peak_request_n : float
+        Largest force the controller asked for, N.
+    decay_ratio : float
+        RMS of ``y`` over the last second of the settling phase over its RMS in the
+        first second (``nan`` when both are 0).
+    delayed : bool
+        The controller's outputs acted one sample late (plant feedthrough).
+    t : ndarray
+        Sample times, s.
+    y, force : ndarray
+        Cylinder position and applied (clipped) handle force at those times.
+    """
+
+    diverged: bool
+    sustained: bool
+    saturated_fraction: float
+    peak_request_n: float
+    decay_ratio: float
+    delayed: bool
+    t: np.ndarray
+    y: np.ndarray
+    force: np.ndarray
+
+    @property
+    def ok(self) -> bool:
+        """Neither diverged nor sustained."""
+        return not (self.diverged or self.sustained)
+
+    def to_json(self) -> dict:
+        """The verdicts and figures (not the histories) as a JSON-able dict."""
+        return {
+            "diverged": self.diverged,
+            "sustained": self.sustained,
+            "ok": self.ok,
+            "saturated_fraction": self.saturated_fraction,
+            "peak_request_n": self.peak_request_n,
+            "decay_ratio": self.decay_ratio,
+            "delayed": self.delayed,
+        }
+
+
+def saturated_response(
+    loop,
+    Kd: ct.StateSpace,
+    u: np.ndarray,
+    *,
+    peak_force_n: float,
+    settle_s: float = 10.0,
+) -> SaturationCheck:
+    """Simulate one member with the force saturated and the controller sampled.
+
+    Parameters
+    ----------
+    loop : robust.model.loop.BDFTLoop
+        The member.
+    Kd : control.StateSpace
+        Discrete controller (loop convention: inputs among ``x, c, y``, outputs among
+        ``f, r_corr``); its sample time is the simulation's.
+    u : array_like, shape (N,)
+        Intended motion at the controller's sample instants, handle units.
+    peak_force_n : float
+        Saturation of the handle force, N (> 0).
+    settle_s : float
+        Zero input after the motion, s (>= 2).
+
+    Raises
+    ------
+    ModelStructureError
+        If ``Kd`` is not a discrete-time state-space system.
+    ParameterError
+        If ``u``, ``peak_force_n`` or ``settle_s`` is invalid.
+    """
+    if not isinstance(Kd, ct.StateSpace) or not Kd.isdtime(strict=True):
+        raise ModelStructureError(
+            "saturated_response: Kd must be a discrete-time control.StateSpace "
+            f"(a sample time); got {type(Kd).__name__}"
+        )
+    u = check_vector("saturated_response: u", u)
+    peak = check_scalar("peak_force_n", peak_force_n, POSITIVE, owner="saturated_response")
+    settle = check_scalar("settle_s", settle_s, POSITIVE, owner="saturated_response")
+    dt = float(Kd.dt)
+    if settle < 2.0:
+        raise ParameterError(f"saturated_response: settle_s must be >= 2 s; got {settle}")
+    P = ct.sample_system(open_plant(loop, Kd), dt, method="zoh")
+    outs, ins = list(Kd.output_labels), list(Kd.input_labels)
+    n_u = 1
+    Ap, Bp, Cp, Dp = (np.asarray(m, float) for m in (P.A, P.B, P.C, P.D))
+    meas_rows = slice(1, 1 + len(ins))  # plant outputs: y, then the controller's inputs
+    delayed = bool(np.any(Dp[meas_rows, n_u:] != 0) and np.any(np.asarray(Kd.D) != 0))
+    Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kd.A, Kd.B, Kd.C, Kd.D))
+    f_idx = outs.index("f") if "f" in outs else None
+    n_settle = int(round(settle / dt))
+    uu = np.concatenate([u, np.zeros(n_settle)])
+    N = len(uu)
+    xp, xk = np.zeros(Ap.shape[0]), np.zeros(Ak.shape[0])
+    v = np.zeros(len(outs))
+    y = np.zeros(N)
+    force = np.zeros(N)
+    norms = np.zeros(N)
+    requests = np.zeros(N)
+    clipped = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(N):
+            if delayed:
+                z = Cp @ xp + Dp @ np.concatenate([[uu[k]], v])
+                meas = z[meas_rows]
+                req = Ck @ xk + Dk @ meas
+            else:
+                z0 = Cp @ xp + Dp[:, :n_u] @ [uu[k]]
+                meas = z0[meas_rows]
+                req = Ck @ xk + Dk @ meas
+            v_new = req.copy()
+            if f_idx is not None:
+                requests[k] = req[f_idx]
+                v_new[f_idx] = np.clip(req[f_idx], -peak, peak)
+                clipped += bool(abs(req[f_idx]) > peak)
+            if not delayed:
+                v = v_new
+                z = z0 + Dp[:, n_u:] @ v
+            y[k] = z[0]
+            force[k] = v[f_idx] if f_idx is not None else 0.0
+            xk = Ak @ xk + Bk @ meas
+            xp = Ap @ xp + Bp @ np.concatenate([[uu[k]], v])
+            if delayed:
+                v = v_new
+            norms[k] = np.linalg.norm(xp)
+            if not np.isfinite(norms[k]) or norms[k] > 1e300:
+                norms[k:] = np.inf
+                y[k:] = np.nan
+                break
+    n_motion = max(len(u), 1)
+    motion_max = float(np.max(norms[:n_motion])) if len(u) else 0.0
+    diverged = bool(not np.all(np.isfinite(norms)) or norms[-1] > 1e3 * max(motion_max, 1e-300))
+    per_s = int(round(1.0 / dt))
+    first = y[len(u) : len(u) + per_s]
+    last = y[-per_s:]
+
+    def rms(a):
+        return float(np.sqrt(np.mean(a**2))) if len(a) and np.all(np.isfinite(a)) else np.inf
+
+    r_first, r_last = rms(first), rms(last)
+    r_motion = rms(y[: len(u)]) if len(u) else 0.0
+    ratio = r_last / r_first if r_first > 0 else float("nan")
+    sustained = bool(
+        not diverged and r_last > 1e-6 * max(r_motion, 1e-300) and (r_first == 0 or ratio > 0.5)
+    )
+    return SaturationCheck(
+        diverged=diverged,
+        sustained=sustained,
+        saturated_fraction=clipped / N,
+        peak_request_n=float(np.max(np.abs(requests))) if N else 0.0,
+        decay_ratio=ratio,
+        delayed=delayed,
+        t=np.arange(N) * dt,
+        y=y,
+        force=force,
+    )
