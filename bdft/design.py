@@ -7,14 +7,12 @@ import sys
 from bdft.args import (
     UsageError,
     check_artifact_targets,
-    integer,
     members,
     members_help,
     seed,
 )
-from bdft.common import print_json
+from bdft.common import add_margin_boxes_argument, print_json
 from designs.registry import design_names, run_design
-from uncertainty.margins import DEFAULT_BOXES
 
 __all__ = ["register", "run"]
 
@@ -60,13 +58,7 @@ def register(sub) -> None:
         help="artifact folder; NAME.json and NAME.mat there are replaced only when they are "
         "previous artifacts (default: %(default)s)",
     )
-    p.add_argument(
-        "--margin-boxes",
-        type=integer("--margin-boxes", low=0, high=100_000),
-        default=DEFAULT_BOXES,
-        help="sub-boxes per scale of the certified robust margin of the design (0: not "
-        "computed; default: %(default)s)",
-    )
+    add_margin_boxes_argument(p, "the design")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 

@@ -8,17 +8,15 @@ from pathlib import Path
 from bdft.args import (
     check_artifact_targets,
     check_report_dir,
-    integer,
     members,
     members_help,
     seed,
 )
-from bdft.common import print_json
+from bdft.common import add_margin_boxes_argument, print_json
 from designs.registry import design_names
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from uncertainty import default_family
-from uncertainty.margins import DEFAULT_BOXES
 
 __all__ = ["register", "run"]
 
@@ -56,13 +54,7 @@ def register(sub) -> None:
         help="report folder: a new folder or a previous bdft report, never another folder or "
         "file; the artifacts go to <out>-artifacts (default: %(default)s)",
     )
-    p.add_argument(
-        "--margin-boxes",
-        type=integer("--margin-boxes", low=0, high=100_000),
-        default=DEFAULT_BOXES,
-        help="sub-boxes per scale of the certified robust margin of each design (0: not "
-        "computed; default: %(default)s)",
-    )
+    add_margin_boxes_argument(p, "each design")
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with every design's summary"
     )

@@ -65,7 +65,7 @@ import scipy.linalg as sla
 from scipy.optimize import minimize
 from scipy.stats import qmc
 
-from robust.analysis.eigen_enclosure import enclose_eigenvalues, subdivide
+from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinate, subdivide
 from robust.analysis.intervals import Gradient, Interval, iblockdiag, imatrix, ivstack, norm2_bound
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import STABILITY_TOL
@@ -972,16 +972,15 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
     G = asm.matrix(lo_v, hi_v, True)
     E_rad = Ac.rad + np.einsum("p,pab->ab", h, G.der.rad)
     res = enclose_eigenvalues(Ac.mid, G.der.mid, h, E_rad)
-    lam = res["eigs"]
-    if not np.all(np.isfinite(lam)):
-        lam = np.linalg.eigvals(Ac.mid)
-    centre_v = region.violation(lam[None])[0]
-    out = {"certified": False, "centre_violates": bool(centre_v > 0), "check": math.inf}
-    # split: the parameter that moves the failing eigenvalues most (their real parts when
-    # an enclosure reaches outside the region)
-    margins = np.maximum(-(lam.real + max(region.decay_rate, STABILITY_TOL)), 1e-9)
-    score = (res["sensitivity"] / margins[:, None]).sum(axis=0)
-    out["split"] = _best_split(score, hi_t > lo_t)
+    if not np.all(np.isfinite(res["eigs"])):
+        res = dict(res, eigs=np.linalg.eigvals(Ac.mid))
+    centre_v = region.violation(res["eigs"][None])[0]
+    out = {
+        "certified": False,
+        "centre_violates": bool(centre_v > 0),
+        "check": math.inf,
+        "split": split_coordinate(res, max(region.decay_rate, STABILITY_TOL), hi_t > lo_t),
+    }
     if out["centre_violates"]:
         return dict(out, reason="the centre member violates the region")
     if not res["ok"]:
@@ -1025,11 +1024,6 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
                     "enclosures of its box; the certificate is wrong"
                 )
     return dict(out, certified=True, route="eigenvalues", reason="certified")
-
-
-def _best_split(score: np.ndarray, open_: np.ndarray) -> int:
-    score = np.where(open_, np.nan_to_num(score, nan=0.0, posinf=1e300), -1.0)
-    return int(np.argmax(score))
 
 
 def _certify_scale(family, k, controller, region, max_boxes, deadline, method):

@@ -49,7 +49,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg as sla
 
-__all__ = ["enclose_eigenvalues", "subdivide", "certify_affine_family"]
+__all__ = ["enclose_eigenvalues", "split_coordinate", "subdivide", "certify_affine_family"]
 
 _EPS = np.finfo(float).eps
 
@@ -294,6 +294,25 @@ def _inflate(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam):
     return s, base_re + s, base_im + s
 
 
+def split_coordinate(res: dict, decay_rate: float, open_: np.ndarray) -> int:
+    """The coordinate to halve when a box fails: the one that moves the eigenvalues most
+    relative to their distance to the line ``Re s = -decay_rate``.
+
+    Parameters
+    ----------
+    res : dict
+        A result of :func:`enclose_eigenvalues` (its ``eigs`` and ``sensitivity``).
+    decay_rate : float
+        The required decay rate, >= 0.
+    open_ : ndarray of bool, shape (d,)
+        Coordinates with a nonzero width (only those can be halved).
+    """
+    margins = np.maximum(-(res["eigs"].real + decay_rate), 1e-9)
+    score = (res["sensitivity"] / margins[:, None]).sum(axis=0)
+    score = np.where(open_, np.nan_to_num(score, nan=0.0, posinf=1e300), -1.0)
+    return int(np.argmax(score))
+
+
 def subdivide(
     certify: Callable[[np.ndarray, np.ndarray], dict],
     lo: np.ndarray,
@@ -402,14 +421,13 @@ def certify_affine_family(
             * (np.abs(A0) + np.einsum("p,pab->ab", np.abs(c), np.abs(J)))
         )
         res = enclose_eigenvalues(Ac, J, h, rnd)
-        lam = res["eigs"] if np.all(np.isfinite(res["eigs"])) else np.linalg.eigvals(Ac)
-        margins = np.maximum(-(lam.real + a), 1e-12)
-        score = np.where(u > lo_q, (res["sensitivity"] / margins[:, None]).sum(axis=0), -1.0)
+        if not np.all(np.isfinite(res["eigs"])):
+            res = dict(res, eigs=np.linalg.eigvals(Ac))
         out = {
             "certified": False,
-            "centre_violates": bool(np.max(lam.real) + a >= 0),
+            "centre_violates": bool(np.max(res["eigs"].real) + a >= 0),
             "check": math.inf,
-            "split": int(np.argmax(np.nan_to_num(score, nan=0.0, posinf=1e300))),
+            "split": split_coordinate(res, a, u > lo_q),
         }
         if res["ok"]:
             out["check"] = float(np.max(res["centre"].real + res["rad_re"]) + a)
