@@ -1,0 +1,578 @@
+"""The handle-force design specification as named parameters, and its check on a family.
+
+:class:`Specification` collects the numbers a compensator must meet: the device's
+force limits (peak, and continuous compared with the RMS force), the realistic
+intended motion the forces are measured under, the closed-loop pole region (decay
+rate, damping ratio in a band), the tracking of intended motion and the allowed
+change of the feedthrough near the structure mode. :func:`check_specification`
+checks one controller against it on a list of family members and names the
+*binding* constraint (the one with the largest utilisation).
+
+Constraints and their worst value over the members
+--------------------------------------------------
+``"decay rate"``
+    Largest real part of the closed-loop poles (:func:`robust.analysis.loops.loop_poles`),
+    rad/s; holds when every pole has ``Re p < -max(decay_rate, STABILITY_TOL)``
+    (:func:`robust.analysis.stability.poles_stable` with that margin).
+``"damping"``
+    Smallest damping ratio ``-Re p / |p|`` of the poles whose frequency
+    ``|Im p| / (2 pi)`` lies in ``damping_band_hz`` (``inf`` without such a pole);
+    the band test is that of :class:`uncertainty.margins.Region`, so the check agrees
+    with :meth:`Specification.region`. Holds when it is at least ``min_damping``.
+``"tracking"``
+    ``max |Y/Y_ref - 1|`` over 80 log-spaced frequencies of ``tracking_band_hz``
+    (:func:`designs.evaluate.output_ratio`).
+``"feedthrough"``
+    Largest increase of the feedthrough over the uncompensated loop,
+    ``20 log10 |ratio_K| - 20 log10 |ratio_0|`` in dB, over 60 linearly spaced
+    frequencies of ``feedthrough_band_hz``; ``ratio_0`` is
+    ``output_ratio(member, None, f)``, the *formal* frequency response of the
+    uncompensated loop, used even when that loop is unstable.
+``"continuous force"``
+    RMS handle force under the realistic intended motion, N, computed exactly: the
+    motion is white noise through the unit intent filter ``F``
+    (:func:`robust.synthesis.forcefb.intent_filter`) scaled to the RMS
+    ``amplitude / sqrt(2)`` (:func:`designs.evaluate.intended_motion`), so the
+    stationary RMS force is ``amplitude / sqrt(2) * ||G_f F||_2 / ||F||_2`` with
+    ``G_f`` the closed-loop ``u -> f``; H2 norms by the controllability Gramian.
+``"peak force"``
+    Largest ``|f|`` of a simulated realistic intended motion
+    (:func:`designs.evaluate.intended_motion`, 1 kHz, seed ``seed + i`` for member
+    ``i``) on the ``simulate_peak`` stable members with the largest RMS force, N.
+
+Tracking, feedthrough and the forces are undefined on a member whose closed loop is
+unstable: their value there is ``inf`` (the constraint fails) and a note says so. A
+controller that does not drive ``f`` (or no controller) exerts no force: both force
+values are 0.
+
+Utilisation
+-----------
+A ratio that is 1 at the limit, above 1 when violated and increases monotonically
+as the value gets worse:
+
+* peak force, continuous force, tracking: ``value / limit``;
+* feedthrough: the ratio of the linear magnitudes, ``10 ** ((value - limit) / 20)``;
+* decay rate: required over achieved decay rate, ``decay_rate / (-value)`` (``inf``
+  when a pole has ``Re p >= 0``; 0 for ``decay_rate = 0`` and a stable loop);
+* damping: required over achieved damping ratio, ``min_damping / value`` (``inf``
+  when the achieved ratio is ``<= 0``; 0 for ``min_damping = 0`` or no pole in the band).
+
+The binding constraint is the one with the largest utilisation; ties (typically
+several ``inf`` on an unstable member) go to the earlier constraint of
+:data:`CONSTRAINTS`, which lists the pole-region constraints first so that an
+unstable loop is reported as binding on its decay rate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+
+from designs.evaluate import (
+    INTENT_FRACTION,
+    SUPPRESSION_BAND_HZ,
+    TRACKING_BAND_HZ,
+    intended_motion,
+    output_ratio,
+)
+from robust.analysis.loops import loop_poles
+from robust.analysis.realization import minimal_realization
+from robust.analysis.simulation import simulate
+from robust.analysis.stability import poles_stable, stability_bound
+from robust.checks import (
+    FINITE,
+    NONNEGATIVE,
+    POSITIVE,
+    Spec,
+    check_int,
+    check_scalar,
+    check_vector,
+    validate_fields,
+)
+from robust.errors import ModelStructureError, ParameterError
+from robust.jsonio import to_jsonable
+from robust.model.device import DeviceLimits
+from robust.model.loop import BDFTLoop
+from robust.synthesis.forcefb import intent_filter
+from uncertainty.margins import Region
+
+__all__ = [
+    "CONSTRAINTS",
+    "Specification",
+    "ConstraintCheck",
+    "SpecCheck",
+    "check_specification",
+    "rms_force",
+]
+
+#: Names of the constraints, in the order they are reported (ties of the utilisation
+#: go to the earlier one).
+CONSTRAINTS = (
+    "decay rate",
+    "damping",
+    "peak force",
+    "continuous force",
+    "tracking",
+    "feedthrough",
+)
+#: Frequencies of the tracking (log-spaced) and feedthrough (linear) grids.
+N_TRACKING_FREQS = 80
+N_FEEDTHROUGH_FREQS = 60
+#: Sampling rate of the peak-force simulations, Hz (the device's servo rate).
+SIMULATION_RATE_HZ = 1000.0
+
+_BANDS = ("damping_band_hz", "tracking_band_hz", "feedthrough_band_hz")
+
+
+@dataclasses.dataclass(frozen=True)
+class Specification:
+    """The handle-force design specification.
+
+    Parameters
+    ----------
+    peak_force_n : float
+        Largest handle force allowed, N (the Omni's peak force, 3.3).
+    continuous_force_n : float
+        Largest RMS handle force allowed, N (the Omni's continuous force, 0.88).
+    intent_fraction : float
+        Amplitude of the intended motion, as a fraction of the half-workspace, in (0, 1]
+        (default :data:`designs.evaluate.INTENT_FRACTION`).
+    intent_bandwidth_hz : float
+        Bandwidth of the realistic intended motion (intent filter corner), Hz (2).
+    decay_rate : float
+        Every closed-loop pole must have real part below ``-decay_rate``, rad/s (>= 0).
+    min_damping : float
+        Smallest damping ratio of the poles in ``damping_band_hz``, in [0, 1).
+    damping_band_hz : (float, float)
+        Band of the damping requirement, Hz (poles with ``|Im p| / (2 pi)`` in it).
+    tracking_error : float
+        Largest ``|Y/Y_ref - 1|`` allowed over ``tracking_band_hz`` (> 0).
+    tracking_band_hz : (float, float)
+        Band of the tracking requirement, Hz
+        (default :data:`designs.evaluate.TRACKING_BAND_HZ`).
+    feedthrough_band_hz : (float, float)
+        Band of the feedthrough requirement near the structure mode, Hz
+        (default :data:`designs.evaluate.SUPPRESSION_BAND_HZ`).
+    max_amplification_db : float
+        Largest increase of ``|Y/Y_ref|`` over the uncompensated loop allowed in
+        ``feedthrough_band_hz``, dB (finite; 0: no amplification).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a field is out of range; the message names ``Specification.<field>``, the
+        accepted range and the value got.
+    """
+
+    peak_force_n: float = 3.3
+    continuous_force_n: float = 0.88
+    intent_fraction: float = INTENT_FRACTION
+    intent_bandwidth_hz: float = 2.0
+    decay_rate: float = 0.1
+    min_damping: float = 0.1
+    damping_band_hz: tuple[float, float] = (0.5, 10.0)
+    tracking_error: float = 0.2
+    tracking_band_hz: tuple[float, float] = TRACKING_BAND_HZ
+    feedthrough_band_hz: tuple[float, float] = SUPPRESSION_BAND_HZ
+    max_amplification_db: float = 0.0
+
+    def __post_init__(self):
+        validate_fields(
+            self,
+            {
+                "peak_force_n": POSITIVE,
+                "continuous_force_n": POSITIVE,
+                "intent_fraction": Spec(low=0.0, high=1.0, low_open=True),
+                "intent_bandwidth_hz": POSITIVE,
+                "decay_rate": NONNEGATIVE,
+                "min_damping": Spec(low=0.0, high=1.0, high_open=True),
+                "tracking_error": POSITIVE,
+                "max_amplification_db": FINITE,
+            },
+        )
+        for name in _BANDS:
+            object.__setattr__(self, name, _band(name, getattr(self, name)))
+
+    def region(self) -> Region:
+        """The pole region: ``Region(decay_rate, min_damping, damping_band_hz)``."""
+        return Region(self.decay_rate, self.min_damping, self.damping_band_hz)
+
+    def limits(self) -> DeviceLimits:
+        """Device limits with this specification's two force limits (the others default)."""
+        return DeviceLimits(
+            peak_force_n=self.peak_force_n, continuous_force_n=self.continuous_force_n
+        )
+
+    def to_json(self) -> dict:
+        """Every field, JSON-ready (bands as lists)."""
+        return to_jsonable(self)
+
+
+def _band(name: str, value) -> tuple[float, float]:
+    label = f"Specification.{name}"
+    if isinstance(value, (str, bytes)):
+        raise ParameterError(f"{label} must be a pair (low, high) in Hz; got {value!r}")
+    arr = check_vector(label, value, POSITIVE, min_size=2, increasing=True)
+    if arr.size != 2:
+        raise ParameterError(f"{label} must be a pair (low, high) in Hz; got {value!r}")
+    return float(arr[0]), float(arr[1])
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstraintCheck:
+    """One constraint of the specification, worst over the members.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`CONSTRAINTS`.
+    value : float
+        Worst value over the members, in ``units`` (``inf`` where undefined on an
+        unstable member; see the module notes for each definition).
+    limit : float
+        The specification's limit, in ``units`` (for the decay rate the largest real
+        part allowed, ``-decay_rate``).
+    units : str
+        Units of ``value`` and ``limit``.
+    holds : bool
+        Whether every member meets the constraint.
+    worst_member : int
+        Index into the members list of the member with the worst value.
+    utilisation : float
+        1 at the limit, above 1 when violated, increasing as the value gets worse
+        (definitions in the module notes).
+    """
+
+    name: str
+    value: float
+    limit: float
+    units: str
+    holds: bool
+    worst_member: int
+    utilisation: float
+
+    def describe(self) -> str:
+        """One line: name, value, limit, utilisation and verdict."""
+        verdict = "holds" if self.holds else "VIOLATED"
+        return (
+            f"{self.name}: {self.value:.4g} {self.units} (limit {self.limit:.4g}), "
+            f"utilisation {self.utilisation:.3g}, member {self.worst_member}: {verdict}"
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class SpecCheck:
+    """A controller checked against a :class:`Specification` on a list of members.
+
+    Parameters
+    ----------
+    constraints : tuple of ConstraintCheck
+        One per constraint, in the order of :data:`CONSTRAINTS`.
+    members : int
+        Number of members checked.
+    holds : bool
+        Whether every constraint holds.
+    binding : str
+        Name of the constraint with the largest utilisation (ties to the earlier one).
+    notes : tuple of str
+        Caveats (undefined metrics on unstable members, ...).
+    """
+
+    constraints: tuple[ConstraintCheck, ...]
+    members: int
+    holds: bool
+    binding: str
+    notes: tuple[str, ...] = ()
+
+    def constraint(self, name: str) -> ConstraintCheck:
+        """The check of the constraint ``name``.
+
+        Parameters
+        ----------
+        name : str
+            One of :data:`CONSTRAINTS`.
+
+        Raises
+        ------
+        robust.errors.ParameterError
+            If there is no such constraint.
+        """
+        for c in self.constraints:
+            if c.name == name:
+                return c
+        raise ParameterError(
+            f"SpecCheck.constraint: name must be one of {[c.name for c in self.constraints]}; "
+            f"got {name!r}"
+        )
+
+    def to_json(self) -> dict:
+        """Every field, JSON-ready (non-finite values as strings)."""
+        return to_jsonable(self)
+
+
+def _h2_squared(A, B, C) -> float:
+    """Squared H2 norm of a strictly proper, stable ``(A, B, C)``: ``trace(C P C')``."""
+    if A.shape[0] == 0:
+        return 0.0
+    P = sla.solve_continuous_lyapunov(A, -B @ B.T)
+    return float(max(np.trace(C @ P @ C.T), 0.0))
+
+
+def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float) -> float:
+    """Exact stationary RMS handle force under the realistic intended motion, N.
+
+    The motion is white noise through the unit intent filter ``F``
+    (:func:`robust.synthesis.forcefb.intent_filter`) scaled to RMS
+    ``amplitude / sqrt(2)`` (as :func:`designs.evaluate.intended_motion`), so the RMS
+    force is ``amplitude / sqrt(2) * ||G_f F||_2 / ||F||_2`` with ``G_f`` the
+    closed-loop ``u -> f`` (a minimal realisation); the H2 norms come from the
+    controllability Gramian (:func:`scipy.linalg.solve_continuous_lyapunov`).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        One member (physical human when ``controller`` drives ``f``).
+    controller : control.StateSpace or None
+        The compensator; without a force output ``f`` the force is 0.
+    amplitude : float
+        Intended-motion amplitude, handle units.
+    bandwidth_hz : float
+        Bandwidth of the intended motion, Hz.
+
+    Returns
+    -------
+    float
+        The RMS force, N (``inf`` if ``G_f F`` is not stable).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``loop`` is not a BDFTLoop, or ``amplitude`` or ``bandwidth_hz`` is not
+        finite and positive.
+    """
+    if not isinstance(loop, BDFTLoop):
+        raise ParameterError(f"rms_force: loop must be a BDFTLoop; got {type(loop).__name__}")
+    amplitude = check_scalar("rms_force: amplitude", amplitude, POSITIVE)
+    bandwidth_hz = check_scalar("rms_force: bandwidth_hz", bandwidth_hz, POSITIVE)
+    if controller is None or "f" not in controller.output_labels:
+        return 0.0
+    sys = loop.system(bdft=True, controller=controller, outputs=["f"])
+    iu = sys.input_labels.index("u")
+    g = minimal_realization(sys.A, sys.B[:, [iu]], sys.C, sys.D[:, [iu]])
+    F = intent_filter(bandwidth_hz, 1.0)
+    Af, Bf, Cf = (np.asarray(m, float) for m in (F.A, F.B, F.C))
+    n, nf = g.A.shape[0], Af.shape[0]
+    # cascade F then G_f: states (x_g, x_f); strictly proper since F is
+    A = np.block([[g.A, g.B @ Cf], [np.zeros((nf, n)), Af]])
+    B = np.vstack([np.zeros((n, 1)), Bf])
+    C = np.hstack([g.C, g.D @ Cf])
+    if not poles_stable(np.linalg.eigvals(A)):
+        return math.inf
+    ratio = math.sqrt(_h2_squared(A, B, C) / _h2_squared(Af, Bf, Cf))
+    return amplitude / math.sqrt(2.0) * ratio
+
+
+def _damping_in_band(poles: np.ndarray, band_hz) -> float:
+    """Smallest ``-Re p / |p|`` of the poles with ``|Im p| / (2 pi)`` in ``band_hz``."""
+    f = np.abs(poles.imag) / (2 * np.pi)
+    inband = (f >= band_hz[0]) & (f <= band_hz[1])
+    if not inband.any():
+        return math.inf
+    p = poles[inband]
+    return float(np.min(-p.real / np.abs(p)))
+
+
+def _ratio_required(required: float, achieved: float) -> float:
+    """``required / achieved`` for a larger-is-better figure (``inf`` when achieved <= 0)."""
+    if required == 0.0 and achieved > 0:
+        return 0.0
+    if not achieved > 0:
+        return math.inf
+    return required / achieved
+
+
+def _worst(values: list[float], larger_is_worse: bool = True) -> tuple[float, int]:
+    v = np.asarray(values, float)
+    i = int(np.argmax(v) if larger_is_worse else np.argmin(v))
+    return float(v[i]), i
+
+
+def check_specification(
+    members: Sequence[BDFTLoop],
+    controller=None,
+    spec: Specification | None = None,
+    *,
+    seed: int = 0,
+    simulate_peak: int = 3,
+    duration_s: float = 20.0,
+) -> SpecCheck:
+    """Check ``controller`` against ``spec`` on ``members``; name the binding constraint.
+
+    Definitions of the constraints, of their values and utilisations are in the
+    module notes. The feedthrough is compared with the uncompensated loop's formal
+    frequency response, even where that loop is unstable.
+
+    Parameters
+    ----------
+    members : sequence of BDFTLoop
+        Family members (e.g. ``family.member(row)``); a physical human when the
+        controller drives the handle force.
+    controller : control.StateSpace or None
+        Compensator in the loop convention (inputs among ``x, c, y``; outputs among
+        ``f, r_corr``); ``None`` checks the loop alone.
+    spec : Specification, optional
+        The specification (default: :class:`Specification` ``()``).
+    seed : int
+        Seed of the simulated intended motion; member ``i`` gets ``seed + i``.
+    simulate_peak : int
+        Number of stable members (those with the largest RMS force) whose peak force
+        is simulated (>= 0; 0 leaves the peak force at 0).
+    duration_s : float
+        Length of each peak-force simulation, s (>= 0.001).
+
+    Returns
+    -------
+    SpecCheck
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``members`` is empty or not a sequence of BDFTLoop, ``spec`` is not a
+        Specification, or ``seed``, ``simulate_peak`` or ``duration_s`` is out of range.
+    robust.errors.ModelStructureError
+        If ``controller`` does not fit the loop convention
+        (:meth:`robust.model.loop.BDFTLoop.system`).
+    """
+    where = "check_specification"
+    if isinstance(members, BDFTLoop) or not isinstance(members, Sequence):
+        raise ParameterError(
+            f"{where}: members must be a sequence of BDFTLoop; got {type(members).__name__}"
+        )
+    members = list(members)
+    if not members:
+        raise ParameterError(f"{where}: members must hold at least one BDFTLoop; got none")
+    for i, m in enumerate(members):
+        if not isinstance(m, BDFTLoop):
+            raise ParameterError(
+                f"{where}: members[{i}] must be a BDFTLoop; got {type(m).__name__}"
+            )
+    if spec is None:
+        spec = Specification()
+    elif not isinstance(spec, Specification):
+        raise ParameterError(
+            f"{where}: spec must be a Specification or None; got {type(spec).__name__}"
+        )
+    seed = check_int("seed", seed, low=0, owner=where)
+    simulate_peak = check_int("simulate_peak", simulate_peak, low=0, owner=where)
+    duration_s = check_scalar(f"{where}.duration_s", duration_s, Spec(low=1e-3))
+    if controller is not None and not isinstance(controller, ct.StateSpace):
+        raise ModelStructureError(
+            f"{where}: controller must be a control.StateSpace or None; "
+            f"got {type(controller).__name__}"
+        )
+    has_force = controller is not None and "f" in controller.output_labels
+    limits = spec.limits()
+    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
+    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+
+    n = len(members)
+    max_real, damping = np.empty(n), np.empty(n)
+    stable = np.zeros(n, bool)
+    tracking, amplification = np.full(n, math.inf), np.full(n, math.inf)
+    rms = np.full(n, math.inf) if has_force else np.zeros(n)
+    amplitude = np.zeros(n)
+    for i, m in enumerate(members):
+        ps = loop_poles(m, controller=controller)
+        max_real[i] = ps.max_real
+        damping[i] = _damping_in_band(ps.poles, spec.damping_band_hz)
+        stable[i] = ps.stable
+        if not stable[i]:
+            continue
+        tracking[i] = np.max(np.abs(output_ratio(m, controller, ft) - 1.0))
+        db_k = 20 * np.log10(np.abs(output_ratio(m, controller, fb)))
+        db_0 = 20 * np.log10(np.abs(output_ratio(m, None, fb)))
+        amplification[i] = np.max(db_k - db_0)
+        if has_force:
+            amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
+            rms[i] = rms_force(m, controller, amplitude[i], spec.intent_bandwidth_hz)
+
+    notes = []
+    if not stable.all():
+        bad = np.flatnonzero(~stable).tolist()
+        undefined = "tracking, feedthrough and forces" if has_force else "tracking and feedthrough"
+        notes.append(
+            f"{len(bad)} of {n} members have an unstable closed loop (members {bad}): "
+            f"their {undefined} are undefined (inf)"
+        )
+    # peak force: inf on unstable members, simulated on the stable ones of largest RMS force
+    peak = np.where(stable, 0.0, math.inf) if has_force else np.zeros(n)
+    if has_force:
+        order = [int(i) for i in np.argsort(-rms, kind="stable") if stable[i]]
+        simulated = order[:simulate_peak]
+        t = np.arange(int(round(duration_s * SIMULATION_RATE_HZ)) + 1) / SIMULATION_RATE_HZ
+        for i in simulated:
+            u = intended_motion(t, amplitude[i], spec.intent_bandwidth_hz, seed=seed + i)
+            f = simulate(members[i], t, u, controller=controller)["f"]
+            peak[i] = float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else math.inf
+        if stable.any() and simulate_peak < int(stable.sum()):
+            notes.append(
+                f"peak force simulated on the {len(simulated)} stable members with the "
+                f"largest RMS force (members {simulated}), "
+                f"{duration_s:g} s each"
+            )
+
+    checks = []
+    a = spec.decay_rate
+    value, worst = _worst(max_real)
+    checks.append(
+        ConstraintCheck(
+            "decay rate",
+            value,
+            -a,
+            "rad/s",
+            poles_stable([value], margin=a),
+            worst,
+            _ratio_required(a, -value) if value < stability_bound(0.0) else math.inf,
+        )
+    )
+    z = spec.min_damping
+    value, worst = _worst(damping, larger_is_worse=False)
+    checks.append(
+        ConstraintCheck("damping", value, z, "", bool(value >= z), worst, _ratio_required(z, value))
+    )
+    for name, vals, limit, units in (
+        ("peak force", peak, spec.peak_force_n, "N"),
+        ("continuous force", rms, spec.continuous_force_n, "N"),
+        ("tracking", tracking, spec.tracking_error, ""),
+    ):
+        value, worst = _worst(vals)
+        checks.append(
+            ConstraintCheck(name, value, limit, units, bool(value <= limit), worst, value / limit)
+        )
+    value, worst = _worst(amplification)
+    lim_db = spec.max_amplification_db
+    checks.append(
+        ConstraintCheck(
+            "feedthrough",
+            value,
+            lim_db,
+            "dB",
+            bool(value <= lim_db),
+            worst,
+            10 ** ((value - lim_db) / 20) if math.isfinite(value) else math.inf,
+        )
+    )
+    util = [c.utilisation for c in checks]
+    binding = checks[int(np.argmax(util))].name
+    return SpecCheck(
+        constraints=tuple(checks),
+        members=n,
+        holds=all(c.holds for c in checks),
+        binding=binding,
+        notes=tuple(notes),
+    )

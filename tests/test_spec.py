@@ -1,0 +1,258 @@
+"""The handle-force design specification and its check on family members."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from designs.evaluate import (
+    INTENT_FRACTION,
+    SUPPRESSION_BAND_HZ,
+    TRACKING_BAND_HZ,
+    intended_motion,
+    output_ratio,
+)
+from designs.spec import (
+    CONSTRAINTS,
+    SpecCheck,
+    Specification,
+    check_specification,
+    rms_force,
+)
+from designs.virtual_damping import virtual_damping_controller
+from robust.analysis.loops import loop_poles
+from robust.analysis.simulation import simulate
+from robust.errors import ModelStructureError, ParameterError
+from robust.model.device import DeviceLimits
+from uncertainty import default_family, sample, validate_family
+from uncertainty.margins import Region
+
+
+@pytest.fixture(scope="module")
+def family():
+    return default_family()
+
+
+@pytest.fixture(scope="module")
+def nominal(family):
+    return family.member(family.nominal_values())
+
+
+@pytest.fixture(scope="module")
+def damper(nominal):
+    """Virtual damping 10 N s/m and stiffness 50 N/m rendered by the handle (x -> f)."""
+    return virtual_damping_controller(nominal, 10.0, 50.0)
+
+
+@pytest.fixture(scope="module")
+def mixed_members(family):
+    """The nominal member, then sampled members, the first of them unstable uncompensated."""
+    S = sample(family.parameters, 40, method="lhs", seed=1)
+    v = validate_family(family, S)
+    unstable = np.flatnonzero(v.max_real > 0)[:1]
+    stable = np.flatnonzero(v.max_real < -0.01)[:2]
+    assert unstable.size == 1 and stable.size == 2
+    rows = [family.nominal_values()] + [S.values[i] for i in (*unstable, *stable)]
+    return [family.member(r) for r in rows]
+
+
+# -- the specification -----------------------------------------------------------------------
+
+
+def test_defaults_are_the_issue_numbers():
+    s = Specification()
+    assert (s.peak_force_n, s.continuous_force_n) == (3.3, 0.88)
+    assert s.intent_fraction == INTENT_FRACTION == 0.25
+    assert s.intent_bandwidth_hz == 2.0
+    assert (s.decay_rate, s.min_damping, s.damping_band_hz) == (0.1, 0.1, (0.5, 10.0))
+    assert s.tracking_error == 0.2
+    assert s.tracking_band_hz == TRACKING_BAND_HZ == (0.05, 2.0)
+    assert s.feedthrough_band_hz == SUPPRESSION_BAND_HZ == (5.0, 7.5)
+    assert s.max_amplification_db == 0.0
+    assert s.region() == Region(0.1, 0.1, (0.5, 10.0))
+    lim = s.limits()
+    assert (lim.peak_force_n, lim.continuous_force_n) == (3.3, 0.88)
+    assert lim.workspace_mm == DeviceLimits().workspace_mm
+    obj = s.to_json()
+    assert obj["damping_band_hz"] == [0.5, 10.0] and obj["peak_force_n"] == 3.3
+    json.dumps(obj, allow_nan=False)
+    # bands given as lists are normalised to tuples of floats
+    t = Specification(tracking_band_hz=[0.1, 3])
+    assert t.tracking_band_hz == (0.1, 3.0)
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("peak_force_n", 0.0),
+        ("continuous_force_n", -1.0),
+        ("intent_fraction", 0.0),
+        ("intent_fraction", 1.5),
+        ("intent_bandwidth_hz", math.inf),
+        ("decay_rate", -0.1),
+        ("min_damping", 1.0),
+        ("min_damping", -0.1),
+        ("tracking_error", 0.0),
+        ("max_amplification_db", math.nan),
+        ("damping_band_hz", (10.0, 0.5)),
+        ("damping_band_hz", (0.0, 10.0)),
+        ("tracking_band_hz", (0.05, 1.0, 2.0)),
+        ("feedthrough_band_hz", (5.0, math.inf)),
+        ("feedthrough_band_hz", "5-7.5"),
+        ("peak_force_n", "3.3"),
+    ],
+)
+def test_bad_parameters_name_the_field(field, value):
+    with pytest.raises(ParameterError, match=rf"Specification\.{field}"):
+        Specification(**{field: value})
+
+
+def test_bad_arguments_of_the_check(nominal):
+    with pytest.raises(ParameterError, match="members"):
+        check_specification([], None)
+    with pytest.raises(ParameterError, match="members"):
+        check_specification(nominal, None)
+    with pytest.raises(ParameterError, match=r"members\[1\]"):
+        check_specification([nominal, "loop"], None)
+    with pytest.raises(ParameterError, match="spec"):
+        check_specification([nominal], None, spec={"peak_force_n": 1.0})
+    with pytest.raises(ParameterError, match="simulate_peak"):
+        check_specification([nominal], None, simulate_peak=-1)
+    with pytest.raises(ParameterError, match="duration_s"):
+        check_specification([nominal], None, duration_s=0.0)
+    with pytest.raises(ModelStructureError, match="controller"):
+        check_specification([nominal], np.eye(2))
+
+
+# -- the nominal member without a controller --------------------------------------------------
+
+
+def test_nominal_member_uncompensated(nominal):
+    res = check_specification([nominal], None)
+    assert isinstance(res, SpecCheck) and res.members == 1
+    assert tuple(c.name for c in res.constraints) == CONSTRAINTS
+    ps = loop_poles(nominal)
+    assert ps.stable
+    # decay: the largest real part, -0.405 rad/s: within the 0.1 rad/s requirement
+    decay = res.constraint("decay rate")
+    assert decay.value == ps.max_real == pytest.approx(-0.4049, abs=1e-3)
+    assert decay.limit == -0.1 and decay.holds
+    assert decay.utilisation == pytest.approx(0.1 / 0.4049, rel=1e-3)
+    # damping: the structure mode at 6.24 Hz, damping ratio 0.024 < 0.1
+    f = np.abs(ps.poles.imag) / (2 * np.pi)
+    inband = (f >= 0.5) & (f <= 10.0)
+    zeta = np.min(-ps.poles.real[inband] / np.abs(ps.poles[inband]))
+    damping = res.constraint("damping")
+    assert damping.value == pytest.approx(zeta, rel=1e-12)
+    assert damping.value == pytest.approx(0.0244, abs=1e-3)
+    assert not damping.holds and damping.utilisation == pytest.approx(0.1 / zeta)
+    # agrees with the region's own test
+    assert Specification().region().violation(ps.poles[None, :])[0] > 0
+    # no controller: no force
+    for name in ("peak force", "continuous force"):
+        c = res.constraint(name)
+        assert c.value == 0.0 and c.holds and c.utilisation == 0.0
+    # the uncompensated loop is its own reference: no amplification (exactly at the limit)
+    feed = res.constraint("feedthrough")
+    assert feed.value == 0.0 and feed.holds and feed.utilisation == 1.0
+    # but the feedthrough spoils tracking: |Y/Y_ref - 1| = 3.22 near the 1.2 Hz BDFT mode
+    ft = np.geomspace(*TRACKING_BAND_HZ, 80)
+    trk = np.max(np.abs(output_ratio(nominal, None, ft) - 1.0))
+    tracking = res.constraint("tracking")
+    assert tracking.value == pytest.approx(trk, rel=1e-12)
+    assert tracking.value == pytest.approx(3.22, abs=0.01)
+    assert not tracking.holds and tracking.utilisation == pytest.approx(trk / 0.2)
+    assert not res.holds and res.binding == "tracking" and res.notes == ()
+    obj = res.to_json()
+    json.dumps(obj, allow_nan=False)
+    assert obj["binding"] == "tracking" and len(obj["constraints"]) == len(CONSTRAINTS)
+    with pytest.raises(ParameterError, match="constraint"):
+        res.constraint("stiffness")
+
+
+# -- a force controller -----------------------------------------------------------------------
+
+
+def test_exact_rms_force_matches_a_long_simulation(nominal, damper):
+    spec = Specification()
+    amp = nominal.intended_amplitude(spec.limits(), spec.intent_fraction)
+    exact = rms_force(nominal, damper, amp, spec.intent_bandwidth_hz)
+    assert exact == pytest.approx(0.791, abs=0.002)
+    # linear in the amplitude; no force without a force output
+    assert rms_force(nominal, damper, 2 * amp, 2.0) == pytest.approx(2 * exact, rel=1e-12)
+    assert rms_force(nominal, None, amp, 2.0) == 0.0
+    t = np.arange(400_001) / 1000.0
+    u = intended_motion(t, amp, spec.intent_bandwidth_hz, seed=0)
+    f = np.asarray(simulate(nominal, t, u, controller=damper)["f"])
+    simulated = float(np.std(f[t > 5.0]))
+    assert simulated == pytest.approx(exact, rel=0.05)
+    res = check_specification([nominal], damper, spec)
+    assert res.constraint("continuous force").value == pytest.approx(exact, rel=1e-12)
+
+
+def test_force_controller_on_the_nominal_member(nominal, damper):
+    res = check_specification([nominal], damper, seed=3)
+    peak = res.constraint("peak force")
+    # the peak is that of the seeded realistic motion on member 0 (seed + 0)
+    spec = Specification()
+    amp = nominal.intended_amplitude(spec.limits(), spec.intent_fraction)
+    t = np.arange(20_001) / 1000.0
+    f = simulate(nominal, t, intended_motion(t, amp, 2.0, seed=3), controller=damper)["f"]
+    assert peak.value == pytest.approx(float(np.max(np.abs(f))), rel=1e-12)
+    assert 1.5 < peak.value < spec.peak_force_n and peak.holds
+    rms = res.constraint("continuous force")
+    assert rms.value < peak.value and rms.holds
+    assert rms.utilisation == pytest.approx(rms.value / 0.88)
+    # the damper moves the poles left but amplifies the feedthrough near the structure mode
+    assert res.constraint("decay rate").value < loop_poles(nominal).max_real
+    feed = res.constraint("feedthrough")
+    assert feed.value == pytest.approx(1.70, abs=0.02) and not feed.holds
+    assert feed.utilisation == pytest.approx(10 ** (feed.value / 20))
+    util = {c.name: c.utilisation for c in res.constraints}
+    assert res.binding == max(util, key=util.get) == "tracking"
+    # a tight peak limit makes the peak force fail and bind
+    tight = check_specification(
+        [nominal], damper, dataclasses.replace(spec, peak_force_n=0.05), seed=3
+    )
+    tp = tight.constraint("peak force")
+    assert tp.value == peak.value and not tp.holds
+    assert tp.utilisation == pytest.approx(peak.value / 0.05)
+    assert tp.utilisation > util["tracking"]
+    assert tight.binding == "peak force" and not tight.holds
+
+
+def test_several_members_with_an_unstable_one(mixed_members, damper):
+    res = check_specification(mixed_members, damper, simulate_peak=1)
+    assert res.members == 4
+    poles = [loop_poles(m, controller=damper) for m in mixed_members]
+    stable = [p.stable for p in poles]
+    assert stable == [True, False, True, True]
+    decay = res.constraint("decay rate")
+    assert decay.value == max(p.max_real for p in poles) > 0
+    assert decay.worst_member == 1 and not decay.holds and decay.utilisation == math.inf
+    # undefined metrics on the unstable member are inf and named in the notes
+    for name in ("tracking", "feedthrough", "continuous force", "peak force"):
+        c = res.constraint(name)
+        assert c.value == math.inf and c.worst_member == 1 and not c.holds
+    assert any("unstable" in n and "[1]" in n for n in res.notes)
+    # ties of infinite utilisation go to the cause, the decay rate
+    assert res.binding == "decay rate" and not res.holds
+    json.dumps(res.to_json(), allow_nan=False)
+    # on the stable members alone: worst values are the maxima over them
+    stable_members = [m for m, s in zip(mixed_members, stable) if s]
+    res2 = check_specification(stable_members, damper, simulate_peak=1)
+    spec = Specification()
+    rms = [
+        rms_force(m, damper, m.intended_amplitude(spec.limits(), 0.25), 2.0) for m in stable_members
+    ]
+    c = res2.constraint("continuous force")
+    assert c.value == pytest.approx(max(rms), rel=1e-12)
+    assert c.worst_member == int(np.argmax(rms))
+    # the peak force is simulated on the member with the largest RMS force only
+    assert res2.constraint("peak force").worst_member == c.worst_member
+    assert any("peak force simulated" in n for n in res2.notes)
+    util = {k.name: k.utilisation for k in res2.constraints}
+    assert res2.binding == max(util, key=util.get)
+    assert all(math.isfinite(v) for v in util.values())
