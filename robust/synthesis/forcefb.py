@@ -32,6 +32,7 @@ import dataclasses
 import math
 
 import control as ct
+import numpy as np
 import scipy.linalg as sla
 
 from robust.checks import POSITIVE, Spec, validate_fields
@@ -40,6 +41,8 @@ from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
 from robust.model.wiring import connect, renamed
 from robust.synthesis.genplant import GeneralizedPlant
+from robust.synthesis.lmi import PlantBlocks
+from robust.synthesis.pk import ResponseBound, SynthesisMember
 
 __all__ = [
     "ForceFeedbackWeights",
@@ -49,6 +52,7 @@ __all__ = [
     "as_loop_controller",
     "as_plant_controller",
     "PLANT_MEASUREMENTS",
+    "synthesis_member",
     "FORCE_PLANT_SIGNALS",
 ]
 
@@ -278,3 +282,150 @@ def as_plant_controller(K: ct.StateSpace) -> ct.StateSpace:
         Controller in the loop's convention.
     """
     return renamed(K, PLANT_MEASUREMENTS)
+
+
+def _butterworth2(corner_hz: float, gain: float, inp: str, out: str, name: str) -> ct.StateSpace:
+    w = 2 * math.pi * corner_hz
+    return ct.ss(
+        ct.tf([gain * w * w], [1.0, math.sqrt(2.0) * w, w * w]), inputs=inp, outputs=out, name=name
+    )
+
+
+def synthesis_member(
+    loop: BDFTLoop,
+    *,
+    controls=("f",),
+    measurements=("x", "c"),
+    limits: DeviceLimits | None = None,
+    intent_fraction: float = 0.25,
+    intent_bandwidth_hz: float = 2.0,
+    tracking_error: float = 0.2,
+    tracking_bandwidth_hz: float = 3.0,
+    feedthrough_band_hz: tuple[float, float] | None = (5.0, 7.5),
+    max_amplification_db: float = 0.0,
+    n_feedthrough: int = 12,
+    label: str = "",
+):
+    """The three plants of one member for :func:`robust.synthesis.pk.pksyn_multi`.
+
+    All three come from ``loop.blocks`` (the junction table of
+    :mod:`robust.model.wiring`) with the controller's signals left open:
+
+    * region plant: ``u, controls -> y, measurements`` (the Figure 5 loop);
+    * H-infinity plant: the intended motion ``u`` (handle units) to the tracking error
+      ``z_t = W_t (r + r_corr - K_PSF u) / (tracking_error K_PSF)``, ``W_t`` a unit-gain
+      second-order Butterworth low-pass at ``tracking_bandwidth_hz``. Since the
+      cylinder follows its reference through the same loop with and without BDFT,
+      ``(r + r_corr - K_PSF u) / (K_PSF u) = Y / Y_ref - 1`` exactly, so
+      ``||u -> z_t||_inf <= 1`` means ``|Y/Y_ref - 1| <= tracking_error / |W_t|``;
+    * H2 plant (when the controls include the force ``f``): unit white noise ``w_u``
+      through the intent filter (second-order Butterworth at ``intent_bandwidth_hz``,
+      scaled so that ``u`` has the RMS ``A / sqrt(2)`` of the realistic intended motion,
+      ``A`` the intended amplitude, :meth:`BDFTLoop.intended_amplitude`) to the handle
+      force ``z_f = f`` in newtons: its H2 norm is the stationary RMS force
+      (as :func:`designs.spec.rms_force` computes it).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The member (a human with a force port when ``"f"`` is a control).
+    controls : sequence of str
+        Controller outputs, among ``f``, ``r_corr``.
+    measurements : sequence of str
+        Controller inputs, among ``x``, ``c``, ``y``.
+    limits : DeviceLimits, optional
+        Device limits (workspace for the intended amplitude).
+    intent_fraction : float
+        Intended amplitude as a fraction of the half-workspace.
+    intent_bandwidth_hz : float
+        Corner of the intent filter, Hz.
+    tracking_error : float
+        Allowed ``|Y/Y_ref - 1|`` in the intent band.
+    tracking_bandwidth_hz : float
+        Corner of the tracking weight, Hz.
+    feedthrough_band_hz : (float, float) or None
+        Band where the feedthrough ``|Y/Y_ref - 1|`` may not exceed the peak of the
+        uncompensated loop's over the band (formal response, even when that loop is
+        unstable) by more than ``max_amplification_db`` (as :mod:`designs.spec`
+        checks it): a :class:`robust.synthesis.pk.ResponseBound` on ``n_feedthrough``
+        linearly spaced frequencies, since ``Y/Y_ref - 1 = tracking_error T / W_t``
+        (``None``: no bound).
+    max_amplification_db : float
+        Allowed amplification, dB.
+    n_feedthrough : int
+        Frequencies of the bound.
+    label : str
+        The member's name.
+
+    Returns
+    -------
+    robust.synthesis.pk.SynthesisMember
+    """
+    controls, measurements = list(controls), list(measurements)
+    if not controls or any(c not in ("f", "r_corr") for c in controls):
+        raise ModelStructureError(f"controls must be among ('f', 'r_corr'); got {controls}")
+    if not measurements or any(m not in ("x", "c", "y") for m in measurements):
+        raise ModelStructureError(f"measurements must be among ('x', 'c', 'y'); got {measurements}")
+    if "f" in controls and not loop.human.has_force_port:
+        raise ModelStructureError(
+            f"force feedback needs a human with a force port; {loop.human.variant!r} has none"
+        )
+    lim = limits or DeviceLimits()
+    rc = "r_corr" in controls
+    ignore = ["f"] if loop.human.has_force_port and "f" not in controls else []
+    base = loop.blocks(bdft=True, reference_correction=rc)
+
+    def plant(extra, w, z, name):
+        sys = connect(
+            base + extra,
+            inputs=w + controls,
+            outputs=z + measurements,
+            name=name,
+            ignore_inputs=ignore,
+        )
+        gp = GeneralizedPlant.from_system(sys, w=w, u=controls, z=z, y=measurements)
+        if np.any(gp.D22 != 0):
+            raise ModelStructureError(f"{name}: the controls feed the measurements directly")
+        return PlantBlocks.from_generalized_plant(gp)
+
+    region = plant([], ["u"], ["y"], "region_plant")
+    k = loop.k_psf
+    track = [
+        _static(k, "u", "u_ref", "u_ref"),
+        ct.summing_junction(
+            inputs=["r", *(["r_corr"] if rc else []), "-u_ref"], output="e_cmd", name="cmd_err"
+        ),
+        _butterworth2(tracking_bandwidth_hz, 1.0 / (tracking_error * k), "e_cmd", "z_t", "W_t"),
+    ]
+    hinf = plant(track, ["u"], ["z_t"], "tracking_plant")
+    h2 = None
+    if "f" in controls:
+        amp = loop.intended_amplitude(lim, intent_fraction)
+        unit = intent_filter(intent_bandwidth_hz, 1.0)
+        h2n = float(np.sqrt(np.trace(unit.C @ ct.lyap(unit.A, unit.B @ unit.B.T) @ unit.C.T)))
+        gain = amp / (math.sqrt(2.0) * h2n)
+        h2 = plant(
+            [intent_filter(intent_bandwidth_hz, gain), _static(1.0, "f", "z_f", "force_out")],
+            ["w_u"],
+            ["z_f"],
+            "force_plant",
+        )
+    response = None
+    if feedthrough_band_hz is not None:
+        w = 2 * math.pi * np.linspace(*feedthrough_band_hz, n_feedthrough)
+        wt = 2 * math.pi * tracking_bandwidth_hz
+        s_ = 1j * w
+        W_t = wt * wt / (s_ * s_ + math.sqrt(2.0) * wt * s_ + wt * wt)
+        gain = tracking_error / W_t
+        T0 = np.array(
+            [
+                (
+                    hinf.C1 @ np.linalg.solve(1j * wi * np.eye(hinf.A.shape[0]) - hinf.A, hinf.B1)
+                    + hinf.D11
+                )[0, 0]
+                for wi in w
+            ]
+        )
+        peak = np.max(np.abs(gain * T0)) * 10 ** (max_amplification_db / 20)
+        response = ResponseBound(w, np.zeros_like(gain), gain, np.full(w.size, peak))
+    return SynthesisMember(region=region, hinf=hinf, h2=h2, label=label, response=response)

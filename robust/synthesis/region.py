@@ -1,0 +1,306 @@
+"""LMI pole regions (Chilali & Gahinet 1996): a decay rate and a damping cone, one certificate.
+
+A real matrix ``A`` has every eigenvalue in the region
+
+    D = { s : Re s <= -alpha }  intersected with  { s : Re s <= -zeta |s| }
+
+(decay rate ``alpha``, damping ratio ``zeta``) if and only if there is one symmetric
+``X > 0`` with ([CG96] Theorem 2.2; the intersection of LMI regions is the LMI region
+of the block-diagonal characteristic function, Property 2.2)::
+
+    decay:  A' X + X A + 2 alpha X < 0
+    cone:   [ s (A' X + X A)    c (X A - A' X) ]
+            [ c (A' X - X A)    s (A' X + X A) ]  < 0,   s = sin(theta), c = cos(theta),
+
+with ``theta = arccos(zeta)`` the half-angle of the cone about the negative real axis
+(the characteristic function ``L = 0``, ``M = [[s, c], [-c, s]]``).
+
+:func:`certify_region` finds such an ``X`` for a given ``A`` by a small SDP, solved in
+coordinates where the decay Lyapunov matrix is the identity (the data of lightly damped
+loops spread over decades; recentring keeps the SDP well conditioned), and checks the
+answer in numpy: the LMI matrices rebuilt from ``X`` and their largest eigenvalues,
+and the eigenvalues of ``A`` themselves.
+
+References
+----------
+.. [CG96] M. Chilali, P. Gahinet, "H-infinity design with pole placement constraints:
+   an LMI approach", IEEE TAC 41(3) (1996) 358-367.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cvxpy as cp
+import numpy as np
+import scipy.linalg as sla
+
+from robust.checks import Spec, check_scalar
+from robust.errors import InfeasibleError, ModelStructureError, SolverError, VerificationError
+from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers, solve_problem
+
+__all__ = [
+    "PoleRegion",
+    "RegionCertificate",
+    "region_lmis",
+    "certify_region",
+    "recentring",
+    "check_region_certificate",
+    "sym",
+]
+
+
+def sym(M):
+    """The symmetric part ``(M + M') / 2`` of a numpy array or cvxpy expression.
+
+    Parameters
+    ----------
+    M : numpy.ndarray or cvxpy expression
+        A square matrix.
+    """
+    return (M + M.T) / 2
+
+
+def _kron(a, B):
+    return cp.kron(a, B) if isinstance(B, cp.Expression) else np.kron(a, B)
+
+
+@dataclasses.dataclass(frozen=True)
+class PoleRegion:
+    """Decay rate and damping cone, the LMI region of [CG96].
+
+    Parameters
+    ----------
+    decay_rate : float
+        Every eigenvalue has real part ``<= -decay_rate``, rad/s (``>= 0``).
+    min_damping : float
+        Every eigenvalue has damping ratio ``-Re s / |s| >= min_damping`` (in ``[0, 1)``;
+        0: no cone).
+    """
+
+    decay_rate: float = 0.0
+    min_damping: float = 0.0
+
+    def __post_init__(self):
+        check_scalar("decay_rate", self.decay_rate, Spec(low=0.0), owner="PoleRegion")
+        check_scalar(
+            "min_damping", self.min_damping, Spec(0.0, 1.0, False, True), owner="PoleRegion"
+        )
+
+    @property
+    def cone(self) -> tuple[float, float]:
+        """``(sin theta, cos theta)`` of the cone's half-angle ``theta = arccos(zeta)``."""
+        th = math.acos(self.min_damping)
+        return math.sin(th), math.cos(th)
+
+    def violations(self, poles) -> np.ndarray:
+        """Per eigenvalue, ``max(Re s + alpha, Re s + zeta |s|)`` (``<= 0``: inside), rad/s.
+
+        Parameters
+        ----------
+        poles : array_like of complex
+            Eigenvalues, rad/s.
+        """
+        p = np.asarray(poles, complex).ravel()
+        v = p.real + self.decay_rate
+        if self.min_damping > 0:
+            v = np.maximum(v, p.real + self.min_damping * np.abs(p))
+        return v
+
+    def violation(self, poles) -> float:
+        """Largest of :meth:`violations` (``-inf`` without eigenvalues), rad/s.
+
+        Parameters
+        ----------
+        poles : array_like of complex
+            Eigenvalues, rad/s.
+        """
+        v = self.violations(poles)
+        return float(v.max()) if v.size else -math.inf
+
+    def scaled(self, w0: float) -> PoleRegion:
+        """The same region in time ``tau = w0 t`` (the decay rate divided by ``w0``).
+
+        Parameters
+        ----------
+        w0 : float
+            Time scale, rad/s.
+        """
+        return PoleRegion(self.decay_rate / w0, self.min_damping)
+
+    def describe(self) -> str:
+        """One line: the region in words."""
+        text = f"every pole with real part <= -{self.decay_rate:g} rad/s"
+        if self.min_damping > 0:
+            text += f" and damping ratio >= {self.min_damping:g}"
+        return text
+
+
+def region_lmis(A, X, region: PoleRegion) -> dict:
+    """The region's LMI matrices for ``A`` and ``X`` (each must be negative definite).
+
+    Parameters
+    ----------
+    A : numpy.ndarray or cvxpy expression, shape (n, n)
+        The matrix (numpy when ``X`` is a cvxpy variable, and vice versa).
+    X : numpy.ndarray or cvxpy expression, shape (n, n)
+        Symmetric Lyapunov matrix.
+    region : PoleRegion
+        The region.
+
+    Returns
+    -------
+    dict
+        ``{"decay": ...}`` and, with a cone, ``{"cone": ...}``: symmetric matrices of
+        sizes ``n`` and ``2 n``.
+    """
+    XA = X @ A
+    out = {"decay": sym(XA + XA.T + 2 * region.decay_rate * X)}
+    if region.min_damping > 0:
+        s, c = region.cone
+        M = np.array([[s, c], [-c, s]])
+        out["cone"] = sym(_kron(M, XA) + _kron(M.T, XA.T))
+    return out
+
+
+def recentring(P, *, floor: float = 1e-12) -> np.ndarray:
+    """``T`` with ``T' P T = I`` for a symmetric positive definite ``P``.
+
+    Eigenvalues below ``floor`` times the largest are raised to it, so ``T`` stays
+    invertible for a nearly singular ``P``.
+
+    Parameters
+    ----------
+    P : numpy.ndarray, shape (n, n)
+        Symmetric positive (semi)definite matrix.
+    floor : float
+        Relative floor of the eigenvalues.
+    """
+    w, V = np.linalg.eigh(sym(np.asarray(P, float)))
+    if not np.all(np.isfinite(w)) or w.max() <= 0:
+        raise VerificationError("recentring: the matrix is not positive definite")
+    w = np.maximum(w, floor * w.max())
+    return V / np.sqrt(w)[None, :]
+
+
+@dataclasses.dataclass(frozen=True)
+class RegionCertificate:
+    """A verified region certificate for one matrix.
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        The Lyapunov matrix, in the coordinates of the matrix given.
+    lmi_max_eig : dict
+        Largest eigenvalue of each LMI matrix rebuilt in numpy from ``X`` (scaled by
+        ``||X||``; all negative), and ``"X_min"``, the smallest eigenvalue of ``X``
+        relative to its largest (positive).
+    violation : float
+        :meth:`PoleRegion.violation` of the matrix's eigenvalues (negative).
+    """
+
+    X: np.ndarray
+    lmi_max_eig: dict
+    violation: float
+
+    def to_json(self) -> dict:
+        """The checks of the certificate (no matrix)."""
+        return {"lmi_max_eig": dict(self.lmi_max_eig), "violation": self.violation}
+
+
+def check_region_certificate(A, X, region: PoleRegion) -> dict:
+    """Largest eigenvalue of each LMI matrix, relative to ``||X||``, and ``X``'s smallest.
+
+    Parameters
+    ----------
+    A, X : numpy.ndarray
+        The matrix and the candidate certificate.
+    region : PoleRegion
+        The region.
+    """
+    X = sym(np.asarray(X, float))
+    scale = float(np.linalg.norm(X, 2))
+    out = {
+        k: float(np.linalg.eigvalsh(M).max()) / scale
+        for k, M in region_lmis(np.asarray(A, float), X, region).items()
+    }
+    out["X_min"] = float(np.linalg.eigvalsh(X).min()) / scale
+    return out
+
+
+def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionCertificate:
+    """One Lyapunov matrix proving every eigenvalue of ``A`` lies in ``region`` ([CG96]).
+
+    The SDP maximises the margin ``t`` of ``region_lmis(A, X) <= -t I`` over
+    ``I <= X``, ``trace X <= 10 n`` in coordinates ``x = T xt`` where the decay
+    Lyapunov matrix (from ``(A + alpha I)' X0 + X0 (A + alpha I) = -I``) is the
+    identity; the certificate is mapped back and checked in numpy.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        A real square matrix.
+    region : PoleRegion
+        The region.
+    solvers : sequence of str
+        cvxpy SDP solvers, in order.
+
+    Returns
+    -------
+    RegionCertificate
+
+    Raises
+    ------
+    ModelStructureError
+        If ``A`` is not a finite real square matrix or ``region`` not a PoleRegion.
+    InfeasibleError
+        If an eigenvalue of ``A`` lies outside the region (no certificate can exist),
+        or the SDP finds no positive margin.
+    VerificationError
+        If the returned certificate fails its numpy check.
+    """
+    if not isinstance(region, PoleRegion):
+        raise ModelStructureError(
+            f"certify_region: region must be a PoleRegion; got {type(region).__name__}"
+        )
+    A = np.asarray(A, dtype=float)
+    if A.ndim != 2 or A.shape[0] != A.shape[1] or not np.all(np.isfinite(A)):
+        raise ModelStructureError(
+            f"certify_region: A must be a finite real square matrix; got shape {A.shape}"
+        )
+    solvers = check_solvers(solvers, name="certify_region: solvers", sdp=True)
+    n = A.shape[0]
+    v = region.violation(np.linalg.eigvals(A))
+    if v >= 0:
+        raise InfeasibleError(
+            f"certify_region: an eigenvalue lies outside the region ({region.describe()}): "
+            f"violation {v:.3g} rad/s"
+        )
+    Ash = A + region.decay_rate * np.eye(n)
+    T = recentring(sla.solve_continuous_lyapunov(Ash.T, -np.eye(n)))
+    At = np.linalg.solve(T, A @ T)
+    X = cp.Variable((n, n), symmetric=True)
+    t = cp.Variable()
+    cons = [X >> np.eye(n), cp.trace(X) <= 10 * n]
+    cons += [M << -t * np.eye(M.shape[0]) for M in region_lmis(At, X, region).values()]
+    try:
+        solve_problem(
+            cp.Problem(cp.Maximize(t), cons), step="certify_region: analysis", solvers=solvers
+        )
+    except SolverError as exc:
+        raise InfeasibleError(f"certify_region: no certificate found: {exc}") from None
+    if t.value is None or not t.value > 0:
+        raise InfeasibleError(
+            f"certify_region: the analysis SDP found no positive margin (t = {t.value})"
+        )
+    Ti = np.linalg.inv(T)
+    Xo = sym(Ti.T @ sym(X.value) @ Ti)
+    checks = check_region_certificate(A, Xo, region)
+    failed = {k: e for k, e in checks.items() if (e <= 0 if k == "X_min" else e >= 0)}
+    if failed:
+        raise VerificationError(
+            f"certify_region: the certificate fails its numpy check: {failed} "
+            f"(region {region.describe()}, eigenvalue violation {v:.3g} rad/s)"
+        )
+    return RegionCertificate(Xo, checks, v)

@@ -1,0 +1,326 @@
+"""Nonsmooth multi-model tuning of a fixed-order controller: the start of the LMI iteration.
+
+The sequential LMIs of :mod:`robust.synthesis.pk` are local and need a controller
+that already places every design member's poles in the region. This module supplies
+it, after the stabilisation phase of HIFOO (Burke, Henrion, Lewis & Overton, IFAC
+ROCOND 2006; Gumussoy, Henrion, Millstone & Overton, ROCOND 2009): the controller's
+state-space entries ``Omega = [[Ak, Bk], [Ck, Dk]]`` are tuned by BFGS, which handles
+such nonsmooth objectives well (Lewis & Overton, Math. Programming 141, 2013), on
+
+    f(Omega) = tau * log mean_j exp((max(v_j, -m) + m) / tau)                (region)
+             + w_t * mean over members and frequencies of relu(|T(jw)| / g_t - 1)^2
+             + w_2 * sum over members of relu(h2_i / h2_bound - 1)^2
+             + prox * ||(Omega - Omega_0) / unit||^2 / size,
+
+``v_j`` the region violations (decay and damping cone,
+:meth:`robust.synthesis.region.PoleRegion.violations`) of every pole of every
+member's region plant, ``m`` the margin, ``T`` the member's H-infinity channel and
+``h2_i`` its H2 norm. Gradients are exact: eigenvalues ``d lambda = l^H Bb dOmega Cb r /
+l^H r``; frequency responses ``dT = (D12b + C R Bb) dOmega (Cb R B + D21b)`` with
+``R = (jw - A)^-1``; the H2 norm through the adjoint Lyapunov equation,
+``d||G||^2 = 2 trace(L dA W + ...)`` with ``A W + W A' + B B' = 0`` and
+``A' L + L A + C' C = 0``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control
+import numpy as np
+import scipy.linalg as sla
+import scipy.optimize as so
+
+from robust.checks import POSITIVE, Spec, check_int, check_scalar
+from robust.errors import ModelStructureError
+from robust.synthesis.pk import (
+    SynthesisMember,
+    from_scaled,
+    responses,
+    scale_members,
+    to_scaled,
+)
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.scaling import ControllerMatrices
+
+__all__ = ["TuningResult", "tune_members", "REGION_WEIGHT", "RESTARTS", "BARRIER_WEIGHT"]
+
+#: BFGS restarts per phase (each from the previous end point).
+RESTARTS = 8
+
+#: Weight of the log barrier of the region in the budget phase.
+BARRIER_WEIGHT = 1e-4
+
+#: Weight of the region term (in rad/s) against the budget terms.
+REGION_WEIGHT = 100.0
+
+
+@dataclasses.dataclass(frozen=True)
+class TuningResult:
+    """Result of :func:`tune_members`.
+
+    Parameters
+    ----------
+    K : control.StateSpace
+        The tuned controller.
+    violation : float
+        Largest region violation over the members' poles, rad/s (negative: inside).
+    tracking : float
+        Largest ``|T(jw)|`` over the members and the grid.
+    h2 : float
+        Largest H2 norm over the members (0 without H2 plants).
+    response : float
+        Largest ``|offset + gain T| / bound`` of the members' response bounds (0 without).
+    objective : float
+        Final objective value.
+    iterations : int
+        BFGS iterations.
+    """
+
+    K: control.StateSpace
+    violation: float
+    tracking: float
+    h2: float
+    response: float
+    objective: float
+    iterations: int
+
+
+class _Terms:
+    """The objective's terms on the scaled members (time tau = w0 t, unit channels)."""
+
+    def __init__(self, scaled, region, w_rad, margin, tau, g_t, h2_bound):
+        self.reg = [m.region for m in scaled]
+        self.hinf = [m.hinf for m in scaled]
+        self.h2 = [m.h2 for m in scaled if m.h2 is not None]
+        self.resp = [(m.hinf, m.response, m.w_resp) for m in scaled if m.response is not None]
+        self.region, self.w, self.margin, self.tau = region, w_rad, margin, tau
+        self.g_t, self.h2_bound = g_t, h2_bound
+
+    def region_term(self, Om):
+        vs, gs = zip(*self._violations(Om))
+        v, g = np.concatenate(vs), np.concatenate(gs)
+        zz = (np.maximum(v, -self.margin) + self.margin) / self.tau
+        e = np.exp(zz - zz.max())
+        # log of the mean, not the sum: 0 when every pole is inside with the margin, so the
+        # budget terms are not lost against a constant in the line search
+        val = self.tau * (zz.max() + np.log(e.mean()))
+        wts = e / e.sum() * (v > -self.margin)
+        return val, np.einsum("k,kij->ij", wts, g), float(v.max())
+
+    def barrier_term(self, Om):
+        """``-sum log(-v_j)`` over the region violations (``inf`` outside the region)."""
+        val, grad = 0.0, np.zeros_like(Om)
+        for v, g in self._violations(Om):
+            if v.max() >= 0:
+                return np.inf, grad
+            val -= float(np.sum(np.log(-v)))
+            grad -= np.einsum("k,kij->ij", 1.0 / v, g)
+        return val, grad
+
+    def _violations(self, Om):
+        z = self.region.min_damping
+        for cl in self.reg:
+            A = cl.A0 + cl.Bb @ Om @ cl.Cb
+            lam, R = np.linalg.eig(A)
+            L = np.linalg.inv(R).conj().T
+            left, right = cl.Bb.T @ L.conj(), cl.Cb @ R
+            denom = np.sum(L.conj() * R, axis=0)
+            dl = left.T[:, :, None] * right.T[:, None, :] / denom[:, None, None]
+            yield lam.real + self.region.decay_rate, dl.real
+            if z > 0:
+                mag = np.maximum(np.abs(lam), 1e-300)
+                grad = dl.real + z * (lam.conj()[:, None, None] * dl).real / mag[:, None, None]
+                yield lam.real + z * mag, grad
+
+    def tracking_term(self, Om):
+        val, grad, worst = 0.0, np.zeros_like(Om), 0.0
+        count = len(self.hinf) * self.w.size
+        for cl in self.hinf:
+            T, dT = responses(cl, Om, self.w)
+            mag = np.abs(T)
+            worst = max(worst, float(mag.max()))
+            ex = np.maximum(mag / self.g_t - 1.0, 0.0)
+            dmag = (np.conj(T)[:, None, None] * dT).real / np.maximum(mag, 1e-300)[:, None, None]
+            val += float(np.sum(ex**2)) / count
+            grad += np.einsum("k,kij->ij", 2 * ex / self.g_t / count, dmag)
+        return val, grad, worst
+
+    def response_term(self, Om):
+        """Hinge penalty of the members' response bounds (e.g. the feedthrough)."""
+        val, grad, worst = 0.0, np.zeros_like(Om), 0.0
+        for cl, rb, w in self.resp:
+            T, dT = responses(cl, Om, w)
+            r = rb.offset + rb.gain * T
+            rel = np.abs(r) / rb.bound
+            worst = max(worst, float(rel.max()))
+            ex = np.maximum(rel - 1.0, 0.0)
+            drel = (np.conj(r)[:, None, None] * rb.gain[:, None, None] * dT).real / (
+                np.maximum(np.abs(r), 1e-300) * rb.bound
+            )[:, None, None]
+            val += float(np.sum(ex**2)) / w.size
+            grad += np.einsum("k,kij->ij", 2 * ex / w.size, drel)
+        return val, grad, worst
+
+    def h2_term(self, Om):
+        val, grad, worst = 0.0, np.zeros_like(Om), 0.0
+        for cl in self.h2:
+            A, B, C, _ = cl.matrices(Om)
+            if np.linalg.eigvals(A).real.max() >= 0:
+                return 1e6, grad, np.inf
+            W = sla.solve_continuous_lyapunov(A, -B @ B.T)
+            Lo = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
+            J = float(np.trace(C @ W @ C.T))
+            h = np.sqrt(max(J, 0.0))
+            worst = max(worst, h)
+            ex = h / self.h2_bound - 1.0
+            if ex <= 0:
+                continue
+            dJ = 2 * (cl.Bb.T @ Lo @ W @ cl.Cb.T + cl.D12b.T @ C @ W @ cl.Cb.T)
+            dJ += 2 * cl.Bb.T @ Lo @ B @ cl.D21b.T
+            val += ex * ex
+            grad += 2 * ex * dJ / (2 * max(h, 1e-300) * self.h2_bound)
+        return val, grad, worst
+
+
+def tune_members(
+    members,
+    K0,
+    region: PoleRegion,
+    *,
+    tracking_bound: float = 1.0,
+    h2_bound: float | None = None,
+    freqs_hz=None,
+    margin: float = 0.2,
+    tau: float = 0.05,
+    weights: tuple[float, float] = (10.0, 10.0),
+    prox: float = 1e-4,
+    max_iter: int = 400,
+    w0: float = 20.0,
+) -> TuningResult:
+    """Tune ``K0`` over ``members``: poles in ``region`` with a margin, budgets kept.
+
+    See the module notes for the objective.
+
+    Parameters
+    ----------
+    members : sequence of SynthesisMember
+        Design members.
+    K0 : control.StateSpace
+        Starting controller ``y -> u`` (fixes the order).
+    region : PoleRegion
+        The region; the objective stops pushing once every violation is below
+        ``-margin``.
+    tracking_bound : float
+        Bound ``g_t`` on ``|T(jw)|`` of every member's H-infinity channel on the grid.
+    h2_bound : float, optional
+        Bound on every member's H2 norm (needs H2 plants).
+    freqs_hz : array_like, optional
+        Frequency grid of the tracking term, Hz (default 30 log-spaced, 0.05-3 Hz).
+    margin : float
+        Region margin, rad/s.
+    tau : float
+        Temperature of the log-sum-exp, rad/s.
+    weights : (float, float)
+        Weights of the tracking and H2 terms.
+    prox : float
+        Weight of the proximal term to ``K0``.
+    max_iter : int
+        BFGS iterations.
+    w0 : float
+        Time scale of the tuning, rad/s (as :func:`robust.synthesis.pk.pksyn_multi`).
+
+    Returns
+    -------
+    TuningResult
+    """
+    if not isinstance(region, PoleRegion):
+        raise ModelStructureError(
+            f"tune_members: region must be a PoleRegion; got {type(region).__name__}"
+        )
+    members = list(members)
+    if not members or not all(isinstance(m, SynthesisMember) for m in members):
+        raise ModelStructureError("tune_members: members must be SynthesisMember objects")
+    if not isinstance(K0, control.StateSpace):
+        raise ModelStructureError(
+            f"tune_members: K0 must be a control.StateSpace; got {type(K0).__name__}"
+        )
+    for name, val in (("tracking_bound", tracking_bound), ("margin", margin), ("tau", tau)):
+        check_scalar(name, val, POSITIVE, owner="tune_members")
+    if h2_bound is not None:
+        check_scalar("h2_bound", h2_bound, POSITIVE, owner="tune_members")
+    check_scalar("prox", prox, Spec(low=0.0), owner="tune_members")
+    check_int("max_iter", max_iter, low=0, owner="tune_members")
+    check_scalar("w0", w0, POSITIVE, owner="tune_members")
+    f_hz = np.geomspace(0.05, 3.0, 30) if freqs_hz is None else np.asarray(freqs_hz, float)
+    K = ControllerMatrices(*(np.asarray(M, float) for M in (K0.A, K0.B, K0.C, K0.D)))
+    nk = K.Ak.shape[0]
+    if K.omega().shape != (nk + members[0].nu, nk + members[0].ny):
+        raise ModelStructureError(
+            f"tune_members: K0 must map {members[0].ny} measurements to {members[0].nu} controls"
+        )
+    channels, scaled = scale_members(members, nk, w0)
+    Om0 = to_scaled(K.omega(), nk, w0, channels)
+    unit = np.ones_like(Om0)
+    terms = _Terms(
+        scaled,
+        region.scaled(w0),
+        2 * np.pi * f_hz / w0,
+        margin / w0,
+        tau / w0,
+        tracking_bound,
+        (h2_bound / np.sqrt(w0)) if h2_bound is not None else np.inf,
+    )
+    wt, w2 = weights
+
+    def fun(theta, budget_scale):
+        Om = theta.reshape(Om0.shape) * unit
+        if budget_scale < 1:
+            val, grad, _ = terms.region_term(Om)
+            # the region term in rad/s, weighted so that feasibility comes first
+            val, grad = REGION_WEIGHT * w0 * val, REGION_WEIGHT * w0 * grad
+        else:
+            # phase B starts inside the region: a log barrier keeps it there smoothly
+            val, grad = terms.barrier_term(Om)
+            if not np.isfinite(val):
+                return 1e300, np.zeros(theta.size)
+            val, grad = BARRIER_WEIGHT * val, BARRIER_WEIGHT * grad
+        tv, tg, _ = terms.tracking_term(Om)
+        rv, rg, _ = terms.response_term(Om)
+        hv, hg, _ = terms.h2_term(Om) if h2_bound is not None else (0.0, 0.0, 0.0)
+        d = (Om - Om0) / unit
+        val += budget_scale * (wt * (tv + rv) + w2 * hv) + prox * np.sum(d * d) / d.size
+        grad = grad + budget_scale * (wt * (tg + rg) + w2 * hg) + 2 * prox * d / d.size / unit
+        return val, (grad * unit).ravel()
+
+    # phase A: into the region (budgets nearly off); phase B: the budgets, the region kept
+    # by the same (then flat) term
+    x = (Om0 / unit).ravel()
+    nit = 0
+    for budget_scale in (1e-3, 1.0):
+        xb, fb = x, fun(x, budget_scale)[0]
+        # BFGS on a nonsmooth objective stops when its line search fails at a kink;
+        # restarting from the last point (a fresh Hessian) continues the descent
+        for _ in range(RESTARTS):
+            res = so.minimize(
+                fun,
+                xb,
+                args=(budget_scale,),
+                jac=True,
+                method="BFGS",
+                options={"maxiter": max_iter, "gtol": 1e-10},
+            )
+            nit += int(res.nit)
+            if not res.fun < fb - 1e-9 * max(abs(fb), 1e-12):
+                break
+            xb, fb = res.x, res.fun
+        if budget_scale < 1 or terms.region_term(xb.reshape(Om0.shape) * unit)[2] < 0:
+            x = xb
+    Om = x.reshape(Om0.shape) * unit
+    _, _, viol = terms.region_term(Om)
+    _, _, trk = terms.tracking_term(Om)
+    _, _, resp = terms.response_term(Om)
+    h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if h2_bound is not None else 0.0
+    Oo = from_scaled(Om, nk, w0, channels)
+    Kt = control.ss(Oo[:nk, :nk], Oo[:nk, nk:], Oo[nk:, :nk], Oo[nk:, nk:])
+    return TuningResult(Kt, viol * w0, trk, float(h2), resp, float(fun(x, 1.0)[0]), nit)

@@ -1,0 +1,192 @@
+"""Multi-model synthesis by the P-K iteration on a family, and its start by nonsmooth tuning.
+
+Every certified number is checked against an independent computation: closed-loop
+poles of the Figure 5 loop by python-control, the handle force by
+:func:`designs.spec.rms_force`, the tracking and feedthrough by
+:func:`designs.evaluate.output_ratio`.
+"""
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from designs.evaluate import output_ratio
+from designs.hinf_nominal import design_hinf_nominal
+from designs.spec import Specification, check_specification, rms_force
+from designs.virtual_damping import virtual_damping_controller
+from robust.analysis.loops import loop_poles
+from robust.errors import InfeasibleError, ModelStructureError, ParameterError
+from robust.model.device import DeviceLimits
+from robust.synthesis.forcefb import synthesis_member
+from robust.synthesis.pk import _Affine, h2_norm, pksyn_multi, responses, scale_members, to_scaled
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.tuning import _Terms, tune_members
+from uncertainty import default_family
+from uncertainty.margins import scaled_bounds
+
+REGION = PoleRegion(decay_rate=0.1, min_damping=0.1)
+
+
+def _loop_controller(K):
+    return ct.ss(K.A, K.B, K.C, K.D, inputs=["x", "c"], outputs=["f"], name="K")
+
+
+@pytest.fixture(scope="module")
+def family():
+    return default_family()
+
+
+@pytest.fixture(scope="module")
+def loops(family):
+    """The nominal member and two corners of the box scaled to 0.02."""
+    lo, hi = scaled_bounds(family, 0.02)
+    rng = np.random.default_rng(3)
+    rows = [family.nominal_values()] + [
+        np.where(rng.random(lo.size) > 0.5, hi, lo) for _ in range(2)
+    ]
+    return [family.member(r) for r in rows]
+
+
+@pytest.fixture(scope="module")
+def members(loops):
+    return [synthesis_member(m, label=f"m{i}") for i, m in enumerate(loops)]
+
+
+@pytest.fixture(scope="module")
+def start(family):
+    """The nominal LMI H-infinity design, balanced-truncated to order 4."""
+    K = design_hinf_nominal(family).controller
+    Kr = ct.balred(K, 4, method="truncate")
+    return ct.ss(Kr.A, Kr.B, Kr.C, Kr.D)
+
+
+@pytest.fixture(scope="module")
+def tuned(members, start):
+    return tune_members(members, start, REGION, tracking_bound=0.95, h2_bound=0.8, margin=0.05)
+
+
+@pytest.fixture(scope="module")
+def design(members, tuned):
+    return pksyn_multi(members, tuned.K, REGION, h2_bound=0.85, max_iter=3)
+
+
+def test_member_plants_reproduce_the_spec_quantities(loops):
+    """The H2 channel is the RMS force, the H-infinity channel the weighted tracking error."""
+    loop = loops[0]
+    m = synthesis_member(loop)
+    K = virtual_damping_controller(loop, 10.0, 50.0)  # x -> f, one state
+    nk = K.nstates
+    # as a controller of (x, c): the c column zero
+    Om = np.block([[K.A, K.B, np.zeros((nk, 1))], [K.C, K.D, np.zeros((1, 1))]])
+    A, B, C, _ = _Affine(m.h2, nk).matrices(Om)
+    amp = loop.intended_amplitude(DeviceLimits(), 0.25)
+    assert h2_norm(A, B, C) == pytest.approx(rms_force(loop, K, amp, 2.0), rel=1e-9)
+    f = np.geomspace(0.05, 2.0, 25)
+    T, _ = responses(_Affine(m.hinf, nk), Om, 2 * np.pi * f)
+    wt = 2 * np.pi * 3.0
+    s = 2j * np.pi * f
+    W = wt * wt / (s * s + math.sqrt(2.0) * wt * s + wt * wt)
+    ratio = output_ratio(loop, K, f)
+    np.testing.assert_allclose(T, (ratio - 1.0) * W / 0.2, rtol=1e-8, atol=1e-10)
+    # the response bound at no controller is the uncompensated feedthrough peak
+    T0, _ = responses(_Affine(m.hinf, 0), np.zeros((1, 2)), m.response.w)
+    assert np.max(m.response.values(T0)) == pytest.approx(1.0, rel=1e-9)
+
+
+def test_response_derivative_matches_finite_differences(members, start):
+    m = members[1]
+    K = ct.ss(start.A, start.B, start.C, start.D)
+    Om = np.block([[K.A, K.B], [K.C, K.D]])
+    cl = _Affine(m.hinf, K.nstates)
+    w = 2 * np.pi * np.array([0.3, 1.2, 6.0])
+    T, dT = responses(cl, Om, w)
+    E = np.zeros_like(Om)
+    E[1, 4] = 1.0
+    h = 1e-6 * max(1.0, abs(Om[1, 4]))
+    Tp, _ = responses(cl, Om + h * E, w)
+    Tm, _ = responses(cl, Om - h * E, w)
+    np.testing.assert_allclose((Tp - Tm) / (2 * h), dT[:, 1, 4], rtol=1e-5)
+
+
+def test_tuning_places_every_member_in_the_region(loops, tuned):
+    assert tuned.violation < 0
+    K = _loop_controller(tuned.K)
+    for loop in loops:
+        poles = loop_poles(loop, controller=K).poles
+        assert REGION.violation(poles) < 0
+    assert tuned.h2 <= 0.8 * 1.02
+
+
+def test_pk_certificates_hold_and_agree_with_independent_checks(loops, design):
+    assert design.iterations >= 1 and len(design.certificates) == 3
+    K = _loop_controller(design.K)
+    amp = loops[0].intended_amplitude(DeviceLimits(), 0.25)
+    for loop, c in zip(loops, design.certificates):
+        # every rebuilt inequality strictly negative
+        assert max(c.lmi_max_eig.values()) < 0
+        assert c.region.lmi_max_eig["decay"] < 0 and c.region.lmi_max_eig["cone"] < 0
+        # independent: the loop's poles in the region (python-control)
+        poles = loop_poles(loop, controller=K).poles
+        assert REGION.violation(poles) == pytest.approx(c.region_violation, abs=1e-6)
+        assert c.region_violation < 0
+        # independent: norms below the certified levels
+        assert c.gamma <= c.gamma_shifted * (1 + 1e-9) <= c.gamma_bound * (1 + 1e-6)
+        assert rms_force(loop, K, amp, 2.0) == pytest.approx(c.h2, rel=1e-6)
+        assert c.h2 <= c.h2_bound
+        # the certificate in original coordinates is positive definite
+        assert np.linalg.eigvalsh(c.P).min() > 0
+    assert design.gamma_bound == max(c.gamma_bound for c in design.certificates)
+    gam = [h["gamma"] for h in design.history]
+    assert all(b <= a * (1 + 1e-12) for a, b in zip(gam, gam[1:]))
+    obj = design.to_json()
+    assert obj["members"] == 3 and obj["lmi_solves"] == len(design.solve_times)
+
+
+def test_pk_design_meets_the_spec_on_its_members(loops, design):
+    """The certified design on its members, checked by the spec (exact force, simulation)."""
+    res = check_specification(loops, _loop_controller(design.K), Specification(), seed=1)
+    c = {k.name: k for k in res.constraints}
+    assert c["decay rate"].holds and c["damping"].holds
+    assert c["continuous force"].value < 0.88 and c["peak force"].value < 3.3
+    assert c["feedthrough"].value < 0.0
+
+
+def test_pk_bad_input(members, tuned, start):
+    with pytest.raises(ParameterError, match="h2_bound"):
+        pksyn_multi(members, tuned.K, REGION)
+    with pytest.raises(ModelStructureError, match="SynthesisMember"):
+        pksyn_multi([], tuned.K, REGION, h2_bound=1.0)
+    with pytest.raises(ModelStructureError, match="K0"):
+        pksyn_multi(members, np.eye(2), REGION, h2_bound=1.0)
+    # the uncompensated nominal has its structure mode at damping 0.024: outside the cone
+    K0 = ct.ss(-20 * np.eye(2), np.zeros((2, 2)), np.zeros((1, 2)), np.zeros((1, 2)))
+    with pytest.raises(InfeasibleError, match="m0"):
+        pksyn_multi(members, K0, REGION, h2_bound=1.0)
+    with pytest.raises(ParameterError, match="trust"):
+        pksyn_multi(members, tuned.K, REGION, h2_bound=1.0, trust=0.0)
+
+
+def test_tuning_gradients_match_finite_differences(members, start):
+    """The analytic gradients of the tuning terms (region, tracking, H2, response)."""
+    nk = start.nstates
+    channels, scaled = scale_members(members[:1], nk, 20.0)
+    Om = to_scaled(np.block([[start.A, start.B], [start.C, start.D]]), nk, 20.0, channels)
+    terms = _Terms(
+        scaled,
+        REGION.scaled(20.0),
+        2 * np.pi * np.geomspace(0.05, 3, 8) / 20.0,
+        0.3 / 20,
+        0.05 / 20,
+        0.01,
+        1e-3,
+    )
+    for name in ("region_term", "tracking_term", "h2_term", "response_term"):
+        _, g, _ = getattr(terms, name)(Om)
+        for idx in ((0, 0), (nk, nk + 1), (1, nk)):
+            E = np.zeros_like(Om)
+            E[idx] = 1e-6
+            fp = getattr(terms, name)(Om + E)[0]
+            fm = getattr(terms, name)(Om - E)[0]
+            assert (fp - fm) / 2e-6 == pytest.approx(g[idx], rel=1e-4, abs=1e-8), (name, idx)
