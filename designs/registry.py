@@ -13,17 +13,22 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from designs import (
     cancellation,
     hinf_nominal,
     hinf_robust,
     hinf_robust_corr,
+    robust_lmi,
     virtual_damping,
     workspace,
 )
-from designs.evaluate import evaluate_design
+from designs.evaluate import INTENT_FRACTION, evaluate_design, intended_motion
 from designs.result import Design, DesignResult
+from designs.spec import Specification, check_specification
 from robust.analysis.sampled import sampled_data_check
+from robust.analysis.saturation import saturated_response
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
 from robust.model.device import DeviceLimits
@@ -42,6 +47,9 @@ DESIGNS: dict[str, Design] = {
         hinf_nominal.DESIGN,
         hinf_robust.DESIGN,
         hinf_robust_corr.DESIGN,
+        robust_lmi.DESIGN,
+        robust_lmi.DESIGN_CYLINDER,
+        robust_lmi.DESIGN_WORKSPACE_FORCE,
     )
 }
 
@@ -105,6 +113,44 @@ def _sampled_checks(family, worst: dict, K, Kd) -> dict:
     }
 
 
+def _spec_check(family, members, ev, K, spec: Specification, seed: int) -> dict:
+    """The specification on the nominal member, the worst sampled member and 8 more.
+
+    The worst sampled member is the one with the largest closed-loop real part; the
+    others are the first members of the sample (seeded), so the check is reproducible.
+    """
+    rows = [family.nominal_values()]
+    if ev.worst:
+        rows.append([ev.worst[n] for n in family.names])
+    rows += [members.values[i] for i in range(min(8, len(members)))]
+    res = check_specification([family.member(r) for r in rows], K, spec, seed=seed)
+    return dict(res.to_json(), specification=spec.to_json())
+
+
+def _saturation_checks(family, worst: dict, details: dict, Kd, limits, seed: int) -> dict:
+    """Saturated 1 kHz simulations of the critical members (limit cycles, divergence).
+
+    The nominal member, the worst sampled member and the margin search's critical member
+    (where it is a member of the family), each driven by the seeded realistic intended
+    motion for 20 s, then left to settle, with the handle force clipped at the peak.
+    """
+    rows = {"nominal": family.nominal_values()}
+    if worst:
+        rows["worst sampled"] = [worst[n] for n in family.names]
+    crit = details.get("robust_margin", {}).get("critical")
+    if crit and crit.get("scale", 2.0) <= 1.0:
+        rows["margin critical"] = [crit["parameters"][n] for n in family.names]
+    out = {}
+    dt = float(Kd.dt)
+    t = np.arange(int(round(20.0 / dt))) * dt
+    for label, row in rows.items():
+        loop = family.member(row)
+        amp = loop.intended_amplitude(limits, INTENT_FRACTION)
+        u = intended_motion(t, amp, 2.0, seed=seed)
+        out[label] = saturated_response(loop, Kd, u, peak_force_n=limits.peak_force_n).to_json()
+    return out
+
+
 def run_design(
     name: str,
     *,
@@ -157,10 +203,13 @@ def run_design(
     fam, K = res.family, res.controller
     ev = evaluate_design(name, fam, members, K, limits=lim, notes=res.notes)
     details = dict(res.details, held_out=_held_out(fam, K, held_out, seed + 1))
+    spec = Specification(peak_force_n=lim.peak_force_n, continuous_force_n=lim.continuous_force_n)
+    details["spec"] = _spec_check(fam, members, ev, K, spec, seed)
     if margin_boxes:
         margin = robust_margin(
             fam,
             controller=K,
+            region=spec.region(),
             samples=1000,
             seed=seed,
             max_boxes=margin_boxes,
@@ -174,6 +223,8 @@ def run_design(
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
         Kd = discretize(K, lim.sample_time_s, prewarp_hz=prewarp)
         details["sampled_data_check"] = _sampled_checks(fam, ev.worst, K, Kd)
+        if "f" in K.output_labels:
+            details["saturation_check"] = _saturation_checks(fam, ev.worst, details, Kd, lim, seed)
         if out_dir is not None:
             art = ControllerArtifact(
                 name=name,

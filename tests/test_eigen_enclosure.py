@@ -8,6 +8,8 @@ Random parametric matrices: every eigenvalue of every sampled member lies in the
 enclosures.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -98,9 +100,28 @@ def test_frequency_uncertainty_does_not_move_the_real_part():
     assert stats["boxes"] < 200
 
 
-def test_coalescing_eigenvalues_are_not_certified_by_simple_enclosures():
+def test_coalescing_eigenvalues_get_block_enclosures():
     # a double eigenvalue of the centre: the simple-eigenvalue enclosures cannot separate
+    # the pair; the block route encloses both in discs about -1
     res = enclose_eigenvalues(
         np.array([[-1.0, 1.0], [0.0, -1.0]]), np.zeros((1, 2, 2)), np.zeros(1), np.zeros((2, 2))
     )
-    assert not res["ok"]
+    assert res["ok"] and res["route"] == "blocks" and not res["disjoint"]
+    np.testing.assert_allclose(res["centre"], [-1.0, -1.0], atol=1e-12)
+    assert np.all(res["rad_re"] < 1e-6)
+
+
+@pytest.mark.parametrize("delta", [1e-6, 1e-3, 1e-1], ids=["d1e-6", "d1e-3", "d1e-1"])
+def test_block_discs_hold_the_eigenvalues_through_an_exceptional_point(delta):
+    # A(t) = [[-1, 1], [t, -1]], |t| <= delta: eigenvalues -1 +- sqrt(t) meet at t = 0
+    # (a defective double eigenvalue); the discs must grow like sqrt(delta)
+    Ac = np.array([[-1.0, 1.0], [0.0, -1.0]])
+    J = np.array([[[0.0, 0.0], [1.0, 0.0]]])
+    res = enclose_eigenvalues(Ac, J, np.array([delta]), np.zeros((2, 2)))
+    assert res["ok"] and res["route"] == "blocks"
+    r = res["rad_re"].max()
+    assert math.sqrt(delta) <= r <= 3 * math.sqrt(delta) + 1e-6
+    for t in np.linspace(-delta, delta, 21):
+        for lam in np.linalg.eigvals(Ac + t * J[0]):
+            d = np.abs(lam - res["centre"])
+            assert np.any(d <= res["rad_re"] * (1 + 1e-12) + 1e-15)

@@ -85,6 +85,7 @@ __all__ = [
     "LOWER_METHODS",
     "margin_upper_bound",
     "margin_lower_bound",
+    "worst_member",
     "robust_margin",
 ]
 
@@ -182,6 +183,26 @@ class Region:
                 f"{self.band_hz[0]:g}-{self.band_hz[1]:g} Hz"
             )
         return "; ".join(parts)
+
+    def distance_inside(self, poles) -> np.ndarray:
+        """A lower bound of each pole's distance to the region's edge (<= 0: outside).
+
+        The distance to the line ``Re s = -max(decay_rate, STABILITY_TOL)`` and, with a
+        damping requirement, to the cone ``Re s = -min_damping |s|`` (for every pole,
+        inside the band or not: a lower bound).
+
+        Parameters
+        ----------
+        poles : array_like of complex
+            Poles, rad/s.
+        """
+        p = np.asarray(poles, complex).ravel()
+        d = -(p.real + max(self.decay_rate, STABILITY_TOL))
+        if self.min_damping > 0:
+            theta = math.acos(self.min_damping)
+            phi = np.arctan2(np.abs(p.imag), -p.real)
+            d = np.minimum(d, np.abs(p) * np.sin(np.clip(theta - phi, -np.pi / 2, np.pi / 2)))
+        return d
 
     def violation(self, poles: np.ndarray) -> np.ndarray:
         """Largest violation of the region per member, rad/s (> 0: outside the region).
@@ -360,12 +381,55 @@ def _worst_in_box(family, k, controller, region, *, samples, seed, starts):
             return -val, -g * span
 
         x0 = (T[i] - lo_t) / span
-        res = minimize(
-            fun, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * d, options={"maxiter": 60}
-        )
+        # a parameter of zero width (a degenerate range, or the scale 0) stays where it is
+        bounds = [(0.0, 1.0) if w > 0 else (0.0, 0.0) for w in hi_t - lo_t]
+        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
         if -res.fun > best_v:
             best_v, best_t = float(-res.fun), lo_t + res.x * span
     return best_v, _to_values(family, best_t[None])[0]
+
+
+def worst_member(
+    family: Family,
+    k: float,
+    *,
+    controller: ct.StateSpace | None = None,
+    region: Region | None = None,
+    samples: int = 300,
+    seed: int = 0,
+    starts: int = 3,
+) -> tuple[float, np.ndarray]:
+    """The member of the box scaled to ``k`` with the largest region violation found.
+
+    The search of :func:`margin_upper_bound` at one scale: a seeded Latin hypercube of
+    the scaled box (batched poles), then L-BFGS-B with eigenvalue gradients from the
+    ``starts`` worst samples.
+
+    Parameters
+    ----------
+    family : Family
+        The family.
+    k : float
+        Scale of the box about the nominal (>= 0).
+    controller : control.StateSpace, optional
+        Compensator in the loop's convention.
+    region : Region, optional
+        Required region (default: open left half-plane).
+    samples, seed, starts : int
+        Latin-hypercube members, seed, local searches.
+
+    Returns
+    -------
+    violation : float
+        Largest region violation found (> 0: the member breaks the region), rad/s.
+    row : numpy.ndarray
+        That member's parameter values (``family.names`` order).
+    """
+    if not (math.isfinite(k) and k >= 0):
+        raise ParameterError(f"worst_member: k must be a finite scale >= 0; got {k!r}")
+    return _worst_in_box(
+        family, float(k), controller, region or Region(), samples=samples, seed=seed, starts=starts
+    )
 
 
 def margin_upper_bound(
@@ -971,7 +1035,7 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
     Ac = asm.matrix(c_v, c_v, False)
     G = asm.matrix(lo_v, hi_v, True)
     E_rad = Ac.rad + np.einsum("p,pab->ab", h, G.der.rad)
-    res = enclose_eigenvalues(Ac.mid, G.der.mid, h, E_rad)
+    res = enclose_eigenvalues(Ac.mid, G.der.mid, h, E_rad, margin=region.distance_inside)
     if not np.all(np.isfinite(res["eigs"])):
         res = dict(res, eigs=np.linalg.eigvals(Ac.mid))
     centre_v = region.violation(res["eigs"][None])[0]

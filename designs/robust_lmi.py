@@ -1,0 +1,604 @@
+"""Robust compensators by LMI synthesis, with the certified robust margin maximised.
+
+The design, top to bottom (the same steps serve the three designs of this module):
+
+1. family and specification: the default family (or its doubled workspace) and the
+   handle-force specification :class:`designs.spec.Specification` (device force limits
+   under the realistic intended motion, pole region, tracking, feedthrough);
+2. start: a fixed-order controller (the nominal LMI H-infinity design balanced-truncated
+   to ``order`` for handle force; a seeded low-gain filter for the cylinder reference);
+3. a ladder of family scales ``k`` (the box scaled about the nominal, as the robust margin
+   scales it, :mod:`uncertainty.margins`). At each scale, rounds of:
+
+   * design members: the nominal, then the member of the scaled box whose closed-loop
+     poles break the region most (:func:`uncertainty.margins.worst_member`) and the
+     sampled member that binds the specification;
+   * synthesis: :func:`robust.synthesis.tuning.tune_members` (the nonsmooth start), then
+     :func:`robust.synthesis.pk.pksyn_multi`, the LMI synthesis: the P-K iteration with
+     a certificate per design member (bounded-real with decay rate, H2 for the RMS
+     force, Chilali-Gahinet region);
+   * checks: no member of the scaled box found outside the region, the specification on
+     the design members and on seeded samples of the scaled box
+     (:func:`designs.spec.check_specification`), and the pole region certified over the
+     whole scaled box (:func:`uncertainty.margins.margin_lower_bound` at ``k``);
+
+4. bisection between the last scale reached and the first that failed;
+5. result: the controller of the largest certified scale, its certificates, and the
+   constraint that binds at the first scale not reached.
+
+The force budget of the synthesis is the RMS force ``min(budget_fraction * continuous,
+peak / crest_factor)``: the peak force of a realistic motion is about ``crest_factor``
+times its RMS (4.2 on the 20 s simulations of the specification).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import control as ct
+import numpy as np
+
+from designs.hinf_nominal import design_hinf_nominal
+from designs.result import Design, DesignResult
+from designs.spec import Specification, check_specification
+from robust.checks import POSITIVE, Spec, check_int, validate_fields
+from robust.errors import BDFTError, InfeasibleError, ParameterError
+from robust.synthesis.forcefb import synthesis_member
+from robust.synthesis.pk import pksyn_multi
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.tuning import tune_members
+from uncertainty.margins import margin_lower_bound, scaled_bounds, worst_member
+
+__all__ = [
+    "RobustOptions",
+    "ScaleLevel",
+    "RobustLMIDesign",
+    "maximise_margin",
+    "build",
+    "build_cylinder",
+    "build_workspace_force",
+    "DESIGN",
+    "DESIGN_CYLINDER",
+    "DESIGN_WORKSPACE_FORCE",
+]
+
+#: Scales tried upwards (the box about the nominal; 1 = the whole family).
+LADDER = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class RobustOptions:
+    """Settings of the margin maximisation (every one changes the result; all are reported).
+
+    Parameters
+    ----------
+    controls : tuple of str
+        Controller outputs (``("f",)`` handle force, ``("r_corr",)`` cylinder reference).
+    measurements : tuple of str
+        Controller inputs, among ``x``, ``c``, ``y``.
+    order : int
+        Controller order.
+    budget_fraction : float
+        Fraction of the continuous-force limit the RMS force of the design members may use.
+    crest_factor : float
+        Assumed peak-to-RMS ratio of the force under the realistic motion.
+    tracking_bound : float
+        Bound of the weighted tracking channel on the design members (below 1 leaves
+        room for the members between them).
+    ladder : tuple of float
+        Scales tried upwards.
+    bisection : int
+        Bisection steps between the last scale reached and the first failed.
+    rounds : int
+        Design-member rounds per scale.
+    pk_iterations : int
+        P-K steps per round.
+    worst_samples : int
+        Latin-hypercube members of the worst-member search per round.
+    spec_samples : int
+        Seeded members of the scaled box the specification is checked on per round.
+    margin_boxes : int
+        Sub-boxes of the region certificate per scale.
+    seed : int
+        Seed of every sample (written into the result).
+    """
+
+    controls: tuple = ("f",)
+    measurements: tuple = ("x", "c")
+    order: int = 4
+    budget_fraction: float = 0.95
+    crest_factor: float = 4.2
+    tracking_bound: float = 0.95
+    ladder: tuple = LADDER
+    bisection: int = 1
+    rounds: int = 3
+    pk_iterations: int = 4
+    worst_samples: int = 200
+    spec_samples: int = 12
+    margin_boxes: int = 60
+    seed: int = 0
+
+    def __post_init__(self):
+        validate_fields(
+            self,
+            {
+                "budget_fraction": Spec(0.0, 1.0, True, False),
+                "crest_factor": POSITIVE,
+                "tracking_bound": POSITIVE,
+            },
+        )
+        for name, low in (
+            ("order", 1),
+            ("bisection", 0),
+            ("rounds", 1),
+            ("pk_iterations", 0),
+            ("worst_samples", 10),
+            ("spec_samples", 0),
+            ("margin_boxes", 1),
+            ("seed", 0),
+        ):
+            check_int(name, getattr(self, name), low=low, owner="RobustOptions")
+        ladder = tuple(float(k) for k in self.ladder)
+        if not ladder or any(not (0 < k <= 8) for k in ladder) or list(ladder) != sorted(ladder):
+            raise ParameterError(
+                f"RobustOptions.ladder must be increasing scales in (0, 8]; got {self.ladder}"
+            )
+        object.__setattr__(self, "ladder", ladder)
+
+    def force_budget(self, spec: Specification) -> float:
+        """The RMS force the synthesis allows, N."""
+        return min(
+            self.budget_fraction * spec.continuous_force_n, spec.peak_force_n / self.crest_factor
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class ScaleLevel:
+    """One scale tried.
+
+    Parameters
+    ----------
+    scale : float
+        The box scale.
+    reached : bool
+        Whether a controller met the checks on members at this scale: no member of the
+        scaled box found outside the region, the specification on the design members and
+        the seeded samples.
+    members : int
+        Design members at the end.
+    worst_violation : float
+        Largest region violation found in the scaled box, rad/s.
+    certified : bool
+        Whether, in addition, the region was certified over the whole scaled box.
+    binding : str
+        The specification's binding constraint on the checked members.
+    utilisation : float
+        Its utilisation (above 1: violated).
+    reason : str
+        Why the scale was not reached (empty if it was).
+    seconds : float
+        Time spent at this scale.
+    """
+
+    scale: float
+    reached: bool
+    members: int
+    worst_violation: float
+    certified: bool
+    binding: str
+    utilisation: float
+    reason: str
+    seconds: float
+
+
+@dataclasses.dataclass(frozen=True)
+class RobustLMIDesign:
+    """The result of :func:`maximise_margin`.
+
+    Parameters
+    ----------
+    controller : control.StateSpace or None
+        Loop convention (``x, c -> f`` etc.); ``None`` if not even the nominal member was
+        reached.
+    scale : float
+        Largest scale reached: no member of the box scaled to it was found outside the
+        region and the specification held on every checked member.
+    certified_scale : float
+        Largest scale at which the region was also certified over the whole box (with
+        the controller found there; the shipped controller's own certified margin is
+        computed by :func:`designs.registry.run_design`).
+    levels : tuple of ScaleLevel
+        Every scale tried, in order.
+    synthesis : dict
+        The LMI synthesis of the final controller (:meth:`MultiObjectiveResult.to_json`).
+    spec : dict
+        The specification check at ``scale`` (:meth:`SpecCheck.to_json`).
+    design_rows : numpy.ndarray
+        Parameter rows of the final design members.
+    force_budget : float
+        RMS force budget of the synthesis, N.
+    options : RobustOptions
+        The settings.
+    failed : ScaleLevel or None
+        The first scale not reached (what binds there), ``None`` if every scale was.
+    """
+
+    controller: object
+    scale: float
+    certified_scale: float
+    levels: tuple
+    synthesis: dict
+    spec: dict
+    design_rows: np.ndarray
+    force_budget: float
+    options: RobustOptions
+    failed: ScaleLevel | None
+
+
+def _loop_controller(K, options: RobustOptions, name: str) -> ct.StateSpace:
+    return ct.ss(
+        K.A,
+        K.B,
+        K.C,
+        K.D,
+        inputs=list(options.measurements),
+        outputs=list(options.controls),
+        name=name,
+    )
+
+
+def _start(family, options: RobustOptions, limits) -> ct.StateSpace:
+    """The starting controller ``y -> u`` (plant convention, no signal names)."""
+    nk = options.order
+    if options.controls == ("f",) and options.measurements == ("x", "c"):
+        K = design_hinf_nominal(family, limits=limits).controller
+        Kr = ct.balred(K, nk, method="truncate") if nk < K.nstates else K
+        return ct.ss(Kr.A, Kr.B, Kr.C, Kr.D)
+    # a seeded, slow, low-gain filter: the entries break the symmetry of the states
+    rng = np.random.default_rng(options.seed)
+    ny, nu = len(options.measurements), len(options.controls)
+    A = -20.0 * np.eye(nk) + rng.normal(scale=2.0, size=(nk, nk))
+    return ct.ss(
+        A, 1e-3 * rng.normal(size=(nk, ny)), 1e-3 * rng.normal(size=(nu, nk)), 0 * np.eye(nu, ny)
+    )
+
+
+def _members(family, rows, options: RobustOptions, spec: Specification, limits):
+    out = []
+    for i, r in enumerate(rows):
+        out.append(
+            synthesis_member(
+                family.member(r, check_bounds=False),
+                controls=options.controls,
+                measurements=options.measurements,
+                limits=limits,
+                intent_fraction=spec.intent_fraction,
+                intent_bandwidth_hz=spec.intent_bandwidth_hz,
+                tracking_error=spec.tracking_error,
+                feedthrough_band_hz=spec.feedthrough_band_hz,
+                max_amplification_db=spec.max_amplification_db,
+                label=f"member {i}",
+            )
+        )
+    return out
+
+
+def _spec_rows(family, k: float, n: int, seed: int) -> np.ndarray:
+    lo, hi = scaled_bounds(family, k)
+    U = np.random.default_rng(seed).random((n, lo.size))
+    return lo + U * (hi - lo)
+
+
+def _try_scale(family, k, K, rows, spec, options, limits, progress):
+    """Rounds of design members and synthesis at scale ``k``; returns the outcome."""
+    region = PoleRegion(spec.decay_rate, spec.min_damping)
+    mregion = spec.region()
+    budget = options.force_budget(spec)
+    h2 = budget if "f" in options.controls else None
+    rows = [np.asarray(r, float) for r in rows]
+    t0 = time.perf_counter()
+    outcome = {"reached": False, "reason": "", "certified": False, "K": K, "pk": None}
+    check = None
+    worst_v = math.nan
+    for rnd in range(options.rounds):
+        members = _members(family, rows, options, spec, limits)
+        tuned = tune_members(
+            members, K, region, tracking_bound=options.tracking_bound, h2_bound=h2, margin=0.05
+        )
+        if tuned.violation >= 0:
+            outcome["reason"] = (
+                f"no controller found with every design member's poles in the region "
+                f"(violation {tuned.violation:.3g} rad/s)"
+            )
+            break
+        try:
+            pk = pksyn_multi(
+                members,
+                tuned.K,
+                region,
+                h2_bound=h2 * 1.05 if h2 else None,
+                max_iter=options.pk_iterations,
+            )
+        except (InfeasibleError, BDFTError) as exc:
+            outcome["reason"] = f"LMI synthesis failed: {exc}"
+            break
+        K = pk.K
+        KL = _loop_controller(K, options, "K")
+        worst_v, row = worst_member(
+            family,
+            k,
+            controller=KL,
+            region=mregion,
+            samples=options.worst_samples,
+            seed=options.seed + rnd,
+        )
+        srows = _spec_rows(family, k, options.spec_samples, options.seed + 1000 + rnd)
+        checked = np.vstack([rows, srows]) if len(srows) else np.asarray(rows)
+        check = check_specification(
+            [family.member(r, check_bounds=False) for r in checked],
+            KL,
+            spec,
+            seed=options.seed,
+            simulate_peak=3,
+        )
+        if progress:
+            progress(
+                f"scale {k:.3g}, round {rnd + 1}: {len(rows)} design members, worst region "
+                f"violation {worst_v:.3g} rad/s, binding {check.binding}"
+            )
+        outcome.update(K=K, pk=pk, check=check)
+        if worst_v < 0 and check.holds:
+            break
+        if worst_v >= 0:
+            rows.append(row)
+        if not check.holds:
+            bad = max(check.constraints, key=lambda c: c.utilisation)
+            if bad.worst_member >= len(rows) - (1 if worst_v >= 0 else 0):
+                rows.append(checked[bad.worst_member])
+    else:
+        outcome["reason"] = outcome["reason"] or (
+            f"after {options.rounds} rounds of design members: worst region violation "
+            f"{worst_v:.3g} rad/s, specification {'holds' if check and check.holds else 'fails'}"
+        )
+    if check is not None and worst_v < 0 and check.holds:
+        lower, _ = margin_lower_bound(
+            family,
+            controller=_loop_controller(outcome["K"], options, "K"),
+            region=mregion,
+            k_hint=k,
+            ladder=0,
+            iterations=0,
+            max_boxes=options.margin_boxes,
+        )
+        outcome["certified"] = lower >= k
+        outcome["reached"] = True
+    bad = max(check.constraints, key=lambda c: c.utilisation) if check else None
+    level = ScaleLevel(
+        scale=float(k),
+        reached=outcome["reached"],
+        members=len(rows),
+        worst_violation=float(worst_v),
+        certified=outcome["certified"],
+        binding=bad.name if bad else "",
+        utilisation=float(bad.utilisation) if bad else math.inf,
+        reason="" if outcome["reached"] else outcome["reason"],
+        seconds=time.perf_counter() - t0,
+    )
+    return level, outcome, rows
+
+
+def maximise_margin(
+    family,
+    *,
+    spec: Specification | None = None,
+    options: RobustOptions | None = None,
+    limits=None,
+    progress=None,
+) -> RobustLMIDesign:
+    """The controller with the largest certified family scale that meets the specification.
+
+    See the module notes for the method.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The family (physical human for handle force).
+    spec : Specification, optional
+        The specification (default: its defaults).
+    options : RobustOptions, optional
+        The settings.
+    limits : DeviceLimits, optional
+        Device limits (workspace of the intended motion; default: the specification's).
+    progress : callable, optional
+        Called with a short message after each round.
+
+    Returns
+    -------
+    RobustLMIDesign
+    """
+    spec = spec or Specification()
+    options = options or RobustOptions()
+    limits = limits or spec.limits()
+    K = _start(family, options, limits)
+    rows = [family.nominal_values()]
+    levels = []
+    best = None  # (scale, outcome, rows) of the largest scale reached
+    certified = 0.0
+    failed = None
+    # the nominal member first (scale 0), then the ladder
+    for k in (0.0, *options.ladder):
+        level, outcome, new_rows = _try_scale(family, k, K, rows, spec, options, limits, progress)
+        levels.append(level)
+        if not level.reached:
+            failed = level
+            break
+        best, K, rows = (k, outcome, new_rows), outcome["K"], new_rows
+        if level.certified:
+            certified = max(certified, k)
+    if failed is not None and best is not None and options.bisection:
+        lo, hi = best[0], failed.scale
+        for _ in range(options.bisection):
+            k = 0.5 * (lo + hi)
+            level, outcome, new_rows = _try_scale(
+                family, k, best[1]["K"], best[2], spec, options, limits, progress
+            )
+            levels.append(level)
+            if level.reached:
+                best, lo = (k, outcome, new_rows), k
+                if level.certified:
+                    certified = max(certified, k)
+            else:
+                hi = k
+    if best is None:
+        return RobustLMIDesign(
+            None,
+            0.0,
+            0.0,
+            tuple(levels),
+            {},
+            {},
+            np.asarray(rows),
+            options.force_budget(spec),
+            options,
+            failed,
+        )
+    k, outcome, rows = best
+    return RobustLMIDesign(
+        controller=_loop_controller(outcome["K"], options, "robust_lmi"),
+        scale=float(k),
+        certified_scale=float(certified),
+        levels=tuple(levels),
+        synthesis=outcome["pk"].to_json(),
+        spec=outcome["check"].to_json(),
+        design_rows=np.asarray(rows),
+        force_budget=options.force_budget(spec),
+        options=options,
+        failed=failed,
+    )
+
+
+def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult:
+    notes = []
+    if d.controller is None:
+        raise InfeasibleError(
+            f"{name}: no controller meets the specification even on the nominal member: "
+            f"{d.failed.reason if d.failed else ''}"
+        )
+    if d.failed is not None:
+        notes.append(
+            f"the specification holds on the checked members up to family scale {d.scale:.3g}; "
+            f"at scale {d.failed.scale:.3g} it fails: {d.failed.reason} (binding constraint: "
+            f"{d.failed.binding}, utilisation {d.failed.utilisation:.3g})"
+        )
+    details = {
+        "scale": d.scale,
+        "certified_scale": d.certified_scale,
+        "force_budget_rms_n": d.force_budget,
+        "levels": [dataclasses.asdict(x) for x in d.levels],
+        "binding_at_failure": None if d.failed is None else dataclasses.asdict(d.failed),
+        "synthesis": d.synthesis,
+        "spec_at_scale": d.spec,
+        "design_members": len(d.design_rows),
+        "options": dataclasses.asdict(d.options),
+        "specification": spec.to_json(),
+        "seed": d.options.seed,
+    }
+    return DesignResult(
+        name=name,
+        description=description,
+        family=family,
+        controller=d.controller,
+        order_full=d.controller.nstates,
+        reduction_error_bound=0.0,
+        details=details,
+        notes=tuple(notes),
+        artifact_exclude=("levels",),
+    )
+
+
+def _spec_for(limits) -> Specification:
+    return Specification(
+        peak_force_n=limits.peak_force_n, continuous_force_n=limits.continuous_force_n
+    )
+
+
+def build(family, samples, limits) -> DesignResult:
+    """Robust handle-force H-infinity by LMI synthesis (design (i) of the comparison).
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The default family.
+    samples : uncertainty.SampleSet
+        Unused (the design members come from the worst-member search and seeded samples).
+    limits : robust.model.device.DeviceLimits
+        Device limits.
+    """
+    spec = Specification(
+        peak_force_n=limits.peak_force_n, continuous_force_n=limits.continuous_force_n
+    )
+    d = maximise_margin(family, spec=spec, limits=limits)
+    return _result(DESIGN_NAME, DESCRIPTION, family, d, spec)
+
+
+def build_cylinder(family, samples, limits) -> DesignResult:
+    """Cab-vibration control through the cylinder reference, no handle force (design (ii)).
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The default family.
+    samples : uncertainty.SampleSet
+        Unused.
+    limits : robust.model.device.DeviceLimits
+        Device limits.
+    """
+    spec = Specification(
+        peak_force_n=limits.peak_force_n, continuous_force_n=limits.continuous_force_n
+    )
+    options = RobustOptions(controls=("r_corr",), measurements=("c", "y"))
+    d = maximise_margin(family, spec=spec, options=options, limits=limits)
+    return _result(CYLINDER_NAME, CYLINDER_DESCRIPTION, family, d, spec)
+
+
+def build_workspace_force(family, samples, limits) -> DesignResult:
+    """The doubled workspace with robust handle-force feedback (design (iii)).
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The default family (its workspace is doubled here).
+    samples : uncertainty.SampleSet
+        Unused.
+    limits : robust.model.device.DeviceLimits
+        Device limits.
+    """
+    spec = Specification(
+        peak_force_n=limits.peak_force_n, continuous_force_n=limits.continuous_force_n
+    )
+    fam2 = family.with_workspace_factor(2.0)
+    d = maximise_margin(fam2, spec=spec, limits=limits)
+    res = _result(WORKSPACE_FORCE_NAME, WORKSPACE_FORCE_DESCRIPTION, fam2, d, spec)
+    return res.replace(cost_note="a handle workspace twice the Omni's (142 mm)")
+
+
+DESIGN_NAME = "hinf-robust-lmi"
+DESCRIPTION = (
+    "robust H-infinity handle-force feedback: P-K LMI synthesis with per-member certificates, "
+    "certified family scale maximised"
+)
+CYLINDER_NAME = "cylinder-lmi"
+CYLINDER_DESCRIPTION = (
+    "cab-vibration control through the cylinder reference (no handle force), same LMI synthesis"
+)
+WORKSPACE_FORCE_NAME = "workspace2-hinf-lmi"
+WORKSPACE_FORCE_DESCRIPTION = (
+    "doubled handle workspace combined with robust handle-force feedback (same LMI synthesis)"
+)
+DESIGN = Design(DESIGN_NAME, DESCRIPTION, build)
+DESIGN_CYLINDER = Design(CYLINDER_NAME, CYLINDER_DESCRIPTION, build_cylinder)
+DESIGN_WORKSPACE_FORCE = Design(
+    WORKSPACE_FORCE_NAME, WORKSPACE_FORCE_DESCRIPTION, build_workspace_force
+)
