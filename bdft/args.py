@@ -336,6 +336,35 @@ def real(
     return parse
 
 
+def factor_list(option: str) -> Callable[[str], tuple]:
+    """An argparse ``type``: comma-separated positive factors (at most 8), or ``none``.
+
+    Parameters
+    ----------
+    option : str
+        The option's name (for the function's name).
+
+    Returns
+    -------
+    callable
+        ``parse(text) -> tuple of float`` (empty for ``none``).
+    """
+    one = real(option, low=0.0, low_open=True, high=100.0)
+
+    def parse(text: str) -> tuple:
+        if text.strip().lower() == "none":
+            return ()
+        parts = [t for t in text.split(",") if t.strip()]
+        if not parts or len(parts) > 8:
+            raise argparse.ArgumentTypeError(
+                f"expected 1 to 8 comma-separated factors in (0, 100] or 'none'; got {text!r}"
+            )
+        return tuple(one(t.strip()) for t in parts)
+
+    parse.__name__ = f"factors for {option}"
+    return parse
+
+
 def members(option: str = "--samples") -> Callable[[str], int]:
     """An argparse ``type`` for a number of family members: 1 to :func:`max_members`.
 

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
 from bdft.args import (
     check_artifact_targets,
     check_report_dir,
+    factor_list,
     members,
     members_help,
     seed,
 )
 from bdft.common import add_margin_boxes_argument, print_json
 from designs.registry import design_names
+from designs.robust_lmi import force_tradeoff
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from uncertainty import default_family
@@ -56,6 +59,14 @@ def register(sub) -> None:
     )
     add_margin_boxes_argument(p, "each design")
     p.add_argument(
+        "--tradeoff",
+        type=factor_list("--tradeoff"),
+        default=(0.5, 1.0, 2.0, 4.0),
+        help="multiples of the Omni's force limits at which the robust handle-force LMI design "
+        "is rerun for the force-budget trade-off (Pareto curve), comma-separated, or 'none' "
+        "(default: 0.5,1,2,4; about a minute each)",
+    )
+    p.add_argument(
         "--json", action="store_true", help="print one JSON object with every design's summary"
     )
     p.set_defaults(func=run)
@@ -75,7 +86,8 @@ def run(args) -> int:
         validated on), ``seed`` (sampling seed), ``out`` (report folder: a new folder or
         a previous report; it and the artifacts' folder are checked before any work),
         ``margin_boxes`` (sub-boxes per scale of each design's certified robust margin,
-        0 skips it) and ``json``.
+        0 skips it), ``tradeoff`` (force-limit multiples of the Pareto sweep, empty skips
+        it) and ``json``.
 
     Returns
     -------
@@ -98,14 +110,25 @@ def run(args) -> int:
         progress=progress,
         margin_boxes=args.margin_boxes,
     )
+    tradeoff = None
+    if args.tradeoff:
+        print("[bdft report] force-budget trade-off ...", file=sys.stderr, flush=True)
+        tradeoff = force_tradeoff(
+            default_family(),
+            args.tradeoff,
+            progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
+        )
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
-    path = write_design_report(runs, out, samples=args.samples, seed=args.seed, coverage=coverage)
+    path = write_design_report(
+        runs, out, samples=args.samples, seed=args.seed, coverage=coverage, tradeoff=tradeoff
+    )
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
         print_json(
             {
                 "report": str(path),
                 "family": coverage.to_json(),
+                "tradeoff": [dataclasses.asdict(p) for p in tradeoff or []],
                 "designs": {
                     k: (str(r) if isinstance(r, Exception) else r.to_json())
                     for k, r in runs.items()

@@ -56,6 +56,8 @@ __all__ = [
     "ScaleLevel",
     "RobustLMIDesign",
     "maximise_margin",
+    "TradeoffPoint",
+    "force_tradeoff",
     "build",
     "build_cylinder",
     "build_workspace_force",
@@ -477,6 +479,99 @@ def maximise_margin(
         options=options,
         failed=failed,
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class TradeoffPoint:
+    """One point of the force-budget trade-off.
+
+    Parameters
+    ----------
+    continuous_force_n, peak_force_n : float
+        The force limits of the specification at this point, N.
+    force_budget_n : float
+        The RMS force the synthesis allowed, N.
+    scale : float
+        Largest family scale reached (the specification on the checked members).
+    certified_scale : float
+        Largest scale at which the pole region was also certified over the whole box.
+    binding : str
+        The constraint that binds at the first scale not reached (empty if none failed).
+    failed_scale : float
+        That scale (``nan`` if none failed).
+    seconds : float
+        Time of the point.
+    """
+
+    continuous_force_n: float
+    peak_force_n: float
+    force_budget_n: float
+    scale: float
+    certified_scale: float
+    binding: str
+    failed_scale: float
+    seconds: float
+
+
+def force_tradeoff(
+    family,
+    factors=(0.5, 1.0, 2.0, 4.0),
+    *,
+    spec: Specification | None = None,
+    options: RobustOptions | None = None,
+    progress=None,
+) -> list[TradeoffPoint]:
+    """Certified and reached family scale against the handle-force budget (a Pareto sweep).
+
+    For each factor the specification's two force limits are multiplied by it (the
+    device's limits at factor 1) and :func:`maximise_margin` runs with ``options``.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The family.
+    factors : sequence of float
+        Multipliers of the force limits (> 0).
+    spec : Specification, optional
+        The base specification.
+    options : RobustOptions, optional
+        Settings of every run (default: two rounds per scale, no bisection).
+    progress : callable, optional
+        Called with a short message per point.
+
+    Returns
+    -------
+    list of TradeoffPoint
+        In the order of ``factors``.
+    """
+    spec = spec or Specification()
+    options = options or RobustOptions(rounds=2, bisection=0, margin_boxes=30)
+    out = []
+    for f in factors:
+        if not (math.isfinite(f) and f > 0):
+            raise ParameterError(f"force_tradeoff: factors must be positive; got {f!r}")
+        t0 = time.perf_counter()
+        sp = dataclasses.replace(
+            spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
+        )
+        d = maximise_margin(family, spec=sp, options=options)
+        out.append(
+            TradeoffPoint(
+                continuous_force_n=sp.continuous_force_n,
+                peak_force_n=sp.peak_force_n,
+                force_budget_n=d.force_budget,
+                scale=d.scale,
+                certified_scale=d.certified_scale,
+                binding=d.failed.binding if d.failed else "",
+                failed_scale=d.failed.scale if d.failed else math.nan,
+                seconds=time.perf_counter() - t0,
+            )
+        )
+        if progress:
+            progress(
+                f"force x{f:g}: scale {d.scale:.3g} reached, {d.certified_scale:.3g} certified"
+            )
+    return out
 
 
 def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -154,6 +155,131 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
         "Robust margin of every design: the true margin lies between the certified lower "
         "bound (green; a bound of 0 is drawn at 1e-4) and the upper bound (red); the dashed "
         "line is the whole family.",
+    )
+    plt.close(fig)
+
+
+def _spec_section(page: HtmlPage, runs: dict) -> None:
+    """Every design against the specification: each constraint's worst value, the binding one."""
+    checks = {
+        k: r.details["spec"]
+        for k, r in runs.items()
+        if not isinstance(r, Exception) and "spec" in r.details
+    }
+    if not checks:
+        return
+    page.h2("Specification")
+    first = next(iter(checks.values()))
+    names = [c["name"] for c in first["constraints"]]
+    rows, classes = [], []
+    for name, c in checks.items():
+        vals = {x["name"]: x for x in c["constraints"]}
+        rows.append(
+            [name, "holds" if c["holds"] else "fails", c["binding"]]
+            + [f"{vals[n]['value']:.3g}" + ("" if vals[n]["holds"] else " !") for n in names]
+        )
+        classes.append("holds" if c["holds"] else "fails")
+    sp = first["specification"]
+    page.table(["design", "verdict", "binding"] + names, rows, row_classes=classes)
+    page.p(
+        f"Checked on the nominal member, the worst sampled member and 8 seeded sampled "
+        f"members. Limits: decay rate {sp['decay_rate']:g} rad/s (largest real part below "
+        f"-{sp['decay_rate']:g}); damping ratio >= {sp['min_damping']:g} for poles in "
+        f"{sp['damping_band_hz'][0]:g}-{sp['damping_band_hz'][1]:g} Hz; peak force "
+        f"{sp['peak_force_n']:g} N and RMS force {sp['continuous_force_n']:g} N under the "
+        f"realistic intended motion (0-{sp['intent_bandwidth_hz']:g} Hz, "
+        f"{100 * sp['intent_fraction']:g} % of the half-workspace); tracking |Y/Y_ref - 1| <= "
+        f"{sp['tracking_error']:g} over {sp['tracking_band_hz'][0]:g}-"
+        f"{sp['tracking_band_hz'][1]:g} Hz; feedthrough peak max |Y/Y_ref - 1| over "
+        f"{sp['feedthrough_band_hz'][0]:g}-{sp['feedthrough_band_hz'][1]:g} Hz not above the "
+        f"uncompensated loop's (dB). '!' marks a violated constraint; the binding one has the "
+        "largest utilisation.",
+        cls="note",
+    )
+
+
+def _saturation_section(page: HtmlPage, runs: dict) -> None:
+    sat = {
+        k: r.details["saturation_check"]
+        for k, r in runs.items()
+        if not isinstance(r, Exception) and "saturation_check" in r.details
+    }
+    if not sat:
+        return
+    page.h2("Saturated 1 kHz simulations")
+    rows = []
+    for name, members in sat.items():
+        for label, c in members.items():
+            rows.append(
+                [
+                    name,
+                    label,
+                    "ok" if c["ok"] else ("diverged" if c["diverged"] else "sustained oscillation"),
+                    c["saturated_fraction"],
+                    c["peak_request_n"],
+                    c["decay_ratio"],
+                ]
+            )
+    page.table(
+        ["design", "member", "outcome", "time saturated", "peak force asked [N]", "decay ratio"],
+        rows,
+    )
+    page.p(
+        "Each member driven by 20 s of the seeded realistic intended motion, then left to "
+        "settle, with the discrete (1 kHz) controller and the handle force clipped at the "
+        "device's peak; 'sustained' means the response did not die out after the motion "
+        "stopped (the limit cycles the paper's hardware showed).",
+        cls="note",
+    )
+
+
+def _tradeoff_section(page: HtmlPage, tradeoff) -> None:
+    if not tradeoff:
+        return
+    page.h2("Force budget against family scale")
+    rows = [
+        [
+            p.continuous_force_n,
+            p.peak_force_n,
+            p.force_budget_n,
+            p.scale,
+            p.certified_scale,
+            p.binding or "-",
+            p.failed_scale,
+        ]
+        for p in tradeoff
+    ]
+    page.table(
+        [
+            "continuous limit [N]",
+            "peak limit [N]",
+            "RMS budget of the synthesis [N]",
+            "scale reached",
+            "scale certified",
+            "binding beyond",
+            "first scale failed",
+        ],
+        rows,
+    )
+    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    x = [p.continuous_force_n for p in tradeoff]
+    ax.plot(x, [max(p.scale, 1e-4) for p in tradeoff], "o-", label="specification holds (checked)")
+    ax.plot(x, [max(p.certified_scale, 1e-4) for p in tradeoff], "s--", label="region certified")
+    ax.axvline(DeviceLimits().continuous_force_n, color="k", lw=0.8, ls=":")
+    ax.annotate("Omni", (DeviceLimits().continuous_force_n, 1e-4), fontsize=8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("continuous-force limit [N] (peak limit in proportion)")
+    ax.set_ylabel("family scale (1 = whole family)")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    page.figure(
+        fig,
+        "tradeoff",
+        "Pareto curve of the robust handle-force LMI design: the largest scale of the "
+        "family's box on which the specification holds on the checked members, and on which "
+        "the pole region is certified, against the force limits (0 drawn at 1e-4).",
     )
     plt.close(fig)
 
@@ -313,6 +439,30 @@ def verdict(runs: dict) -> list[str]:
             )
             + "."
         )
+    for n, r in ok.items():
+        d = r.details
+        if "certified_scale" not in d:
+            continue
+        syn = d.get("synthesis", {})
+        rm = d.get("robust_margin", {})
+        fail = d.get("binding_at_failure")
+        text = (
+            f"{n} (LMI synthesis, {syn.get('members', 0)} design members, certificates "
+            f"re-checked; worst certified H-infinity level {syn.get('gamma_bound', math.nan):.3g}) "
+            f"meets the specification on the checked members of the family's box scaled to "
+            f"{d['scale']:.3g}"
+        )
+        if rm:
+            text += (
+                f"; its certified robust margin for the specification's pole region is "
+                f"{rm['lower']:.3g} (upper bound {rm['upper']:.3g})"
+            )
+        if fail:
+            text += (
+                f". Beyond, at scale {fail['scale']:.3g}, the binding constraint is "
+                f"{fail['binding']} (utilisation {fail['utilisation']:.3g})"
+            )
+        out.append(text + ".")
     failing_force = [n for n in force_designs if n not in valid_force]
     hard = _hardest_member({n: ok[n] for n in failing_force})
     if force_designs and not valid_force and hard:
@@ -363,7 +513,13 @@ def _hardest_member(failing: dict) -> dict | None:
 
 
 def write_design_report(
-    runs: dict, out_dir, *, samples: int, seed: int, coverage: FamilyCoverage | None = None
+    runs: dict,
+    out_dir,
+    *,
+    samples: int,
+    seed: int,
+    coverage: FamilyCoverage | None = None,
+    tradeoff=None,
 ):
     """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories.
 
@@ -384,6 +540,9 @@ def write_design_report(
     coverage : reports.coverage.FamilyCoverage, optional
         Who the family covers (default: computed for the default family on the same
         sample size and seed).
+    tradeoff : list of designs.robust_lmi.TradeoffPoint, optional
+        The force-budget sweep (:func:`designs.robust_lmi.force_tradeoff`), drawn as a
+        Pareto curve.
 
     Returns
     -------
@@ -461,13 +620,17 @@ def write_design_report(
         "(0 dB: no effect). "
         "Tracking error: max |Y/Y_ref - 1| over 0.05-2 Hz on the nominal member. "
         "Margin: the largest scale of the family's box (about its nominal, each parameter in "
-        "its own coordinates; 1 = the family) at which every member's poles are in the open "
-        "left half-plane: the certified lower bound covers the whole scaled box, not samples; "
+        "its own coordinates; 1 = the family) at which every member's poles are in the "
+        "specification's region (decay rate and damping): the certified lower bound covers "
+        "the whole scaled box, not samples; "
         "the upper bound is the scale of the worst member found (details in 'Robust margins' "
         "below; nan when not computed).",
         cls="note",
     )
     _margin_section(page, runs)
+    _spec_section(page, runs)
+    _tradeoff_section(page, tradeoff)
+    _saturation_section(page, runs)
     page.h2("Verdict")
     for text in verdict(runs):
         page.p(text)
@@ -477,7 +640,13 @@ def write_design_report(
         "designs.json",
         json.dumps(
             to_jsonable(
-                {k: (str(r) if isinstance(r, Exception) else r.to_json()) for k, r in runs.items()}
+                {
+                    "designs": {
+                        k: (str(r) if isinstance(r, Exception) else r.to_json())
+                        for k, r in runs.items()
+                    },
+                    "tradeoff": [dataclasses.asdict(p) for p in tradeoff or []],
+                }
             ),
             indent=2,
             allow_nan=False,
