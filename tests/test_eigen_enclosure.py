@@ -125,3 +125,30 @@ def test_block_discs_hold_the_eigenvalues_through_an_exceptional_point(delta):
         for lam in np.linalg.eigvals(Ac + t * J[0]):
             d = np.abs(lam - res["centre"])
             assert np.any(d <= res["rad_re"] * (1 + 1e-12) + 1e-15)
+
+
+def test_cluster_operator_encloses_two_close_modes_and_their_neighbours():
+    # two lightly damped modes 0.01 rad/s apart (the structure's pair in a tuned loop)
+    # and a well separated one; a box that moves the pair by about their separation
+    rng = np.random.default_rng(4)
+    blocks = [(-6.5, 39.0), (-6.49, 39.01), (-1.4, 6.9)]
+    D = np.zeros((6, 6))
+    for i, (a, b) in enumerate(blocks):
+        D[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = [[a, b], [-b, a]]
+    T = rng.normal(size=(6, 6)) + 4 * np.eye(6)
+    Ac = T @ D @ np.linalg.inv(T)
+    J = 0.01 * rng.normal(size=(2, 6, 6))
+    h = np.array([0.5, 0.5])
+    res = enclose_eigenvalues(Ac, J, h, np.zeros((6, 6)))
+    assert res["ok"] and res["route"] in ("clusters", "krawczyk")
+    for d1 in np.linspace(-1, 1, 5):
+        for d2 in np.linspace(-1, 1, 5):
+            A = Ac + h[0] * d1 * J[0] + h[1] * d2 * J[1]
+            for lam in np.linalg.eigvals(A):
+                inside = (np.abs(lam.real - res["centre"].real) <= res["rad_re"] + 1e-12) & (
+                    np.abs(lam.imag - res["centre"].imag) <= res["rad_im"] + 1e-12
+                )
+                assert inside.any()
+    # the well separated pair keeps a tight enclosure
+    far = np.abs(res["centre"] - complex(-1.4, 6.9)) < 0.5
+    assert far.any() and res["rad_re"][far].max() < 0.2

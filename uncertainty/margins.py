@@ -1043,7 +1043,12 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
         "certified": False,
         "centre_violates": bool(centre_v > 0),
         "check": math.inf,
-        "split": split_coordinate(res, max(region.decay_rate, STABILITY_TOL), hi_t > lo_t),
+        "split": split_coordinate(
+            res,
+            max(region.decay_rate, STABILITY_TOL),
+            hi_t > lo_t,
+            margins=region.distance_inside(res["eigs"]),
+        ),
     }
     if out["centre_violates"]:
         return dict(out, reason="the centre member violates the region")

@@ -54,6 +54,8 @@ __all__ = ["enclose_eigenvalues", "split_coordinate", "subdivide", "certify_affi
 _EPS = np.finfo(float).eps
 #: Eigenvalues closer than this fraction of their modulus form one cluster (block).
 CLUSTER_RTOL = 0.02
+#: Largest cluster enclosed by the invariant-subspace operator.
+MAX_CLUSTER = 4
 
 
 def enclose_eigenvalues(
@@ -101,7 +103,9 @@ def enclose_eigenvalues(
         their union), ``eigs`` (the eigenvalues of ``Ac``), ``sensitivity`` (shape
         (n, d): ``h_p |d lambda_i / d t_p|`` to first order, for choosing a split),
         ``sensitivity_re`` (the same for the real parts), ``route`` (``"krawczyk"``:
-        disjoint verified enclosures; ``"blocks"``: when eigenvalues cluster, discs that
+        disjoint verified enclosures; ``"clusters"``: overlapping enclosures replaced by
+        those of the clusters' invariant subspaces, disjoint between groups, see
+        :func:`_krawczyk_cluster`; ``"blocks"``: discs from a block-diagonal form that
         hold every eigenvalue but may overlap, see :func:`_block_discs`).
     """
     Ac = np.asarray(Ac, float)
@@ -125,11 +129,204 @@ def enclose_eigenvalues(
     best = _best_of(_krawczyk(*moved[:2], h, moved[2], inflations), plain)
     if best["ok"]:
         return dict(best, route="krawczyk")
+    # eigenvalues whose enclosures overlap: enclose each group's invariant subspace at once
+    # (Rump's operator for clusters); the groups' enclosures must then be disjoint
+    grouped = _with_clusters(best, Ac, J, h, E_rad, inflations)
+    if grouped is not None:
+        return grouped
     # a cluster of eigenvalues that the box lets meet: the counting argument of disjoint
     # enclosures is lost; discs from the pseudospectra of a block-diagonal form still hold
     # every eigenvalue
     blocked = _to_blocks(Ac, J, h, E_rad)
     return best if blocked is None else _block_discs(best, *blocked, h, margin)
+
+
+def _overlap_groups(res: dict) -> list:
+    """Groups of eigenvalues whose enclosures overlap (an unverified one joins its nearest)."""
+    c, rr, ri, ok = res["centre"], res["rad_re"], res["rad_im"], res["verified"]
+    n = c.size
+    link = np.zeros((n, n), bool)
+    fin = ok & np.isfinite(rr) & np.isfinite(ri)
+    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
+    both = fin[:, None] & fin[None]
+    link |= (
+        both
+        & (lo_re[:, None] <= hi_re[None])
+        & (lo_re[None] <= hi_re[:, None])
+        & (lo_im[:, None] <= hi_im[None])
+        & (lo_im[None] <= hi_im[:, None])
+    )
+    eig = res["eigs"]
+    for i in np.flatnonzero(~fin):
+        d = np.abs(eig - eig[i])
+        d[i] = np.inf
+        j = int(np.argmin(d))
+        link[i, j] = link[j, i] = True
+    np.fill_diagonal(link, False)
+    seen, groups = np.zeros(n, bool), []
+    for i in range(n):
+        if seen[i]:
+            continue
+        stack, g = [i], []
+        seen[i] = True
+        while stack:
+            j = stack.pop()
+            g.append(j)
+            for k in np.flatnonzero(link[j] & ~seen):
+                seen[k] = True
+                stack.append(int(k))
+        groups.append(sorted(g))
+    return groups
+
+
+def _krawczyk_cluster(Ac, J, h, E_rad, idx, inflations):
+    """Enclose the ``k = len(idx)`` eigenvalues of a cluster of every matrix of the box.
+
+    Rump's operator for an invariant subspace (S. M. Rump, Linear Algebra Appl.
+    324:209-226, 2001, Thm. 3.1; S. M. Rump & J.-P. M. Zemke, BIT 43:823-837, 2003): with
+    ``X~`` the cluster's eigenvectors normalised to the identity in ``k`` rows ``U`` and
+    ``M~ = (A_c X~)_U``, the zeros of ``f(Y^) = A (X~ + Y) - (X~ + Y)(M~ + Y^_U)``
+    (``Y`` = ``Y^`` with rows ``U`` zeroed) are invariant pairs; if the Krawczyk-type
+    operator ``K(Y) = -R vec(A X~ - X~ M~) + (I - R B) vec(Y) + R vec(Y Y^_U)`` (``B`` the
+    linear part, ``R ~ B_c^-1``) maps a rectangle into itself for every ``A`` of the box,
+    then ``A X = X M`` with ``X = X~ + Y`` of full column rank and ``M = M~ + Y^_U``: the
+    ``k`` eigenvalues of ``M`` (with multiplicity) are eigenvalues of ``A``. They lie in
+    discs about the eigenvalues of the centre ``M~ + zc_U`` of radius
+    :func:`_pseudo_radius` of the enclosure's size (the Schur form of the centre bounds
+    its departure from normality).
+
+    Returns ``(centres (k,), radius, sensitivity (d,))`` (each parameter's first-order
+    share, for choosing a split) or ``None`` if the operator does not contract.
+    """
+    n, k = Ac.shape[0], len(idx)
+    d = J.shape[0]
+    lam, V = np.linalg.eig(Ac)
+    X = V[:, idx]
+    # rows U: a well-conditioned k x k part of X (pivoted QR of X')
+    _, _, piv = sla.qr(X.T, pivoting=True)
+    U = np.sort(piv[:k])
+    try:
+        X = X @ np.linalg.inv(X[U])
+    except np.linalg.LinAlgError:
+        return None
+    Vrows = np.setdiff1d(np.arange(n), U)
+    AX = Ac @ X
+    M = AX[U]
+    r_c = AX - X @ M  # rows U vanish up to rounding
+    # B: vec(Y^) -> vec(A Y - X Y^_U - Y M~), column-major vec (index c * n + r)
+    N = n * k
+    B = np.zeros((N, N), complex)
+    for c in range(k):
+        for r in Vrows:
+            col = c * n + r
+            B[c * n : (c + 1) * n, col] += Ac[:, r]
+            for c2 in range(k):
+                B[c2 * n + r, col] -= M[c, c2]
+        for q, r in enumerate(U):
+            B[c * n : (c + 1) * n, c * n + r] = -X[:, q]
+    try:
+        R = np.linalg.inv(B)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(R)):
+        return None
+    gam = (N + 4) * 8 * _EPS
+    aR, aX = np.abs(R), np.abs(X)
+    vec = lambda Z: Z.reshape(-1, order="F")  # noqa: E731
+    zc = -R @ vec(r_c)
+    err = gam * (aR @ vec(np.abs(Ac) @ aX + aX @ np.abs(M)) + np.abs(zc))
+    # first order in the box: -R vec(J_p X~), one rectangle per parameter
+    G = np.stack([R @ vec(Jp @ X) for Jp in J]) if d else np.zeros((0, N), complex)
+    rho_re = h @ np.abs(G.real) if d else np.zeros(N)
+    rho_im = h @ np.abs(G.imag) if d else np.zeros(N)
+    err += gam * (aR @ vec(np.einsum("p,pab->ab", h, np.abs(J)) @ aX)) if d else 0.0
+    unstr = aR @ vec(E_rad @ aX) + err
+    # |I - R B(A)|: centre, plus the box's change of B through (I_k (x) dA) on rows V
+    PV = np.zeros(N, bool)
+    for c in range(k):
+        PV[c * n + Vrows] = True
+    dA = np.einsum("p,pab->ab", h, np.abs(J)) + E_rad
+    dB = np.kron(np.eye(k), dA)[:, PV]
+    Cabs = np.abs(np.eye(N) - R @ B) + gam * (aR @ np.abs(B))
+    Cabs[:, PV] += aR @ dB
+    base_re, base_im = rho_re + unstr, rho_im + unstr
+    w_re, w_im = base_re * 1.1 + 1e-300, base_im * 1.1 + 1e-300
+    iu = np.array([c * n + r for c in range(k) for r in U])  # entries of Y^_U (row r, col c)
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging operator just fails
+        return _inflate_cluster(
+            zc, w_re, w_im, base_re, base_im, Cabs, aR, U, n, k, gam, M, G, h, d, iu, inflations
+        )
+
+
+def _inflate_cluster(zc, w_re, w_im, base_re, base_im, Cabs, aR, U, n, k, gam, M, G, h, d, iu, its):
+    """Epsilon-inflation of the cluster operator (see :func:`_krawczyk_cluster`)."""
+
+    def vec(Z):
+        return Z.reshape(-1, order="F")
+
+    for _ in range(its):
+        absY = np.abs(zc) + np.hypot(w_re, w_im)
+        absYm = absY.reshape(n, k, order="F")
+        absYV = absYm.copy()
+        absYV[U] = 0.0
+        quad = aR @ vec(absYV @ absYm[U])
+        s_ = (Cabs @ absY + quad) * (1 + gam) + np.finfo(float).tiny
+        new_re, new_im = base_re + s_, base_im + s_
+        if not (np.all(np.isfinite(new_re)) and np.all(np.isfinite(new_im))):
+            return None
+        if np.all(new_re < w_re) and np.all(new_im < w_im):
+            Mc = M + zc.reshape(n, k, order="F")[U]
+            wU = np.hypot(w_re, w_im).reshape(n, k, order="F")[U]
+            T, _ = sla.schur(Mc, output="complex")
+            nu = np.linalg.norm(np.triu(T, 1), 2)
+            eps = np.linalg.norm(wU) + k * 8 * _EPS * np.abs(Mc).sum()
+            # each parameter's first-order share of the cluster's matrix M (for splitting)
+            sens = h * np.linalg.norm(G[:, iu], axis=1) if d else np.zeros(0)
+            return np.diag(T), _pseudo_radius(eps, nu, k), sens
+        w_re, w_im = new_re * 1.1 + 1e-300, new_im * 1.1 + 1e-300
+    return None
+
+
+def _with_clusters(res: dict, Ac, J, h, E_rad, inflations) -> dict | None:
+    """Replace each group of overlapping enclosures by its cluster enclosure; ``None`` fails."""
+    if not np.all(np.isfinite(res["eigs"])):
+        return None
+    groups = _overlap_groups(res)
+    if all(len(g) == 1 for g in groups) or max(len(g) for g in groups) > MAX_CLUSTER:
+        return None
+    out = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in res.items()}
+    owner = np.empty(res["eigs"].size, int)
+    # the cluster operator works on the eigenvalues of the balanced centre, in the order
+    # of numpy's eig of that matrix: match them to the result's eigenvalues
+    lam = np.linalg.eig(Ac)[0]
+    for gi, g in enumerate(groups):
+        owner[g] = gi
+        if len(g) == 1:
+            continue
+        pick = [int(np.argmin(np.abs(lam - res["eigs"][i]))) for i in g]
+        if len(set(pick)) != len(g):
+            return None
+        enc = _krawczyk_cluster(Ac, J, h, E_rad, pick, inflations)
+        if enc is None:
+            return None
+        centres, r, sens = enc
+        out["centre"][g] = centres
+        out["rad_re"][g] = r
+        out["rad_im"][g] = r
+        out["verified"][g] = True
+        out["sensitivity"][g] = sens[None, :]
+        out["sensitivity_re"][g] = sens[None, :]
+    # groups must be pairwise disjoint (within a group the k eigenvalues are counted by the
+    # invariant subspace, so its discs may overlap)
+    c, rr, ri = out["centre"], out["rad_re"], out["rad_im"]
+    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
+    overlap = (lo_re[:, None] <= hi_re[None]) & (lo_re[None] <= hi_re[:, None])
+    overlap &= (lo_im[:, None] <= hi_im[None]) & (lo_im[None] <= hi_im[:, None])
+    overlap &= owner[:, None] != owner[None]
+    if overlap.any() or not out["verified"].all():
+        return None
+    out.update(disjoint=False, ok=True, route="clusters")
+    return out
 
 
 def _clusters(lam: np.ndarray, rel: float = CLUSTER_RTOL) -> list:
@@ -489,7 +686,9 @@ def _inflate(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam):
     return s, base_re + s, base_im + s
 
 
-def split_coordinate(res: dict, decay_rate: float, open_: np.ndarray) -> int:
+def split_coordinate(
+    res: dict, decay_rate: float, open_: np.ndarray, margins: np.ndarray | None = None
+) -> int:
     """The coordinate to halve when a box fails: the one that moves the eigenvalues most
     relative to their distance to the line ``Re s = -decay_rate``.
 
@@ -501,8 +700,13 @@ def split_coordinate(res: dict, decay_rate: float, open_: np.ndarray) -> int:
         The required decay rate, >= 0.
     open_ : ndarray of bool, shape (d,)
         Coordinates with a nonzero width (only those can be halved).
+    margins : ndarray, shape (n,), optional
+        Each eigenvalue's distance to the edge of the region (default: to the line
+        ``Re s = -decay_rate``).
     """
-    margins = np.maximum(-(res["eigs"].real + decay_rate), 1e-9)
+    if margins is None:
+        margins = -(res["eigs"].real + decay_rate)
+    margins = np.maximum(np.asarray(margins, float), 1e-9)
     score = (res["sensitivity"] / margins[:, None]).sum(axis=0)
     score = np.where(open_, np.nan_to_num(score, nan=0.0, posinf=1e300), -1.0)
     return int(np.argmax(score))
