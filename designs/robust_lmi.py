@@ -39,6 +39,7 @@ import time
 
 import control as ct
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
@@ -419,10 +420,22 @@ def maximise_margin(
     Returns
     -------
     RobustLMIDesign
+
+    Notes
+    -----
+    The BLAS runs on one thread here (``threadpoolctl``), so the same seed gives the same
+    controller under any ``OPENBLAS_NUM_THREADS``.
     """
     spec = spec or Specification()
     options = options or RobustOptions()
     limits = limits or spec.limits()
+    # one BLAS thread: the nonsmooth start follows a path that rounding differences (one or
+    # two threads) would bend, and the result must not depend on the machine's setting
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _maximise(family, spec, options, limits, progress)
+
+
+def _maximise(family, spec, options, limits, progress) -> RobustLMIDesign:
     K = _start(family, options, limits)
     rows = [family.nominal_values()]
     levels = []

@@ -159,6 +159,11 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
     plt.close(fig)
 
 
+def _fmt(value) -> str:
+    """A number to 3 significant digits; JSON's strings for non-finite values as they are."""
+    return value if isinstance(value, str) else f"{value:.3g}"
+
+
 def _spec_section(page: HtmlPage, runs: dict) -> None:
     """Every design against the specification: each constraint's worst value, the binding one."""
     checks = {
@@ -176,7 +181,7 @@ def _spec_section(page: HtmlPage, runs: dict) -> None:
         vals = {x["name"]: x for x in c["constraints"]}
         rows.append(
             [name, "holds" if c["holds"] else "fails", c["binding"]]
-            + [f"{vals[n]['value']:.3g}" + ("" if vals[n]["holds"] else " !") for n in names]
+            + [_fmt(vals[n]["value"]) + ("" if vals[n]["holds"] else " !") for n in names]
         )
         classes.append("holds" if c["holds"] else "fails")
     sp = first["specification"]
