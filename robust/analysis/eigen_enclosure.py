@@ -357,8 +357,8 @@ def _to_blocks(Ac, J, h, E_rad):
     ``T = [v_i for isolated eigenvalues | orthonormal bases of clusters' invariant
     subspaces]``: well conditioned where the eigenvector basis is not. As in
     :func:`_to_modal`, the exact similarity with the computed inverse ``W`` puts the
-    rounding and ``Phi W A T`` into the remainder. Returns ``(A1, J1, E1, groups)`` or
-    ``None``.
+    rounding and ``Phi W A T`` into the remainder. Returns ``(A1, J1, E1, sizes,
+    eigenvalues in the blocks' order)`` or ``None``.
     """
     n = Ac.shape[0]
     try:
@@ -396,7 +396,7 @@ def _to_blocks(Ac, J, h, E_rad):
     size = np.linalg.norm(A1) + np.einsum("p,p->", h, np.linalg.norm(J1, axis=(1, 2)))
     E1 += phi * (size + np.linalg.norm(E1)) * (1 + gam)
     sizes = [len(g) for g in groups]
-    return A1, J1, E1, sizes, lam[order], order
+    return A1, J1, E1, sizes, lam[order]
 
 
 def _gershgorin_scaling(N, schur, margin) -> np.ndarray:
@@ -448,7 +448,7 @@ def _pseudo_radius(eps: float, nu: float, k: int) -> float:
     return hi
 
 
-def _block_discs(res: dict, A1, J1, E1, sizes, lam, order, h, margin=None) -> dict:
+def _block_discs(res: dict, A1, J1, E1, sizes, lam, h, margin=None) -> dict:
     """Discs about the centre's eigenvalues that hold every eigenvalue of every matrix.
 
     In the block basis a matrix of the box is exactly ``D + F`` with ``D`` block

@@ -5,8 +5,10 @@ solve wrapper.
 Modules: :mod:`.genplant` (the plant), :mod:`.forcefb` (the force-feedback plant),
 :mod:`.assumptions` (checks before any solve), :mod:`.scaling` (apply/invert pairs),
 :mod:`.lmi` (LMI builders), :mod:`.solve` (the solver wrapper), :mod:`.nominal`
-(:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`), :mod:`.testing`
-(seeded test plants).
+(:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`), :mod:`.region` (LMI pole
+regions, :func:`certify_region`), :mod:`.pk` (:func:`pksyn_multi`, the P-K iteration on a
+family with per-member certificates), :mod:`.tuning` (:func:`tune_members`, its nonsmooth
+start), :mod:`.testing` (seeded test plants).
 """
 
 from robust.synthesis.assumptions import (
@@ -15,12 +17,20 @@ from robust.synthesis.assumptions import (
     check_regularity,
     check_stabilisable,
 )
-from robust.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
+from robust.synthesis.forcefb import (
+    ForceFeedbackWeights,
+    as_loop_controller,
+    force_feedback_plant,
+    synthesis_member,
+)
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
 from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
+from robust.synthesis.pk import MultiObjectiveResult, SynthesisMember, pksyn_multi
+from robust.synthesis.region import PoleRegion, certify_region
 from robust.synthesis.scaling import D22Removal, PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem
+from robust.synthesis.tuning import tune_members
 
 __all__ = [
     "ForceFeedbackWeights",
@@ -41,4 +51,11 @@ __all__ = [
     "D22Removal",
     "SolveResult",
     "solve_problem",
+    "synthesis_member",
+    "SynthesisMember",
+    "MultiObjectiveResult",
+    "pksyn_multi",
+    "PoleRegion",
+    "certify_region",
+    "tune_members",
 ]
