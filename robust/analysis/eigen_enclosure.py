@@ -141,42 +141,46 @@ def enclose_eigenvalues(
     return best if blocked is None else _block_discs(best, *blocked, h, margin)
 
 
+def _components(link: np.ndarray) -> list:
+    """Connected components of a symmetric boolean adjacency matrix, each sorted."""
+    n = link.shape[0]
+    seen, groups = np.zeros(n, bool), []
+    for i in range(n):
+        if seen[i]:
+            continue
+        stack, group = [i], []
+        seen[i] = True
+        while stack:
+            j = stack.pop()
+            group.append(j)
+            for k in np.flatnonzero(link[j] & ~seen):
+                seen[k] = True
+                stack.append(int(k))
+        groups.append(sorted(group))
+    return groups
+
+
+def _overlaps(c, rr, ri) -> np.ndarray:
+    """Pairwise overlap of the rectangles ``c +- (rr, ri)`` (diagonal False)."""
+    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
+    out = (lo_re[:, None] <= hi_re[None]) & (lo_re[None] <= hi_re[:, None])
+    out &= (lo_im[:, None] <= hi_im[None]) & (lo_im[None] <= hi_im[:, None])
+    np.fill_diagonal(out, False)
+    return out
+
+
 def _overlap_groups(res: dict) -> list:
     """Groups of eigenvalues whose enclosures overlap (an unverified one joins its nearest)."""
     c, rr, ri, ok = res["centre"], res["rad_re"], res["rad_im"], res["verified"]
-    n = c.size
-    link = np.zeros((n, n), bool)
     fin = ok & np.isfinite(rr) & np.isfinite(ri)
-    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
-    both = fin[:, None] & fin[None]
-    link |= (
-        both
-        & (lo_re[:, None] <= hi_re[None])
-        & (lo_re[None] <= hi_re[:, None])
-        & (lo_im[:, None] <= hi_im[None])
-        & (lo_im[None] <= hi_im[:, None])
-    )
+    link = _overlaps(c, rr, ri) & fin[:, None] & fin[None]
     eig = res["eigs"]
     for i in np.flatnonzero(~fin):
         d = np.abs(eig - eig[i])
         d[i] = np.inf
         j = int(np.argmin(d))
         link[i, j] = link[j, i] = True
-    np.fill_diagonal(link, False)
-    seen, groups = np.zeros(n, bool), []
-    for i in range(n):
-        if seen[i]:
-            continue
-        stack, g = [i], []
-        seen[i] = True
-        while stack:
-            j = stack.pop()
-            g.append(j)
-            for k in np.flatnonzero(link[j] & ~seen):
-                seen[k] = True
-                stack.append(int(k))
-        groups.append(sorted(g))
-    return groups
+    return _components(link)
 
 
 def _krawczyk_cluster(Ac, J, h, E_rad, idx, inflations):
@@ -318,10 +322,7 @@ def _with_clusters(res: dict, Ac, J, h, E_rad, inflations) -> dict | None:
         out["sensitivity_re"][g] = sens[None, :]
     # groups must be pairwise disjoint (within a group the k eigenvalues are counted by the
     # invariant subspace, so its discs may overlap)
-    c, rr, ri = out["centre"], out["rad_re"], out["rad_im"]
-    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
-    overlap = (lo_re[:, None] <= hi_re[None]) & (lo_re[None] <= hi_re[:, None])
-    overlap &= (lo_im[:, None] <= hi_im[None]) & (lo_im[None] <= hi_im[:, None])
+    overlap = _overlaps(out["centre"], out["rad_re"], out["rad_im"])
     overlap &= owner[:, None] != owner[None]
     if overlap.any() or not out["verified"].all():
         return None
@@ -331,24 +332,11 @@ def _with_clusters(res: dict, Ac, J, h, E_rad, inflations) -> dict | None:
 
 def _clusters(lam: np.ndarray, rel: float = CLUSTER_RTOL) -> list:
     """Groups of eigenvalues closer than ``rel`` times their modulus (connected components)."""
-    n = lam.size
     near = np.abs(lam[:, None] - lam[None]) <= rel * np.maximum(
         np.maximum(np.abs(lam)[:, None], np.abs(lam)[None]), 1.0
     )
-    seen, groups = np.zeros(n, bool), []
-    for i in range(n):
-        if seen[i]:
-            continue
-        stack, group = [i], []
-        seen[i] = True
-        while stack:
-            j = stack.pop()
-            group.append(j)
-            for k in np.flatnonzero(near[j] & ~seen):
-                seen[k] = True
-                stack.append(int(k))
-        groups.append(sorted(group))
-    return groups
+    np.fill_diagonal(near, False)
+    return _components(near)
 
 
 def _to_blocks(Ac, J, h, E_rad):
@@ -360,7 +348,6 @@ def _to_blocks(Ac, J, h, E_rad):
     rounding and ``Phi W A T`` into the remainder. Returns ``(A1, J1, E1, sizes,
     eigenvalues in the blocks' order)`` or ``None``.
     """
-    n = Ac.shape[0]
     try:
         lam, V = np.linalg.eig(Ac)
     except np.linalg.LinAlgError:
@@ -374,29 +361,11 @@ def _to_blocks(Ac, J, h, E_rad):
         else:
             q, _ = np.linalg.qr(V[:, g])
             cols.append(q)
-    T = np.hstack(cols)
+    moved = _similarity(Ac, J, h, E_rad, np.hstack(cols))
+    if moved is None:
+        return None
     order = [i for g in groups for i in g]
-    try:
-        W = np.linalg.inv(T)
-    except np.linalg.LinAlgError:
-        return None
-    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(W))):
-        return None
-    gam = 2 * (n + 4) * 4 * _EPS
-    aW, aT = np.abs(W), np.abs(T)
-    f = np.linalg.norm(np.eye(n) - W @ T) + gam * np.linalg.norm(aW @ aT)
-    if not f < 0.25:
-        return None
-    A1 = W @ Ac @ T
-    J1 = W[None] @ J @ T[None]
-    E1 = (aW @ E_rad @ aT) * (1 + gam)
-    E1 += gam * (aW @ np.abs(Ac) @ aT)
-    E1 += gam * np.einsum("p,pab->ab", h, aW[None] @ np.abs(J) @ aT[None])
-    phi = f / (1 - f)
-    size = np.linalg.norm(A1) + np.einsum("p,p->", h, np.linalg.norm(J1, axis=(1, 2)))
-    E1 += phi * (size + np.linalg.norm(E1)) * (1 + gam)
-    sizes = [len(g) for g in groups]
-    return A1, J1, E1, sizes, lam[order]
+    return (*moved, [len(g) for g in groups], lam[order])
 
 
 def _gershgorin_scaling(N, schur, margin) -> np.ndarray:
@@ -532,28 +501,21 @@ def _best_of(a: dict, b: dict) -> dict:
 
 
 def _disjoint(res: dict) -> bool:
-    c, rr, ri = res["centre"], res["rad_re"], res["rad_im"]
     if not res["verified"].all():
         return False
-    lo_re, hi_re, lo_im, hi_im = c.real - rr, c.real + rr, c.imag - ri, c.imag + ri
-    overlap = (lo_re[:, None] <= hi_re[None]) & (lo_re[None] <= hi_re[:, None])
-    overlap &= (lo_im[:, None] <= hi_im[None]) & (lo_im[None] <= hi_im[:, None])
-    np.fill_diagonal(overlap, False)
-    return bool(not overlap.any())
+    return bool(not _overlaps(res["centre"], res["rad_re"], res["rad_im"]).any())
 
 
-def _to_modal(Ac, J, h, E_rad):
-    """The box in the eigenvector basis ``T`` of the centre, with its rounding bounded.
+def _similarity(Ac, J, h, E_rad, T):
+    """The box in the basis ``T``, exactly: ``(A1, J1, E1)`` or ``None``.
 
     With ``W`` the computed inverse of ``T``, the exact similarity is
     ``T^-1 A T = (I + Phi) W A T`` with ``||Phi|| <= f / (1 - f)``, ``f >= ||I - W T||``; the
     term ``Phi W A T`` and the rounding of the products ``W A_c T``, ``W J_p T`` and
-    ``W E T`` go into the remainder. ``None`` when the eigenvectors are too ill-conditioned.
+    ``W E T`` go into the remainder ``E1``. ``None`` when ``T`` is too ill-conditioned.
     """
     n = Ac.shape[0]
     try:
-        lam, T = np.linalg.eig(Ac)
-        T = T / np.linalg.norm(T, axis=0)
         W = np.linalg.inv(T)
     except np.linalg.LinAlgError:
         return None
@@ -561,8 +523,7 @@ def _to_modal(Ac, J, h, E_rad):
         return None
     gam = 2 * (n + 4) * 4 * _EPS
     aW, aT = np.abs(W), np.abs(T)
-    F = np.eye(n) - W @ T
-    f = np.linalg.norm(F) + gam * np.linalg.norm(aW @ aT)
+    f = np.linalg.norm(np.eye(n) - W @ T) + gam * np.linalg.norm(aW @ aT)
     if not f < 0.25:
         return None
     A1 = W @ Ac @ T
@@ -574,6 +535,15 @@ def _to_modal(Ac, J, h, E_rad):
     size = np.linalg.norm(A1) + np.einsum("p,p->", h, np.linalg.norm(J1, axis=(1, 2)))
     E1 += phi * (size + np.linalg.norm(E1)) * (1 + gam)
     return A1, J1, E1
+
+
+def _to_modal(Ac, J, h, E_rad):
+    """The box in the eigenvector basis ``T`` of the centre (:func:`_similarity`)."""
+    try:
+        _, T = np.linalg.eig(Ac)
+    except np.linalg.LinAlgError:
+        return None
+    return _similarity(Ac, J, h, E_rad, T / np.linalg.norm(T, axis=0))
 
 
 def _krawczyk(Ac, J, h, E_rad, inflations):

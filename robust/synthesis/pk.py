@@ -94,6 +94,7 @@ __all__ = [
     "MultiObjectiveResult",
     "pksyn_multi",
     "h2_norm",
+    "eigen_derivatives",
     "responses",
     "scale_members",
     "to_scaled",
@@ -607,19 +608,41 @@ def _controller_data(K0) -> tuple[np.ndarray, int]:
     return K.omega(), K.Ak.shape[0]
 
 
-def _eig_rows(cl: _Affine, Om, region: PoleRegion):
-    """Violations of the region plant's poles and their gradients w.r.t. ``Om``."""
+def eigen_derivatives(cl: _Affine, Om) -> tuple[np.ndarray, np.ndarray]:
+    """Closed-loop eigenvalues and their derivatives in the controller data.
+
+    ``d lambda = l^H Bb dOm Cb r / (l^H r)`` for the left and right eigenvectors ``l, r``
+    of each (simple) eigenvalue of ``A0 + Bb Om Cb``.
+
+    Parameters
+    ----------
+    cl : _Affine
+        The closed loop.
+    Om : numpy.ndarray
+        Controller data.
+
+    Returns
+    -------
+    lam : numpy.ndarray of complex, shape (n,)
+    dlam : numpy.ndarray of complex, shape (n, *Om.shape)
+    """
     A = cl.A0 + cl.Bb @ Om @ cl.Cb
     lam, R = np.linalg.eig(A)
     L = np.linalg.inv(R).conj().T
+    left, right = cl.Bb.T @ L.conj(), cl.Cb @ R
+    denom = np.sum(L.conj() * R, axis=0)
+    return lam, left.T[:, :, None] * right.T[:, None, :] / denom[:, None, None]
+
+
+def _eig_rows(cl: _Affine, Om, region: PoleRegion):
+    """Violations of the region plant's poles and their gradients w.r.t. ``Om``."""
+    lam, dl = eigen_derivatives(cl, Om)
     rows = []
     for j in range(lam.size):
-        left, r = L[:, j].conj(), R[:, j]
-        dl = np.outer(cl.Bb.T @ left, cl.Cb @ r) / (left @ r)
-        rows.append((lam[j].real + region.decay_rate, dl.real))
+        rows.append((lam[j].real + region.decay_rate, dl[j].real))
         if region.min_damping > 0:
             mag = max(abs(lam[j]), 1e-300)
-            grad = dl.real + region.min_damping * (lam[j].conj() * dl).real / mag
+            grad = dl[j].real + region.min_damping * (lam[j].conj() * dl[j]).real / mag
             rows.append((lam[j].real + region.min_damping * mag, grad))
     return rows
 

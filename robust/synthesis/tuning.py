@@ -35,6 +35,7 @@ from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.pk import (
     SynthesisMember,
+    eigen_derivatives,
     from_scaled,
     responses,
     scale_members,
@@ -121,12 +122,7 @@ class _Terms:
     def _violations(self, Om):
         z = self.region.min_damping
         for cl in self.reg:
-            A = cl.A0 + cl.Bb @ Om @ cl.Cb
-            lam, R = np.linalg.eig(A)
-            L = np.linalg.inv(R).conj().T
-            left, right = cl.Bb.T @ L.conj(), cl.Cb @ R
-            denom = np.sum(L.conj() * R, axis=0)
-            dl = left.T[:, :, None] * right.T[:, None, :] / denom[:, None, None]
+            lam, dl = eigen_derivatives(cl, Om)
             yield lam.real + self.region.decay_rate, dl.real
             if z > 0:
                 mag = np.maximum(np.abs(lam), 1e-300)
@@ -146,12 +142,7 @@ class _Terms:
         us, dus = [], []
         a, z = self.region.decay_rate, self.region.min_damping
         for cl in self.reg:
-            A = cl.A0 + cl.Bb @ Om @ cl.Cb
-            lam, R = np.linalg.eig(A)
-            L = np.linalg.inv(R).conj().T
-            left, right = cl.Bb.T @ L.conj(), cl.Cb @ R
-            denom = np.sum(L.conj() * R, axis=0)
-            dl = left.T[:, :, None] * right.T[:, None, :] / denom[:, None, None]
+            lam, dl = eigen_derivatives(cl, Om)
             neg = np.minimum(lam.real, -1e-12)
             mag = np.maximum(np.abs(lam), 1e-300)
             # decay: a / -Re p
