@@ -35,6 +35,9 @@ _SOLVER_OPTS = {
         "max_iter": 200,
         "direct_solve_method": "faer",
         "iterative_refinement_enable": False,
+        # one thread: faer's parallel factorisation sums in an order that depends on the
+        # machine's load, and a nonsmooth design downstream would amplify the difference
+        "max_threads": 1,
     },
     "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 50000},
 }
