@@ -507,7 +507,8 @@ class TradeoffPoint:
     scale : float
         Largest family scale reached (the specification on the checked members).
     certified_scale : float
-        Largest scale at which the pole region was also certified over the whole box.
+        Certified robust margin of the point's controller for the specification's pole
+        region (a lower bound covering the whole scaled box).
     binding : str
         The constraint that binds at the first scale not reached (empty if none failed).
     failed_scale : float
@@ -532,6 +533,7 @@ def force_tradeoff(
     *,
     spec: Specification | None = None,
     options: RobustOptions | None = None,
+    margin_boxes: int = 100,
     progress=None,
 ) -> list[TradeoffPoint]:
     """Certified and reached family scale against the handle-force budget (a Pareto sweep).
@@ -549,6 +551,10 @@ def force_tradeoff(
         The base specification.
     options : RobustOptions, optional
         Settings of every run (default: two rounds per scale, no bisection).
+    margin_boxes : int
+        Sub-boxes per scale of the certified margin of each point's controller
+        (:func:`uncertainty.margins.margin_lower_bound`, the specification's region, scales
+        up to the one reached).
     progress : callable, optional
         Called with a short message per point.
 
@@ -568,13 +574,25 @@ def force_tradeoff(
             spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
         )
         d = maximise_margin(family, spec=sp, options=options)
+        certified = 0.0
+        if d.controller is not None:
+            # the certified robust margin of the point's controller for the pole region
+            certified, _ = margin_lower_bound(
+                family,
+                controller=d.controller,
+                region=sp.region(),
+                k_hint=max(d.scale, 1e-3),
+                ladder=8,
+                iterations=1,
+                max_boxes=margin_boxes,
+            )
         out.append(
             TradeoffPoint(
                 continuous_force_n=sp.continuous_force_n,
                 peak_force_n=sp.peak_force_n,
                 force_budget_n=d.force_budget,
                 scale=d.scale,
-                certified_scale=d.certified_scale,
+                certified_scale=float(certified),
                 binding=d.failed.binding if d.failed else "",
                 failed_scale=d.failed.scale if d.failed else math.nan,
                 seconds=time.perf_counter() - t0,

@@ -158,3 +158,37 @@ def test_force_budget_follows_the_tighter_limit():
     assert o.force_budget(Specification()) == pytest.approx(3.3 / 4.2)
     assert o.force_budget(Specification(continuous_force_n=0.5)) == pytest.approx(0.475)
     assert ct is not None
+
+
+def test_cylinder_reference_design_on_a_short_ladder(family):
+    """Design (ii): the same LMI machinery through the cylinder reference, no handle force."""
+    o = RobustOptions(
+        controls=("r_corr",),
+        measurements=("c", "y"),
+        ladder=(0.005,),
+        rounds=2,
+        bisection=0,
+        margin_boxes=20,
+        spec_samples=4,
+    )
+    d = maximise_margin(family, options=o)
+    assert d.controller.output_labels == ["r_corr"]
+    assert d.scale == 0.005 and all(lv.reached for lv in d.levels)
+    syn = d.synthesis
+    assert syn["h2_bound"] is None
+    for c in syn["certificates"]:
+        assert max(c["lmi_max_eig"].values()) < 0 and c["region_violation"] < 0
+    # no handle force: the specification's force constraints hold trivially
+    forces = {c["name"]: c for c in d.spec["constraints"]}
+    assert forces["peak force"]["value"] == 0.0 and forces["continuous force"]["value"] == 0.0
+
+
+def test_tradeoff_point_reports_scale_and_certified_margin(family):
+    o = RobustOptions(ladder=(0.005,), rounds=2, bisection=0, margin_boxes=10, spec_samples=2)
+    (pt,) = force_tradeoff(family, (1.0,), options=o, margin_boxes=10)
+    assert pt.continuous_force_n == 0.88 and pt.peak_force_n == 3.3
+    assert pt.force_budget_n == pytest.approx(3.3 / 4.2)
+    assert pt.scale == 0.005 and pt.binding == ""
+    # the certified margin of the point's controller covers a box, and stays below what the
+    # sampled checks reached at the next scale
+    assert 0.0 < pt.certified_scale <= 1e-3

@@ -311,7 +311,7 @@ def synthesis_member(
     All three come from ``loop.blocks`` (the junction table of
     :mod:`robust.model.wiring`) with the controller's signals left open:
 
-    * region plant: ``u, controls -> y, measurements`` (the Figure 5 loop);
+    * region plant: ``u, controls -> h, measurements`` (the Figure 5 loop);
     * H-infinity plant: the intended motion ``u`` (handle units) to the tracking error
       ``z_t = W_t (r + r_corr - K_PSF u) / (tracking_error K_PSF)``, ``W_t`` a unit-gain
       second-order Butterworth low-pass at ``tracking_bandwidth_hz``. Since the
@@ -388,7 +388,9 @@ def synthesis_member(
             raise ModelStructureError(f"{name}: the controls feed the measurements directly")
         return PlantBlocks.from_generalized_plant(gp)
 
-    region = plant([], ["u"], ["y"], "region_plant")
+    # the region plant's performance output is not used; the hand motion h is never a
+    # controller input, so it cannot clash with the measurements
+    region = plant([], ["u"], ["h"], "region_plant")
     k = loop.k_psf
     track = [
         _static(k, "u", "u_ref", "u_ref"),
