@@ -204,8 +204,24 @@ def _krawczyk_cluster(Ac, J, h, E_rad, idx, inflations):
     """
     n, k = Ac.shape[0], len(idx)
     d = J.shape[0]
-    lam, V = np.linalg.eig(Ac)
-    X = V[:, idx]
+    lam = np.linalg.eigvals(Ac)
+    # an orthonormal basis of the cluster's invariant subspace from an ordered Schur form:
+    # unlike the eigenvectors it stays well conditioned where the eigenvalues meet
+    inside = np.zeros(n, bool)
+    inside[idx] = True
+    gap = np.min(np.abs(lam[inside][:, None] - lam[~inside][None])) if (~inside).any() else 1.0
+    centre = lam[inside]
+    try:
+        _, Z, sdim = sla.schur(
+            Ac.astype(complex),
+            output="complex",
+            sort=lambda x: bool(np.min(np.abs(centre - x)) < gap / 2),
+        )
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if sdim != k:
+        return None
+    X = Z[:, :k]
     # rows U: a well-conditioned k x k part of X (pivoted QR of X')
     _, _, piv = sla.qr(X.T, pivoting=True)
     U = np.sort(piv[:k])
