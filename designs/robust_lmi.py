@@ -600,7 +600,7 @@ def force_tradeoff(
         )
         if progress:
             progress(
-                f"force x{f:g}: scale {d.scale:.3g} reached, {d.certified_scale:.3g} certified"
+                f"force x{f:g}: scale {d.scale:.3g} reached, certified margin {certified:.3g}"
             )
     return out
 
