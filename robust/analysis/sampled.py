@@ -72,8 +72,8 @@ class SampledDataCheck:
 def open_plant(loop, K):
     """The member's loop with the controller removed.
 
-    Inputs ``u`` and K's outputs, outputs ``y`` and K's inputs; a human force port
-    that K does not drive is held at zero.
+    Inputs ``u`` and K's outputs, outputs ``y`` and K's inputs (``y`` once when K
+    measures it); a human force port that K does not drive is held at zero.
 
     Parameters
     ----------
@@ -98,10 +98,11 @@ def open_plant(loop, K):
     outs = list(K.output_labels)
     blocks = loop.blocks(bdft=True, reference_correction="r_corr" in outs)
     ignore = ["f"] if loop.human.has_force_port and "f" not in outs else []
+    # y is listed once: a controller that measures the cylinder position reads that output
     return connect(
         blocks,
         inputs=["u", *outs],
-        outputs=["y", *K.input_labels],
+        outputs=["y", *[s for s in K.input_labels if s != "y"]],
         name="open_plant",
         ignore_inputs=ignore,
     )

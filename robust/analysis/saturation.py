@@ -136,8 +136,11 @@ def saturated_response(
     outs, ins = list(Kd.output_labels), list(Kd.input_labels)
     n_u = 1
     Ap, Bp, Cp, Dp = (np.asarray(m, float) for m in (P.A, P.B, P.C, P.D))
-    meas_rows = slice(1, 1 + len(ins))  # plant outputs: y, then the controller's inputs
-    delayed = bool(np.any(Dp[meas_rows, n_u:] != 0) and np.any(np.asarray(Kd.D) != 0))
+    # plant outputs by name: y, then the controller's inputs (y once if it measures it)
+    plant_outs = list(P.output_labels)
+    meas_rows = [plant_outs.index(s) for s in ins]
+    y_row = plant_outs.index("y")
+    delayed = bool(np.any(Dp[meas_rows][:, n_u:] != 0) and np.any(np.asarray(Kd.D) != 0))
     Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kd.A, Kd.B, Kd.C, Kd.D))
     f_idx = outs.index("f") if "f" in outs else None
     n_settle = int(round(settle / dt))
@@ -168,7 +171,7 @@ def saturated_response(
             if not delayed:
                 v = v_new
                 z = z0 + Dp[:, n_u:] @ v
-            y[k] = z[0]
+            y[k] = z[y_row]
             force[k] = v[f_idx] if f_idx is not None else 0.0
             xk = Ak @ xk + Bk @ meas
             xp = Ap @ xp + Bp @ np.concatenate([[uu[k]], v])

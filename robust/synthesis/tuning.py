@@ -29,7 +29,6 @@ import dataclasses
 import control
 import numpy as np
 import scipy.linalg as sla
-import scipy.optimize as so
 
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
@@ -85,6 +84,65 @@ class TuningResult:
     response: float
     objective: float
     iterations: int
+
+
+def _weak_wolfe(fun, x, f, g, d, c1=1e-4, c2=0.9, max_steps=60):
+    """Line search for the weak Wolfe conditions by bracketing and bisection.
+
+    Lewis & Overton (Math. Programming 141, 2013, Alg. 4.6): unlike a strong Wolfe search
+    it does not ask the slope to shrink in magnitude, which a nonsmooth function (a
+    maximum of eigenvalues, eigenvalues that meet) cannot give at a kink.
+    Returns ``(t, x_new, f_new, g_new)`` or ``None``.
+    """
+    lo, hi, t = 0.0, np.inf, 1.0
+    slope = float(g @ d)
+    if not slope < 0:
+        return None
+    for _ in range(max_steps):
+        xn = x + t * d
+        fn, gn = fun(xn)
+        if not np.isfinite(fn) or fn > f + c1 * t * slope:
+            hi = t
+        elif float(gn @ d) < c2 * slope:
+            lo = t
+        else:
+            return t, xn, fn, gn
+        t = 2 * lo if hi == np.inf else 0.5 * (lo + hi)
+    return None
+
+
+def _bfgs(fun, x0, max_iter: int):
+    """BFGS with a weak Wolfe line search (Lewis & Overton 2013) on ``fun -> (f, grad)``.
+
+    Stops when a line search fails (a kink it cannot leave), the step stalls, or after
+    ``max_iter`` iterations; returns ``(x, f, iterations)``.
+    """
+    x = np.asarray(x0, float).copy()
+    f, g = fun(x)
+    if not np.isfinite(f):
+        return x, f, 0
+    H = np.eye(x.size)
+    it = 0
+    while it < max_iter:
+        it += 1
+        d = -H @ g
+        if not float(g @ d) < 0:
+            H = np.eye(x.size)
+            d = -g
+        ls = _weak_wolfe(fun, x, f, g, d)
+        if ls is None:
+            break
+        t, xn, fn, gn = ls
+        s_, y = xn - x, gn - g
+        x, f, g = xn, fn, gn
+        sy = float(s_ @ y)
+        if sy > 1e-300:
+            rho = 1.0 / sy
+            V = np.eye(x.size) - rho * np.outer(s_, y)
+            H = V @ H @ V.T + rho * np.outer(s_, s_)
+        if np.linalg.norm(s_) <= 1e-12 * max(1.0, np.linalg.norm(x)):
+            break
+    return x, f, it
 
 
 class _Terms:
@@ -365,21 +423,14 @@ def tune_members(
     nit = 0
     for budget_scale in (1e-3, 1.0):
         xb, fb = x, fun(x, budget_scale)[0]
-        # BFGS on a nonsmooth objective stops when its line search fails at a kink;
-        # restarting from the last point (a fresh Hessian) continues the descent
+        # BFGS on a nonsmooth objective may stop at a kink; restarting from the last point
+        # (a fresh Hessian) continues the descent
         for _ in range(RESTARTS):
-            res = so.minimize(
-                fun,
-                xb,
-                args=(budget_scale,),
-                jac=True,
-                method="BFGS",
-                options={"maxiter": max_iter, "gtol": 1e-10},
-            )
-            nit += int(res.nit)
-            if not res.fun < fb - 1e-9 * max(abs(fb), 1e-12):
+            xr, fr, it = _bfgs(lambda th, bs=budget_scale: fun(th, bs), xb, max_iter)
+            nit += it
+            if not fr < fb - 1e-9 * max(abs(fb), 1e-12):
                 break
-            xb, fb = res.x, res.fun
+            xb, fb = xr, fr
         if budget_scale < 1 or terms.region_term(xb.reshape(Om0.shape) * unit)[2] < 0:
             x = xb
     Om = x.reshape(Om0.shape) * unit
