@@ -599,9 +599,7 @@ def force_tradeoff(
             )
         )
         if progress:
-            progress(
-                f"force x{f:g}: scale {d.scale:.3g} reached, certified margin {certified:.3g}"
-            )
+            progress(f"force x{f:g}: scale {d.scale:.3g} reached, certified margin {certified:.3g}")
     return out
 
 

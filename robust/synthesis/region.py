@@ -51,6 +51,11 @@ __all__ = [
 ]
 
 
+#: Normalisation of the analysis SDP: ``I <= X``, ``trace X <= TRACE_BOUND n`` in the
+#: recentred coordinates (room for a certificate far from the decay Lyapunov matrix).
+TRACE_BOUND = 1e4
+
+
 def sym(M):
     """The symmetric part ``(M + M') / 2`` of a numpy array or cvxpy expression.
 
@@ -233,7 +238,7 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
     """One Lyapunov matrix proving every eigenvalue of ``A`` lies in ``region`` ([CG96]).
 
     The SDP maximises the margin ``t`` of ``region_lmis(A, X) <= -t I`` over
-    ``I <= X``, ``trace X <= 10 n`` in coordinates ``x = T xt`` where the decay
+    ``I <= X``, ``trace X <= TRACE_BOUND n`` in coordinates ``x = T xt`` where the decay
     Lyapunov matrix (from ``(A + alpha I)' X0 + X0 (A + alpha I) = -I``) is the
     identity; the certificate is mapped back and checked in numpy.
 
@@ -282,7 +287,7 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
     At = np.linalg.solve(T, A @ T)
     X = cp.Variable((n, n), symmetric=True)
     t = cp.Variable()
-    cons = [X >> np.eye(n), cp.trace(X) <= 10 * n]
+    cons = [X >> np.eye(n), cp.trace(X) <= TRACE_BOUND * n]
     cons += [M << -t * np.eye(M.shape[0]) for M in region_lmis(At, X, region).values()]
     try:
         solve_problem(
