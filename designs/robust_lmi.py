@@ -49,6 +49,7 @@ from robust.errors import BDFTError, InfeasibleError, ParameterError
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.region import PoleRegion
+from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.tuning import tune_members
 from uncertainty.margins import margin_lower_bound, scaled_bounds, worst_member
 
@@ -354,11 +355,14 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         outcome.update(K=K, pk=pk, check=check)
         if worst_v < 0 and check.holds:
             break
+        # new design members: the worst one of the search, and the sampled member that
+        # binds the specification (unless it is a design member already)
+        n_design = len(rows)
         if worst_v >= 0:
             rows.append(row)
         if not check.holds:
             bad = max(check.constraints, key=lambda c: c.utilisation)
-            if bad.worst_member >= len(rows) - (1 if worst_v >= 0 else 0):
+            if bad.worst_member >= n_design:
                 rows.append(checked[bad.worst_member])
     else:
         outcome["reason"] = outcome["reason"] or (
@@ -423,15 +427,17 @@ def maximise_margin(
 
     Notes
     -----
-    The BLAS runs on one thread here (``threadpoolctl``), so the same seed gives the same
-    controller under any ``OPENBLAS_NUM_THREADS``.
+    The BLAS and the SDP solver run on one thread here (``threadpoolctl``,
+    :func:`robust.synthesis.solve.deterministic_solvers`), so the same seed gives the same
+    controller under any ``OPENBLAS_NUM_THREADS`` and any load.
     """
     spec = spec or Specification()
     options = options or RobustOptions()
     limits = limits or spec.limits()
-    # one BLAS thread: the nonsmooth start follows a path that rounding differences (one or
-    # two threads) would bend, and the result must not depend on the machine's setting
-    with threadpool_limits(limits=1, user_api="blas"):
+    # one BLAS thread and one solver thread: the nonsmooth start follows a path that rounding
+    # differences (thread counts, the machine's load) would bend, and the result must not
+    # depend on them
+    with threadpool_limits(limits=1, user_api="blas"), deterministic_solvers():
         return _maximise(family, spec, options, limits, progress)
 
 

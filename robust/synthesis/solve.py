@@ -9,6 +9,8 @@ caller's independent verification decides; it is never trusted on its own.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import time
 import warnings
@@ -20,9 +22,19 @@ from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
 from robust.checks import Spec, check_scalar
 from robust.errors import InfeasibleError, ParameterError, SolverError
 
-__all__ = ["DEFAULT_SOLVERS", "SOLVER_TOL", "SolveResult", "check_solvers", "solve_problem"]
+__all__ = [
+    "DEFAULT_SOLVERS",
+    "SOLVER_TOL",
+    "SolveResult",
+    "check_solvers",
+    "deterministic_solvers",
+    "solve_problem",
+]
 
 DEFAULT_SOLVERS = ("CLARABEL", "SCS")
+
+#: Clarabel's thread count (0: its own choice); :func:`deterministic_solvers` sets 1.
+_THREADS: contextvars.ContextVar[int] = contextvars.ContextVar("clarabel_threads", default=0)
 
 #: feasibility tolerance requested from each solver; LMI strictness margins are tied to it
 SOLVER_TOL = {"CLARABEL": 1e-8, "SCS": 1e-6}
@@ -35,12 +47,26 @@ _SOLVER_OPTS = {
         "max_iter": 200,
         "direct_solve_method": "faer",
         "iterative_refinement_enable": False,
-        # one thread: faer's parallel factorisation sums in an order that depends on the
-        # machine's load, and a nonsmooth design downstream would amplify the difference
-        "max_threads": 1,
+        "max_threads": _THREADS.get(),
     },
     "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 50000},
 }
+
+
+@contextlib.contextmanager
+def deterministic_solvers():
+    """Within the block, Clarabel factorises on one thread.
+
+    faer's parallel factorisation sums in an order that depends on the machine's load, so
+    the same problem can come back with answers that differ in the last digits; a
+    nonsmooth design that runs many solves in sequence amplifies that into different
+    controllers. The robust designs solve inside this block.
+    """
+    token = _THREADS.set(1)
+    try:
+        yield
+    finally:
+        _THREADS.reset(token)
 
 
 def _sdp_capable() -> set[str]:
