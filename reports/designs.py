@@ -373,16 +373,19 @@ def _figures(page: HtmlPage, runs: dict, samples: int, seed: int, limits: Device
         )
 
 
-def verdict(runs: dict) -> list[str]:
+def verdict(runs: dict, tradeoff=None) -> list[str]:
     """The report's verdict: plain sentences generated from the runs.
 
     Which design (if any) stabilises every sampled member within the force limits,
-    what each costs, and why the handle-force designs fail if they do.
+    what each costs, why the handle-force designs fail if they do, how far the LMI
+    designs hold the specification and what more force would buy.
 
     Parameters
     ----------
     runs : dict
         Design name -> :class:`designs.DesignResult` (evaluated) or the exception it raised.
+    tradeoff : list of designs.robust_lmi.TradeoffPoint, optional
+        The force-budget sweep.
 
     Returns
     -------
@@ -468,6 +471,23 @@ def verdict(runs: dict) -> list[str]:
                 f"{fail['binding']} (utilisation {fail['utilisation']:.3g})"
             )
         out.append(text + ".")
+    if tradeoff:
+        pts = "; ".join(
+            f"{p.continuous_force_n:.3g} N continuous / {p.peak_force_n:.3g} N peak: scale "
+            f"{p.scale:.3g} (certified margin {p.certified_scale:.3g})"
+            + (f", {p.binding} binds beyond" if p.binding else "")
+            for p in tradeoff
+        )
+        whole = any(p.scale >= 1 for p in tradeoff)
+        out.append(
+            f"The robust handle-force LMI design against the force limits: {pts}. "
+            + (
+                "With enough force one controller meets the specification on the whole family."
+                if whole
+                else "No limit in this sweep lets one controller meet the specification on the "
+                "whole family (scale 1)."
+            )
+        )
     failing_force = [n for n in force_designs if n not in valid_force]
     hard = _hardest_member({n: ok[n] for n in failing_force})
     if force_designs and not valid_force and hard:
@@ -637,7 +657,7 @@ def write_design_report(
     _tradeoff_section(page, tradeoff)
     _saturation_section(page, runs)
     page.h2("Verdict")
-    for text in verdict(runs):
+    for text in verdict(runs, tradeoff):
         page.p(text)
     add_coverage_section(page, coverage)
     _figures(page, runs, samples, seed, limits)
