@@ -8,7 +8,10 @@ The design, top to bottom:
 3. synthesis: the nominal LMI design (:mod:`designs.hinf_nominal`), reduced, then
    multi-model spectral-abscissa tuning over sampled members with scenario
    enlargement (:func:`design_hinf_robust`, :mod:`designs.multimodel`); the weighted
-   closed-loop H-infinity norm of every design member is recomputed independently;
+   closed-loop H-infinity norm of every design member is recomputed independently; the
+   synthesis and tuning run on one BLAS and one solver thread
+   (:func:`robust.synthesis.solve.deterministic_solvers`), so the controller does not
+   depend on the thread count or the machine's load;
 4. validation and export: the common pipeline (:func:`designs.registry.run_design`).
 
 The sibling design :mod:`designs.hinf_robust_corr` is this one with a
@@ -38,6 +41,7 @@ from robust.synthesis.forcefb import (
     force_feedback_plant,
 )
 from robust.synthesis.genplant import as_generalized_plant
+from robust.synthesis.solve import deterministic_solvers
 
 __all__ = ["RobustHinf", "design_hinf_robust", "build_robust", "build", "DESIGN"]
 
@@ -242,9 +246,12 @@ def build_robust(family, samples, limits, **options) -> DesignResult:
     name = options.pop("name", DESIGN_NAME)
     description = options.pop("description", DESCRIPTION)
     nominal = family.member(family.nominal_values())
-    nominal_design = design_hinf_nominal(family, limits=limits)
-    K0, bound = reduce_controller(nominal_design.controller, [nominal])
-    d = design_hinf_robust(family, samples, K0=K0, limits=limits, **options)
+    # one BLAS and one solver thread: the nonsmooth tuning amplifies rounding differences
+    # (thread counts, the machine's load) into different controllers
+    with deterministic_solvers():
+        nominal_design = design_hinf_nominal(family, limits=limits)
+        K0, bound = reduce_controller(nominal_design.controller, [nominal])
+        d = design_hinf_robust(family, samples, K0=K0, limits=limits, **options)
     details = {
         "gamma_worst_design_member": d.gamma,
         "gamma_nominal": d.solver["gamma_nominal"],

@@ -39,7 +39,6 @@ import time
 
 import control as ct
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
@@ -427,8 +426,8 @@ def maximise_margin(
 
     Notes
     -----
-    The BLAS and the SDP solver run on one thread here (``threadpoolctl``,
-    :func:`robust.synthesis.solve.deterministic_solvers`), so the same seed gives the same
+    The BLAS and the SDP solver run on one thread here
+    (:func:`robust.synthesis.solve.deterministic_solvers`), so the same seed gives the same
     controller under any ``OPENBLAS_NUM_THREADS`` and any load.
     """
     spec = spec or Specification()
@@ -437,7 +436,7 @@ def maximise_margin(
     # one BLAS thread and one solver thread: the nonsmooth start follows a path that rounding
     # differences (thread counts, the machine's load) would bend, and the result must not
     # depend on them
-    with threadpool_limits(limits=1, user_api="blas"), deterministic_solvers():
+    with deterministic_solvers():
         return _maximise(family, spec, options, limits, progress)
 
 

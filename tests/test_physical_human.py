@@ -188,8 +188,13 @@ def test_fit_reproduces_stored_result():
 def test_box_fit_reproduces_stored_result(posture):
     stored = FIT_RESULT["literature"][posture]
     fresh = fit_in_box(published_box(posture))
-    for key in (*BOX_FIT_NAMES, "h_gain", "err_db_rms", "err_deg_rms"):
+    # the fit's errors and gain reproduce to 1e-6; the parameters to 1e-3, since the fit is
+    # flat along some of them: with the backrest, m_arm lands 6.6e-5 (relative) apart on two
+    # CPUs' BLAS kernels while the rms errors agree to 1e-7
+    for key in ("h_gain", "err_db_rms", "err_deg_rms"):
         assert fresh[key] == pytest.approx(stored[key], rel=1e-6), key
+    for key in BOX_FIT_NAMES:
+        assert fresh[key] == pytest.approx(stored[key], rel=1e-3), key
     assert fresh["at_bounds"] == stored["at_bounds"]
 
 

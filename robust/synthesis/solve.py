@@ -18,6 +18,7 @@ import warnings
 import cvxpy as cp
 import numpy as np
 from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
+from threadpoolctl import threadpool_limits
 
 from robust.checks import Spec, check_scalar
 from robust.errors import InfeasibleError, ParameterError, SolverError
@@ -55,16 +56,19 @@ _SOLVER_OPTS = {
 
 @contextlib.contextmanager
 def deterministic_solvers():
-    """Within the block, Clarabel factorises on one thread.
+    """Within the block, Clarabel factorises on one thread and the BLAS runs on one thread.
 
-    faer's parallel factorisation sums in an order that depends on the machine's load, so
-    the same problem can come back with answers that differ in the last digits; a
-    nonsmooth design that runs many solves in sequence amplifies that into different
-    controllers. The robust designs solve inside this block.
+    faer's parallel factorisation sums in an order that depends on the machine's load, and
+    a threaded BLAS sums in an order that depends on ``OPENBLAS_NUM_THREADS``, so the same
+    problem can come back with answers that differ in the last digits; a nonsmooth design
+    that runs many solves and line searches in sequence amplifies that into different
+    controllers. The robust designs (the BFGS-tuned and the LMI-made ones) run inside this
+    block, so the same seed gives the same controller on any thread count and any load.
     """
     token = _THREADS.set(1)
     try:
-        yield
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
     finally:
         _THREADS.reset(token)
 
