@@ -127,12 +127,15 @@ def _spec_check(family, members, ev, K, spec: Specification, seed: int) -> dict:
     return dict(res.to_json(), specification=spec.to_json())
 
 
-def _saturation_checks(family, worst: dict, details: dict, Kd, limits, seed: int) -> dict:
+def _saturation_checks(family, worst: dict, details: dict, K, Kd, limits, seed: int) -> dict:
     """Saturated 1 kHz simulations of the critical members (limit cycles, divergence).
 
     The nominal member, the worst sampled member and the margin search's critical member
     (where it is a member of the family), each driven by the seeded realistic intended
     motion for 20 s, then left to settle, with the handle force clipped at the peak.
+    Each entry also says whether that member's linear (unsaturated) 1 kHz loop is stable
+    (``linear_stable``), so a divergence the saturation causes is told apart from a member
+    the controller does not stabilise at all.
     """
     rows = {"nominal": family.nominal_values()}
     if worst:
@@ -147,7 +150,9 @@ def _saturation_checks(family, worst: dict, details: dict, Kd, limits, seed: int
         loop = family.member(row)
         amp = loop.intended_amplitude(limits, INTENT_FRACTION)
         u = intended_motion(t, amp, 2.0, seed=seed)
-        out[label] = saturated_response(loop, Kd, u, peak_force_n=limits.peak_force_n).to_json()
+        entry = saturated_response(loop, Kd, u, peak_force_n=limits.peak_force_n).to_json()
+        entry["linear_stable"] = bool(sampled_data_check(loop, K, Kd).stable_discrete)
+        out[label] = entry
     return out
 
 
@@ -224,7 +229,9 @@ def run_design(
         Kd = discretize(K, lim.sample_time_s, prewarp_hz=prewarp)
         details["sampled_data_check"] = _sampled_checks(fam, ev.worst, K, Kd)
         if "f" in K.output_labels:
-            details["saturation_check"] = _saturation_checks(fam, ev.worst, details, Kd, lim, seed)
+            details["saturation_check"] = _saturation_checks(
+                fam, ev.worst, details, K, Kd, lim, seed
+            )
         if out_dir is not None:
             art = ControllerArtifact(
                 name=name,

@@ -182,8 +182,12 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     assert c["continuous force"].value < spec.continuous_force_n
     assert c["peak force"].value < spec.peak_force_n
     assert c["decay rate"].holds and c["damping"].holds
-    # saturated 1 kHz simulations of the nominal member: no divergence, no limit cycle
-    assert d["saturation_check"]["nominal"]["ok"]
+    # saturated 1 kHz simulations of the nominal member: no divergence, no limit cycle; the
+    # worst sampled member of the whole family lies beyond the scale held: its linear loop is
+    # already unstable, so its divergence is not the saturation's doing
+    sat = d["saturation_check"]
+    assert sat["nominal"]["ok"] and sat["nominal"]["linear_stable"]
+    assert not sat["worst sampled"]["linear_stable"]
     for label in ("nominal", "worst"):
         chk = d["sampled_data_check"][label]
         assert chk["stable_continuous"] == chk["stable_discrete"]
