@@ -162,17 +162,19 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     # every design member's certificate re-checked
     for c in d["synthesis"]["certificates"]:
         assert max(c["lmi_max_eig"].values()) < 0 and c["region_violation"] < 0
-    # certified robust margin for the specification's region: positive, below the upper bound
+    # certified robust margin for the specification's region: the box scaled to 0.0025 (half
+    # the 0.0051 the report's 400-box search certifies) is certified for the shipped
+    # controller; a single scale keeps the test short
     lower, _ = margin_lower_bound(
         default_family(),
         controller=r.controller,
         region=spec.region(),
-        k_hint=d["scale"],
-        ladder=6,
+        k_hint=0.0025,
+        ladder=0,
         iterations=0,
         max_boxes=100,
     )
-    assert lower >= 1e-3
+    assert lower >= 0.0025
     # the specification on fresh members of the box at the scale reached
     fam = default_family()
     lo, hi = scaled_bounds(fam, d["scale"])
