@@ -3,13 +3,21 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
+
+from tqdm import tqdm
 
 from bdft.args import integer
 from robust.jsonio import to_jsonable
 from uncertainty.margins import DEFAULT_BOXES
 
-__all__ = ["print_json", "add_margin_boxes_argument"]
+__all__ = [
+    "print_json",
+    "add_margin_boxes_argument",
+    "add_coverage_arguments",
+    "member_progress",
+]
 
 
 def print_json(obj) -> None:
@@ -41,3 +49,56 @@ def add_margin_boxes_argument(p, subject: str) -> None:
         help=f"sub-boxes per scale of the certified robust margin of {subject} (0: not "
         "computed; default: %(default)s)",
     )
+
+
+def add_coverage_arguments(p, subject: str) -> None:
+    """Add ``--coverage-samples`` and ``--jobs``: the coverage certificate of ``subject``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    subject : str
+        What the coverage is computed for, in the help text.
+    """
+    p.add_argument(
+        "--coverage-samples",
+        type=integer("--coverage-samples", low=0, high=1_000_000),
+        default=2000,
+        help=f"independent members (Monte Carlo, seed SEED+2) on which the specification is "
+        f"checked for the coverage certificate of {subject} (0: not computed; "
+        "default: %(default)s)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=integer("--jobs", low=1, high=256),
+        default=max(1, os.cpu_count() or 1),
+        help="parallel processes (default: the number of cores, %(default)s)",
+    )
+
+
+def member_progress(desc: str):
+    """A ``progress(done, total)`` callback drawing a tqdm bar on standard error.
+
+    The bar appears on terminals only (tqdm's ``disable=None``) and closes itself when
+    ``done`` reaches ``total``.
+
+    Parameters
+    ----------
+    desc : str
+        Label in front of the bar.
+    """
+    state = {}
+
+    def progress(done: int, total: int) -> None:
+        bar = state.get("bar")
+        if bar is None:
+            bar = state["bar"] = tqdm(
+                total=total, desc=desc, unit="member", file=sys.stderr, disable=None, leave=False
+            )
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+            state.pop("bar")
+
+    return progress

@@ -11,7 +11,12 @@ from bdft.args import (
     members_help,
     seed,
 )
-from bdft.common import add_margin_boxes_argument, print_json
+from bdft.common import (
+    add_coverage_arguments,
+    add_margin_boxes_argument,
+    member_progress,
+    print_json,
+)
 from designs.registry import design_names, run_design
 
 __all__ = ["register", "run"]
@@ -59,6 +64,7 @@ def register(sub) -> None:
         "previous artifacts (default: %(default)s)",
     )
     add_margin_boxes_argument(p, "the design")
+    add_coverage_arguments(p, "the design")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -76,7 +82,9 @@ def run(args) -> int:
         Parsed ``bdft design`` options: ``name`` (a design name, or ``None`` with
         ``list``), ``list``, ``samples`` (family members to validate on), ``seed``,
         ``method`` (sampling method), ``out`` (artifact folder), ``margin_boxes``
-        (sub-boxes per scale of the certified robust margin, 0 skips it) and ``json``.
+        (sub-boxes per scale of the certified robust margin, 0 skips it),
+        ``coverage_samples`` (members of the coverage certificate, 0 skips it), ``jobs``
+        (parallel processes) and ``json``.
 
     Returns
     -------
@@ -110,6 +118,9 @@ def run(args) -> int:
         method=args.method,
         out_dir=args.out,
         margin_boxes=args.margin_boxes,
+        coverage_samples=args.coverage_samples,
+        n_jobs=args.jobs,
+        progress=member_progress("coverage"),
     )
     obj = res.to_json()
     if args.json:
@@ -133,6 +144,8 @@ def run(args) -> int:
         if margin:
             print(f"{'margin, certified':20s} {margin['lower']:.4g}")
             print(f"{'margin, upper':20s} {margin['upper']:.4g}")
+        if res.coverage is not None:
+            print(f"{'coverage':20s} {res.coverage.describe()}")
         for note in obj["notes"]:
             print(f"note: {note}")
     return 0

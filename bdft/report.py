@@ -14,7 +14,12 @@ from bdft.args import (
     members_help,
     seed,
 )
-from bdft.common import add_margin_boxes_argument, print_json
+from bdft.common import (
+    add_coverage_arguments,
+    add_margin_boxes_argument,
+    member_progress,
+    print_json,
+)
 from designs.registry import design_names
 from designs.robust_lmi import force_tradeoff
 from reports.coverage import family_coverage
@@ -58,6 +63,7 @@ def register(sub) -> None:
         "file; the artifacts go to <out>-artifacts (default: %(default)s)",
     )
     add_margin_boxes_argument(p, "each design")
+    add_coverage_arguments(p, "each design")
     p.add_argument(
         "--tradeoff",
         type=factor_list("--tradeoff"),
@@ -109,6 +115,9 @@ def run(args) -> int:
         out_dir=art_dir,
         progress=progress,
         margin_boxes=args.margin_boxes,
+        coverage_samples=args.coverage_samples,
+        n_jobs=args.jobs,
+        member_progress=member_progress("coverage"),
     )
     tradeoff = None
     if args.tradeoff:

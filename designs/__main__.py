@@ -22,7 +22,8 @@ def main(argv: list[str] | None = None) -> int:
     Parameters
     ----------
     argv : list of str, optional
-        ``NAME [--samples N] [--seed S] [--out DIR]`` (default: ``sys.argv[1:]``).
+        ``NAME [--samples N] [--seed S] [--out DIR] [--coverage-samples N]``
+        (default: ``sys.argv[1:]``).
 
     Returns
     -------
@@ -37,8 +38,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--samples", type=int, default=2000, help="family members (default 2000)")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     parser.add_argument("--out", default=None, help="artifact folder (default: none written)")
+    parser.add_argument(
+        "--coverage-samples",
+        type=int,
+        default=2000,
+        help="independent members of the coverage certificate, 0 to skip (default 2000)",
+    )
     args = parser.parse_args(argv)
-    res = run_design(args.name, samples=args.samples, seed=args.seed, out_dir=args.out)
+    res = run_design(
+        args.name,
+        samples=args.samples,
+        seed=args.seed,
+        out_dir=args.out,
+        coverage_samples=args.coverage_samples,
+    )
     sys.stdout.write(json.dumps(to_jsonable(res.to_json()), indent=2, allow_nan=False) + "\n")
     return 0
 

@@ -24,6 +24,7 @@ from designs import (
     virtual_damping,
     workspace,
 )
+from designs.coverage import COVERAGE_SAMPLES, COVERAGE_SEED_OFFSET, design_coverage
 from designs.evaluate import INTENT_FRACTION, evaluate_design, intended_motion
 from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
@@ -166,6 +167,9 @@ def run_design(
     limits: DeviceLimits | None = None,
     held_out: int = 10000,
     margin_boxes: int = 0,
+    coverage_samples: int = COVERAGE_SAMPLES,
+    n_jobs: int = 1,
+    progress=None,
 ) -> DesignResult:
     """Build, validate, discretise and export the design ``name`` on the default family.
 
@@ -194,6 +198,15 @@ def run_design(
         (:func:`uncertainty.margins.robust_margin`, open left half-plane, eigenvalue
         method); 0 skips the margin. Both bounds, the critical member, the method and the
         certificate's summary go into ``details["robust_margin"]``.
+    coverage_samples : int
+        Independent members (Monte Carlo, seed ``seed + 2``, never used by the design)
+        of the coverage certificate (:func:`designs.coverage.design_coverage`: the
+        fraction on which the whole specification holds and ``P(failure) <= epsilon``
+        with confidence 0.999); 0 skips it.
+    n_jobs : int
+        Parallel processes of the coverage check.
+    progress : callable, optional
+        ``progress(done, total)`` during the coverage check.
 
     Returns
     -------
@@ -223,6 +236,17 @@ def run_design(
         ).to_json()
         margin.pop("timings_s")
         details["robust_margin"] = margin
+    coverage = None
+    if coverage_samples:
+        coverage = design_coverage(
+            fam,
+            K,
+            spec,
+            samples=coverage_samples,
+            seed=seed + COVERAGE_SEED_OFFSET,
+            n_jobs=n_jobs,
+            progress=progress,
+        )
     artifact = None
     if K is not None:
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
@@ -246,7 +270,9 @@ def run_design(
                     "samples": len(members),
                     "k_psf": fam.k_psf,
                 },
-                validation=ev.to_json(),
+                validation=dict(
+                    ev.to_json(), coverage=None if coverage is None else coverage.to_json()
+                ),
             )
             artifact = str(write_artifact(art, Path(out_dir) / f"{name}.json")["json"])
-    return res.replace(evaluation=ev, details=details, artifact=artifact)
+    return res.replace(evaluation=ev, details=details, artifact=artifact, coverage=coverage)

@@ -50,6 +50,9 @@ class DesignResult:
         Validation on the family (set by :func:`designs.registry.run_design`).
     artifact : str or None
         Path of the written artifact's JSON file (set by ``run_design``).
+    coverage : designs.coverage.DesignCoverage or None
+        Fraction of the population meeting the specification, with its probabilistic
+        certificate (set by ``run_design`` unless skipped).
     """
 
     name: str
@@ -64,6 +67,7 @@ class DesignResult:
     artifact_exclude: tuple[str, ...] = ()
     evaluation: DesignEvaluation | None = None
     artifact: str | None = None
+    coverage: object = None
 
     @property
     def order_reduced(self) -> int:
@@ -110,6 +114,7 @@ class DesignResult:
             "seed": ev.seed,
             "method": ev.method,
             "notes": list(ev.notes),
+            "coverage": None if self.coverage is None else self.coverage.to_json(),
             "details": self.details,
             "artifact": self.artifact,
         }

@@ -112,6 +112,8 @@ __all__ = [
     "SpecCheck",
     "check_specification",
     "rms_force",
+    "peak_force",
+    "peak_time_grid",
 ]
 
 #: Names of the constraints, in the order they are reported (ties of the utilisation
@@ -382,6 +384,25 @@ def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float)
     return amplitude / math.sqrt(2.0) * ratio
 
 
+def peak_force(
+    loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float, t, *, seed: int
+) -> float:
+    """Largest ``|f|`` of one simulated realistic intended motion, N.
+
+    The motion is :func:`designs.evaluate.intended_motion` (``amplitude``,
+    ``bandwidth_hz``, ``seed``) on the time grid ``t``; ``inf`` when the simulated force
+    is not finite. The loop must be stable (the caller checks).
+    """
+    u = intended_motion(t, amplitude, bandwidth_hz, seed=seed)
+    f = simulate(loop, t, u, controller=controller)["f"]
+    return float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else math.inf
+
+
+def peak_time_grid(duration_s: float) -> np.ndarray:
+    """Time grid of the peak-force simulations: ``duration_s`` at :data:`SIMULATION_RATE_HZ`."""
+    return np.arange(int(round(duration_s * SIMULATION_RATE_HZ)) + 1) / SIMULATION_RATE_HZ
+
+
 def _damping_in_band(poles: np.ndarray, band_hz) -> float:
     """Smallest ``-Re p / |p|`` of the poles with ``|Im p| / (2 pi)`` in ``band_hz``."""
     f = np.abs(poles.imag) / (2 * np.pi)
@@ -519,11 +540,11 @@ def check_specification(
     if has_force:
         order = [int(i) for i in np.argsort(-rms, kind="stable") if stable[i]]
         simulated = order[:simulate_peak]
-        t = np.arange(int(round(duration_s * SIMULATION_RATE_HZ)) + 1) / SIMULATION_RATE_HZ
+        t = peak_time_grid(duration_s)
         for i in simulated:
-            u = intended_motion(t, amplitude[i], spec.intent_bandwidth_hz, seed=seed + i)
-            f = simulate(members[i], t, u, controller=controller)["f"]
-            peak[i] = float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else math.inf
+            peak[i] = peak_force(
+                members[i], controller, amplitude[i], spec.intent_bandwidth_hz, t, seed=seed + i
+            )
         if stable.any() and simulate_peak < int(stable.sum()):
             notes.append(
                 f"peak force simulated on the {len(simulated)} stable members with the "

@@ -24,6 +24,10 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
                 "200",
                 "--seed",
                 "5",
+                "--coverage-samples",
+                "60",
+                "--jobs",
+                "2",
                 "--out",
                 str(tmp_path),
                 "--json",
@@ -44,6 +48,15 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
     ):
         assert key in obj
     assert obj["seed"] == 5 and obj["samples"] == 200 and obj["order"] == 4
+    cov = obj["coverage"]
+    # fresh Monte Carlo members, seed 5 + 2. The feedforward cancellation of the nominal
+    # arm's feedthrough misses the tracking requirement on every member (the cancelled
+    # path is the nominal one) and leaves the unstable members unstable
+    assert cov["samples"] == 60 and cov["seed"] == 7 and cov["confidence"] == 0.999
+    assert cov["failures"] == 60 and cov["fraction"] == 0.0 and cov["epsilon"] == 1.0
+    assert cov["violations"]["tracking"] == 60
+    assert 10 < cov["violations"]["decay rate"] < 60
+    assert sum(cov["binding"].values()) == 60
     art = load_artifact(obj["artifact"])
     assert art.inputs == ["c"] and art.outputs == ["r_corr"] and art.discrete.dt == 0.001
     m = scipy.io.loadmat(tmp_path / "cancellation.mat")
@@ -64,7 +77,18 @@ def test_design_scripts_run(script, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(
         sys,
         "argv",
-        ["designs", script, "--samples", "150", "--seed", "2", "--out", str(tmp_path)],
+        [
+            "designs",
+            script,
+            "--samples",
+            "150",
+            "--seed",
+            "2",
+            "--coverage-samples",
+            "0",
+            "--out",
+            str(tmp_path),
+        ],
     )
     with pytest.raises(SystemExit) as exc:
         runpy.run_module("designs", run_name="__main__")
