@@ -28,7 +28,7 @@ import sys
 import tempfile
 import traceback
 
-from bdft import design, identify, margin, report, reproduce, sweep, validate
+from bdft import design, identify, limit, margin, report, reproduce, sweep, validate
 from bdft.args import ArgumentParser, UsageError
 from robust.errors import BDFTError
 from robust.version import __version__
@@ -36,7 +36,7 @@ from robust.version import __version__
 __all__ = ["main", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
 
 #: Sub-command modules, in the order ``bdft --help`` lists them.
-COMMANDS = (reproduce, validate, margin, sweep, identify, design, report)
+COMMANDS = (reproduce, validate, margin, sweep, identify, design, limit, report)
 
 #: Environment variable naming the folder for tracebacks of internal errors.
 LOG_DIR_ENV = "BDFT_LOG_DIR"

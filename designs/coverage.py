@@ -213,9 +213,11 @@ class DesignCoverage:
 
     @property
     def fraction(self) -> float:
+        """Observed fraction of the members meeting the specification."""
         return self.bound.fraction
 
     def describe(self) -> str:
+        """One line: the coverage and its certificate."""
         return self.bound.describe()
 
     def to_json(self) -> dict:

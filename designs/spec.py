@@ -392,6 +392,21 @@ def peak_force(
     The motion is :func:`designs.evaluate.intended_motion` (``amplitude``,
     ``bandwidth_hz``, ``seed``) on the time grid ``t``; ``inf`` when the simulated force
     is not finite. The loop must be stable (the caller checks).
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The member.
+    controller : control.StateSpace
+        The compensator (it drives ``f``).
+    amplitude : float
+        Intended-motion amplitude, handle units.
+    bandwidth_hz : float
+        Bandwidth of the intended motion, Hz.
+    t : ndarray
+        Time grid, s (:func:`peak_time_grid`).
+    seed : int
+        Seed of the intended motion.
     """
     u = intended_motion(t, amplitude, bandwidth_hz, seed=seed)
     f = simulate(loop, t, u, controller=controller)["f"]
@@ -399,7 +414,13 @@ def peak_force(
 
 
 def peak_time_grid(duration_s: float) -> np.ndarray:
-    """Time grid of the peak-force simulations: ``duration_s`` at :data:`SIMULATION_RATE_HZ`."""
+    """Time grid of the peak-force simulations: ``duration_s`` at :data:`SIMULATION_RATE_HZ`.
+
+    Parameters
+    ----------
+    duration_s : float
+        Length, s.
+    """
     return np.arange(int(round(duration_s * SIMULATION_RATE_HZ)) + 1) / SIMULATION_RATE_HZ
 
 

@@ -25,6 +25,7 @@ def test_binomial_tail_equals_beta_at_the_bound(n, k, conf):
     # the defining property: P(Binomial(N, eps) <= k) = beta, computed by a different route
     eps = failure_bound(n, k, conf)
     assert stats.binom.cdf(k, n, eps) == pytest.approx(1 - conf, rel=1e-7)
+
     # and the tail sum written out term by term
     def log_term(i):
         log_comb = math.lgamma(n + 1) - math.lgamma(i + 1) - math.lgamma(n - i + 1)

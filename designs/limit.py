@@ -1,0 +1,1082 @@
+"""The achievable-limit map: what fraction of operators can any compensator protect?
+
+For each member of a seeded sample of the default family, and for each set of actuators
+and sensors, :func:`member_limit` finds the compensator that knows that member exactly
+and meets the specification's tracking and feedthrough requirements with the least RMS
+handle force, with every closed-loop pole in the specification's region by construction
+(:mod:`robust.synthesis.youla`: Youla/Q-parametrisation, Boyd & Barratt 1991). The
+controller found is realised, closed around the member and re-checked in numpy,
+independently of the optimisation: its eigenvalues against the region, ``|Y/Y_ref - 1|``
+on the specification's tracking and feedthrough grids, the exact RMS force (Lyapunov,
+with the sensor noise) and the peak force of a simulated realistic intended motion. The
+member's *required force multiple* is the smallest multiple of the Omni's force limits
+(peak and continuous together) within which that controller meets the whole
+specification.
+
+Sets
+----
+Actuators (:data:`ACTUATOR_SETS`): the handle force ``f`` (today's handle-force designs),
+the cylinder-reference shaping ``r_corr`` (no force), both. Sensors
+(:data:`SENSOR_SETS`): ``full`` (every state of the loop, noiseless: full information, the
+most any compensator could know), ``handle`` (the handle position through the Omni's
+encoder, quantisation noise of :data:`ENCODER_MM`) and ``handle+cab`` (plus a cab
+accelerometer with noise :data:`ACCEL_NOISE_RMS`); with measured signals the compensator
+is an observer-based output feedback with its own Youla parameter.
+
+What the map bounds
+-------------------
+* A member counted as covered at force multiple ``s`` has a verified controller: the map's
+  coverage is a *lower bound* on what compensators of that set, knowing the member, can
+  cover.
+* Where no controller of the basis meets tracking and feedthrough at any force, the
+  smallest uniform relaxation ``rho`` of both (their limits times ``rho``) that the basis
+  can meet is reported; where force binds, the required multiple. Both are *upper bounds*
+  of the exact limit (a richer basis can only lower them; :func:`basis_check` measures by
+  how much), computed for the basis.
+* Knowing the member exactly is more than any one compensator for a family knows: a
+  robust design, or a scheduled bank with identification errors, cannot beat the map of
+  its set, up to the basis' approximation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Callable
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+import scipy.signal as sig
+from joblib import Parallel, delayed
+
+from designs.evaluate import intended_motion, output_ratio
+from designs.spec import (
+    N_FEEDTHROUGH_FREQS,
+    N_TRACKING_FREQS,
+    SIMULATION_RATE_HZ,
+    Specification,
+    peak_time_grid,
+)
+from robust.checks import check_int
+from robust.errors import BDFTError, ModelStructureError, ParameterError
+from robust.model.wiring import connect
+from robust.synthesis.forcefb import intent_filter
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.youla import (
+    LimitProblem,
+    Measurements,
+    YoulaPlant,
+    affine_maps,
+    closed_loop,
+    force_responses,
+    gram_factor,
+    observer_gain,
+    of_affine_maps,
+    of_closed_loop,
+    output_gram,
+    pole_basis,
+    quadrature_gram,
+    quadrature_grid,
+    stabilising_gain,
+    uncontrollable_modes,
+)
+from uncertainty import sample
+from uncertainty.margins import worst_member
+
+__all__ = [
+    "ALL_SETS",
+    "DEFAULT_SETS",
+    "SENSOR_SETS",
+    "split_set",
+    "set_contains",
+    "sensor_noise",
+    "FORCE_SCALES",
+    "LIMIT_SAMPLES",
+    "ACTUATOR_SETS",
+    "BASIS_POLES",
+    "SetLimit",
+    "member_limit",
+    "limit_map",
+    "LimitMap",
+    "basis_check",
+]
+
+#: Actuator sets: name -> the loop's actuator signals.
+ACTUATOR_SETS = {
+    "force": ("f",),
+    "reference": ("r_corr",),
+    "force+reference": ("f", "r_corr"),
+}
+#: Sensor sets: name -> the measured signals (``None``: every state, noiseless).
+SENSOR_SETS = {
+    "full": None,
+    "handle": ("x",),
+    "handle+cab": ("x", "c"),
+}
+#: Encoder resolution, mm (the Omni's): quantisation noise of the handle position.
+ENCODER_MM = 0.055
+#: Accelerometer noise RMS at the 1 kHz servo rate, in the paper's units of ``c`` (the
+#: force-feedback synthesis' default accelerometer weight, :mod:`robust.synthesis.forcefb`).
+ACCEL_NOISE_RMS = 0.05
+#: Poles of the orthonormal lag basis, rad/s: 32 from 0.3 to 1000 rad/s (about 9 per
+#: decade), inside the region (above its decay rate, real). Doubling the basis lowers a
+#: member's handle-force limit by a few per cent (measured; the page reports the check).
+BASIS_POLES = tuple(float(x) for x in np.geomspace(0.3, 1000.0, 32))
+#: The optimisation's limits are this fraction of the specification's, so a controller
+#: at the optimum passes the re-check with room for rounding.
+TIGHTENING = 0.999
+#: Relative floor of the singular values in the change of variable of the problem.
+FLOOR = 1e-8
+
+
+@dataclasses.dataclass(frozen=True)
+class SetLimit:
+    """One member's limit for one actuator set.
+
+    Parameters
+    ----------
+    actuators : str
+        Name from :data:`ACTUATOR_SETS`.
+    sensors : str
+        Name from :data:`SENSOR_SETS`.
+    required_force : float
+        Smallest multiple of the device's force limits within which the verified
+        controller meets the whole specification (0 without a force actuator; ``inf``
+        when no verified controller meets tracking and feedthrough).
+    rms_force_n, peak_force_n : float
+        RMS and simulated peak force of that controller at force multiple 1, N.
+    relaxation : float
+        Smallest uniform relaxation of tracking and feedthrough the basis can meet (<= 1
+        when they can be met; computed only when they cannot, else ``nan``).
+    binding : str
+        When ``required_force`` is infinite: the constraint that cannot be met
+        (``"tracking"``, ``"feedthrough"``, ``"damping"``, ``"decay rate"``); else which
+        force limit sets ``required_force`` (``"continuous force"``, ``"peak force"``), or
+        ``""`` without force.
+    verified : bool
+        Whether the controller passed the numpy re-check (poles, grids, RMS).
+    note : str
+        Why a member is undecided or unverified, if it is.
+    gap : float
+        ``(re-checked - predicted) / predicted`` RMS force: how far the solver's optimum of
+        the basis problem is from the force of the controller it returned (the re-checked
+        force is the one reported; ``nan`` without force).
+    """
+
+    actuators: str
+    sensors: str
+    required_force: float
+    rms_force_n: float
+    peak_force_n: float
+    relaxation: float
+    binding: str
+    verified: bool
+    note: str = ""
+    gap: float = math.nan
+
+    def covered(self, force_scale: float) -> bool:
+        """Whether this member is covered at ``force_scale`` times the device's force limits."""
+        return self.verified and self.required_force <= force_scale
+
+
+@functools.lru_cache(maxsize=4)
+def _open_loop(loop):
+    """The member's open loop, inputs ``u, f, r_corr``, outputs ``y, x, c``, balanced.
+
+    Cached: a member's sets share it. States scaled by powers of 2 (exact) so that ``A``
+    is balanced: the gains and the closed-loop maps are computed without needless
+    cancellation.
+    """
+    blocks = loop.blocks(bdft=True, reference_correction=True)
+    P = connect(blocks, inputs=["u", "f", "r_corr"], outputs=["y", "x", "c"], name="limit_plant")
+    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
+    A, (sc, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return A, B / sc[:, None], C * sc[None, :], D
+
+
+@functools.lru_cache(maxsize=4)
+def _reference(loop, spec: Specification):
+    """``Y_ref`` on the tracking and feedthrough grids and the uncompensated feedthrough limit."""
+    ft, fb = _grids(spec)
+    ref = loop.system(bdft=False, outputs=["y"])
+    rt = ct.frequency_response(ref, 2 * np.pi * ft).complex.reshape(-1)
+    rb = ct.frequency_response(ref, 2 * np.pi * fb).complex.reshape(-1)
+    peak0 = float(np.max(np.abs(output_ratio(loop, None, fb) - 1.0)))
+    return rt, rb, peak0 * 10 ** (spec.max_amplification_db / 20)
+
+
+@functools.lru_cache(maxsize=8)
+def _gain(loop, actuators, region):
+    """The state feedback ``K0`` of a member and actuator set (shared by its sensor sets)."""
+    plant, _ = _member_plant(loop, actuators)
+    return stabilising_gain(plant.A, plant.Bu, region)
+
+
+@functools.lru_cache(maxsize=8)
+def _observer(loop, sensors, region):
+    """The observer gain of a member and sensor set (shared by its actuator sets)."""
+    plant, meas = _member_plant(loop, ("f",), sensors, np.ones(len(sensors)))
+    return observer_gain(plant, meas, region)
+
+
+def _schur_response(A, b, c, omega) -> np.ndarray:
+    """``c (j w I - A)^-1 b`` on a grid, through the complex Schur form (stable, O(n^2) each)."""
+    T, Z = sla.schur(A, output="complex")
+    bt, ct_ = Z.conj().T @ b, c @ Z
+    n = A.shape[0]
+    out = np.empty(len(omega), complex)
+    for i, w in enumerate(omega):
+        out[i] = ct_ @ sla.solve_triangular(1j * w * np.eye(n) - T, bt)
+    return out
+
+
+def _member_plant(loop, actuators, sensors=None, noise=None):
+    """The member's open loop: actuators, the tracked output ``y`` and the measurements.
+
+    Returns ``(plant, meas)`` with ``meas`` ``None`` for full information.
+    """
+    A, B, C, D = _open_loop(loop)
+    cols = [1 + ("f", "r_corr").index(a) for a in actuators]
+    # each actuator in units that give it a unit input column (the handle force in N
+    # moves the states a thousand times less than the reference): u = u' / s
+    s_u = np.linalg.norm(B[:, cols], axis=0)
+    force = actuators.index("f") if "f" in actuators else None
+    plant = YoulaPlant(
+        A=A,
+        Bw=B[:, [0]],
+        Bu=B[:, cols] / s_u,
+        Cy=C[[0]],
+        Dyw=float(D[0, 0]),
+        Dyu=D[[0]][:, cols] / s_u,
+        force=force,
+        force_gain=1.0 if force is None else 1.0 / float(s_u[force]),
+    )
+    meas = None
+    if sensors:
+        rows = [1 + ("x", "c").index(x) for x in sensors]
+        if np.any(D[rows][:, 1:]):
+            raise ModelStructureError("limit map: a measurement feeds through from an actuator")
+        # each measurement in units that make its row of [Cm, Dmw] of unit norm (a change
+        # of units only: the handle and the accelerometer differ by orders of magnitude)
+        Cm, Dmw = C[rows], D[rows][:, [0]]
+        sc = np.linalg.norm(np.hstack([Cm, Dmw]), axis=1)
+        meas = Measurements(
+            Cm / sc[:, None], Dmw / sc[:, None], np.asarray(noise) / sc**2, tuple(sensors)
+        )
+    return plant, meas
+
+
+def sensor_noise(loop, sensors, *, encoder_mm: float, accel_rms: float) -> np.ndarray:
+    """White-noise intensities of the measurements (two-sided, per rad/s... per s).
+
+    The encoder quantises the handle position to ``encoder_mm``: uniform error of RMS
+    ``q / sqrt(12)`` in handle units; the accelerometer adds ``accel_rms`` (the paper's
+    units of ``c``). Both are sampled at the 1 kHz servo rate, so a sample-to-sample
+    independent error of variance ``sigma^2`` is white noise of intensity ``sigma^2 T``.
+
+    Parameters
+    ----------
+    loop : robust.model.loop.BDFTLoop
+        The member (its handle units).
+    sensors : sequence of str
+        ``"x"`` and/or ``"c"``.
+    encoder_mm : float
+        Encoder resolution, mm.
+    accel_rms : float
+        Accelerometer noise RMS, the paper's units of ``c``.
+    """
+    T = 1.0 / SIMULATION_RATE_HZ
+    out = []
+    for s_ in sensors:
+        if s_ == "x":
+            q = encoder_mm * 1e-3 * loop.handle_units_per_m()
+            out.append((q / math.sqrt(12.0)) ** 2 * T)
+        elif s_ == "c":
+            out.append(accel_rms**2 * T)
+        else:
+            raise ParameterError(f"sensor_noise: unknown measurement {s_!r}")
+    return np.array(out)
+
+
+def _grids(spec: Specification):
+    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
+    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+    return ft, fb
+
+
+def _problem(cache: dict, n_theta: int, n_track: int, n_feed: int) -> LimitProblem:
+    # the force's Gram matrix has rank at most 1 + n_theta: its factor has that many rows
+    key = (n_theta, n_track, n_feed)
+    if key not in cache:
+        cache[key] = LimitProblem(n_theta, n_track, n_feed, 1 + n_theta)
+    return cache[key]
+
+
+_PROBLEMS: dict = {}
+
+
+def _lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200) -> np.ndarray:
+    """Output of ``x[k+1] = Ad x[k] + Bd u[k]``, ``y = Cd x + Dd u`` from rest, block-lifted.
+
+    Equivalent to :func:`scipy.signal.dlsim` (a test compares them) but vectorised: the
+    input is cut into blocks of ``block`` samples; within a block the output is
+    ``O x0 + T u_block`` (``O`` the powers ``Cd Ad^i``, ``T`` the lower-triangular Toeplitz
+    matrix of the Markov parameters), and the state jumps by ``Ad^block`` and ``G u_block``.
+    """
+    n = Ad.shape[0]
+    M = block
+    obs = np.empty((M, n))
+    P = np.eye(n)
+    for i in range(M):
+        obs[i] = Cd @ P
+        P = Ad @ P
+    AdM = P
+    markov = np.concatenate([[Dd], obs[:-1] @ Bd])  # h_0 = D, h_i = Cd Ad^(i-1) Bd
+    T = np.zeros((M, M))
+    for i in range(M):
+        T[i, : i + 1] = markov[i::-1]
+    # G = [Ad^(M-1) Bd, ..., Ad Bd, Bd]
+    G = np.empty((n, M))
+    v = Bd.copy()
+    for j in range(M - 1, -1, -1):
+        G[:, j] = v
+        v = Ad @ v
+    N = u.size
+    nblk = -(-N // M)
+    U = np.zeros(nblk * M)
+    U[:N] = u
+    U = U.reshape(nblk, M)
+    y = np.empty((nblk, M))
+    x = np.zeros(n)
+    for b in range(nblk):
+        y[b] = obs @ x + T @ U[b]
+        x = AdM @ x + G @ U[b]
+    return y.ravel()[:N]
+
+
+@functools.lru_cache(maxsize=8)
+def _unit_motion(seed: int, bandwidth_hz: float, duration_s: float) -> np.ndarray:
+    """The intended motion of unit amplitude (it scales linearly), shared by a member's sets."""
+    return intended_motion(peak_time_grid(duration_s), 1.0, bandwidth_hz, seed=seed)
+
+
+def _simulate_peak(A, B, C, amplitude, spec, seed, duration_s):
+    """Peak force of the loop ``(A, B[:, 0], C[-1])`` under a seeded intended motion (1 kHz)."""
+    t = peak_time_grid(duration_s)
+    u = amplitude * _unit_motion(seed, spec.intent_bandwidth_hz, duration_s)
+    dt = t[1] - t[0]
+    sys = (A, B[:, [0]], C[[-1]], np.zeros((1, 1)))
+    Ad, Bd, Cd, Dd, _ = sig.cont2discrete(sys, dt, method="foh")
+    f = _lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
+    return float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else math.inf
+
+
+def _set_limit(actuators, sensors, required, rms, peak, relaxation, binding, ok, notes, gap=None):
+    nan = math.nan
+    return SetLimit(
+        actuators=actuators,
+        sensors=sensors,
+        required_force=required,
+        rms_force_n=rms,
+        peak_force_n=peak,
+        relaxation=relaxation,
+        binding=binding,
+        verified=ok,
+        note="; ".join(notes) if isinstance(notes, list) else notes,
+        gap=nan if gap is None else gap,
+    )
+
+
+def member_limit(
+    loop,
+    actuators: str,
+    spec: Specification | None = None,
+    *,
+    sensors: str = "full",
+    seed: int = 0,
+    basis_poles=BASIS_POLES,
+    duration_s: float = 20.0,
+    encoder_mm: float = ENCODER_MM,
+    accel_rms: float = ACCEL_NOISE_RMS,
+    problems: dict | None = None,
+) -> SetLimit:
+    """The best compensator of one member for one actuator and sensor set (module notes).
+
+    Parameters
+    ----------
+    loop : robust.model.loop.BDFTLoop
+        The member (physical human).
+    actuators : str
+        A key of :data:`ACTUATOR_SETS`.
+    spec : Specification, optional
+    sensors : str
+        A key of :data:`SENSOR_SETS`: ``"full"`` (every state, noiseless) or measured
+        signals with their noise (``encoder_mm``, ``accel_rms``).
+    seed : int
+        Seed of the peak-force simulation's intended motion.
+    basis_poles : sequence of float
+        Poles of the lag basis, rad/s (above the decay rate).
+    duration_s : float
+        Length of the peak-force simulation, s.
+    encoder_mm, accel_rms : float
+        Encoder resolution, mm, and accelerometer noise RMS (the paper's units of ``c``).
+    problems : dict, optional
+        Cache of compiled problems (default: this process's).
+
+    Returns
+    -------
+    SetLimit
+    """
+    spec = Specification() if spec is None else spec
+    if actuators not in ACTUATOR_SETS:
+        raise ParameterError(
+            f"member_limit: actuators must be one of {list(ACTUATOR_SETS)}; got {actuators!r}"
+        )
+    if sensors not in SENSOR_SETS:
+        raise ParameterError(
+            f"member_limit: sensors must be one of {list(SENSOR_SETS)}; got {sensors!r}"
+        )
+    lags = np.asarray(basis_poles, float)
+    if lags.size == 0 or np.any(~np.isfinite(lags)) or np.any(lags <= spec.decay_rate):
+        raise ParameterError(
+            f"member_limit: basis_poles must be finite and above the decay rate "
+            f"{spec.decay_rate:g} rad/s; got {basis_poles!r}"
+        )
+    acts, sens = ACTUATOR_SETS[actuators], SENSOR_SETS[sensors]
+    problems = _PROBLEMS if problems is None else problems
+    noise = None
+    if sens:
+        noise = sensor_noise(loop, sens, encoder_mm=encoder_mm, accel_rms=accel_rms)
+    plant, meas = _member_plant(loop, acts, sens, noise)
+    region = spec.region()
+    pole_region = PoleRegion(spec.decay_rate, spec.min_damping)
+    nan = math.nan
+    try:
+        K0 = _gain(loop, acts, pole_region)
+        L = None if meas is None else _observer(loop, sens, pole_region)
+    except BDFTError:
+        bad = uncontrollable_modes(plant.A, plant.Bu)
+        if meas is not None:
+            bad = np.concatenate([bad, uncontrollable_modes(plant.A.T, meas.Cm.T)])
+        viol = region.violation(bad[None, :])[0] if bad.size else -math.inf
+        if viol > 0:
+            binding = "decay rate" if bad.real.max() > -spec.decay_rate else "damping"
+            why = f"a mode the loop cannot move or see lies outside the region ({viol:.3g} rad/s)"
+            return _set_limit(actuators, sensors, math.inf, nan, nan, nan, binding, False, why)
+        why = "undecided: no gain placing the poles in the region found"
+        return _set_limit(actuators, sensors, math.inf, nan, nan, nan, "damping", False, why)
+    # the lags and the poles of the loop under K0 (and of the observer), all in the region
+    # by construction: the best Q often reuses the loop's own modes
+    extra = [np.linalg.eigvals(plant.A + plant.Bu @ K0)]
+    if meas is not None:
+        extra.append(np.linalg.eigvals(plant.A - L @ meas.Cm))
+    basis = pole_basis(np.concatenate([-lags] + extra))
+    ft, fb = _grids(spec)
+    wt, wb = 2 * np.pi * ft, 2 * np.pi * fb
+    # the reference response Y_ref (no BDFT) and the uncompensated feedthrough peak
+    rt, rb, lim_f = _reference(loop, spec)
+    if meas is None:
+        mt, mb = affine_maps(plant, K0, basis, wt), affine_maps(plant, K0, basis, wb)
+    else:
+        mt = of_affine_maps(plant, meas, K0, L, basis, wt)
+        mb = of_affine_maps(plant, meas, K0, L, basis, wb)
+    track0, track = mt["y0"] / rt - 1.0, mt["y"] / rt[:, None]
+    feed0, feed = mb["y0"] / rb - 1.0, mb["y"] / rb[:, None]
+    n_theta = track.shape[1]
+    R = r0 = None
+    amp = loop.intended_amplitude(spec.limits(), spec.intent_fraction)
+    F = intent_filter(spec.intent_bandwidth_hz, 1.0)
+    filt = (F.A, F.B, F.C)
+    if plant.force is not None:
+        # the force variance [1, theta]' W [1, theta] by quadrature of the force's exact
+        # frequency responses (the intent through F at its RMS amp / sqrt(2), plus the
+        # measurement noise): robust to the high gains some members need
+        Af, Bf, Cf = (np.asarray(x, float) for x in filt)
+        k2 = amp**2 / (2.0 * float(output_gram(Af, Bf, Cf)[0, 0]))
+        poles = np.concatenate([np.linalg.eigvals(basis[0]), np.linalg.eigvals(Af)] + extra)
+        wq, wts = quadrature_grid(poles)
+        Fq = np.einsum("ij,fjk->f", Cf, _stack(Af, wq, Bf))
+        resp = force_responses(plant, K0, basis, wq, meas=meas, L=L)
+        W = quadrature_gram(
+            resp, wts, intent=k2 * np.abs(Fq) ** 2, noise=None if meas is None else meas.noise
+        )
+        Rfull = gram_factor(W, 1 + n_theta) / spec.continuous_force_n
+        r0, R = Rfull[:, 0], Rfull[:, 1:]
+    # change of variable theta = V diag(1/s) z from the SVD of every map theta enters, so
+    # the problem's columns are orthonormal (directions of no effect get a floored s)
+    M = np.vstack([track.real, track.imag, feed.real, feed.imag] + ([R] if R is not None else []))
+    _, sv, Vt = np.linalg.svd(M, full_matrices=False)
+    T = np.where(sv > FLOOR * sv[0], 1.0 / np.maximum(sv, FLOOR * sv[0]), 0.0) * Vt.T
+    prob = _problem(problems, n_theta, wt.size, wb.size)
+    prob.set(
+        track0=track0,
+        track=track @ T,
+        feed0=feed0,
+        feed=feed @ T,
+        lim_t=spec.tracking_error * TIGHTENING,
+        lim_f=lim_f * TIGHTENING,
+        R=None if R is None else R @ T,
+        r0=r0,
+    )
+    step = f"limit map ({actuators}, {sensors})"
+    sol = prob.solve("force", step=step) if plant.force is not None else None
+    relaxation = nan
+    predicted = None
+    if sol is None:
+        rel = prob.solve("relax", step=step)
+        if rel is None:
+            why = "undecided: the relaxation problem failed"
+            return _set_limit(actuators, sensors, math.inf, nan, nan, nan, "tracking", False, why)
+        theta, rho = rel
+        relaxation = rho / TIGHTENING
+        if rho > 1.0:
+            et = np.max(np.abs(track0 + track @ (T @ theta))) / spec.tracking_error
+            eb = np.max(np.abs(feed0 + feed @ (T @ theta))) / lim_f
+            binding = "tracking" if et >= eb else "feedthrough"
+            return _set_limit(
+                actuators, sensors, math.inf, nan, nan, relaxation, binding, False, ""
+            )
+    else:
+        theta = sol[0]
+        predicted = sol[1] * spec.continuous_force_n
+    Theta = T @ theta
+    if meas is None:
+        A, B, C = closed_loop(plant, K0, basis, Theta)
+        noise_cols = np.zeros((A.shape[0], 0))
+    else:
+        A, B, C = of_closed_loop(plant, meas, K0, L, basis, Theta)
+        noise_cols = B[:, 1:] * np.sqrt(meas.noise)[None, :]
+    return _verify(
+        plant,
+        A,
+        B,
+        C,
+        noise_cols,
+        spec,
+        region,
+        (rt, rb, wt, wb, lim_f),
+        amp,
+        filt,
+        (actuators, sensors),
+        relaxation,
+        seed,
+        duration_s,
+        predicted,
+    )
+
+
+def _stack(A, omega, B):
+    n = A.shape[0]
+    M = 1j * omega[:, None, None] * np.eye(n)[None] - A[None]
+    return np.linalg.solve(M, np.broadcast_to(B, (omega.size,) + B.shape))
+
+
+def _verify(
+    plant,
+    A,
+    B,
+    C,
+    noise_cols,
+    spec,
+    region,
+    grids,
+    amp,
+    filt,
+    names,
+    relaxation,
+    seed,
+    duration_s,
+    predicted,
+) -> SetLimit:
+    """Re-check the closed loop ``(A, B, C)`` (input ``w`` first, then the noise) in numpy."""
+    rt, rb, wt, wb, lim_f = grids
+    actuators, sensors = names
+    poles = np.linalg.eigvals(A)
+    notes = []
+    ok = True
+    gap = None
+    viol = region.violation(poles[None, :])[0]
+    if viol > 0:
+        ok = False
+        notes.append(f"closed-loop poles outside the region ({viol:.3g} rad/s)")
+
+    def ratio(w, r):
+        return (_schur_response(A, B[:, 0], C[0], w) + plant.Dyw) / r - 1.0
+
+    et = float(np.max(np.abs(ratio(wt, rt))))
+    eb = float(np.max(np.abs(ratio(wb, rb))))
+    if et > spec.tracking_error:
+        ok = False
+        notes.append(f"tracking {et:.4g} above {spec.tracking_error:g} on re-check")
+    if eb > lim_f:
+        ok = False
+        notes.append(f"feedthrough {eb:.4g} above {lim_f:.4g} on re-check")
+    if plant.force is None:
+        return _set_limit(
+            actuators,
+            sensors,
+            0.0 if ok else math.inf,
+            0.0,
+            0.0,
+            relaxation,
+            "" if ok else "tracking",
+            ok,
+            notes,
+        )
+    if not ok:
+        return _set_limit(
+            actuators, sensors, math.inf, math.inf, math.inf, relaxation, "tracking", False, notes
+        )
+    # exact RMS force: intent through F (scaled to its RMS amp/sqrt(2)) plus the noise
+    Af, Bf, Cf = (np.asarray(x, float) for x in filt)
+    n, nf = A.shape[0], Af.shape[0]
+    Pf = sla.solve_continuous_lyapunov(Af, -Bf @ Bf.T)
+    k = amp / math.sqrt(2.0 * float((Cf @ Pf @ Cf.T)[0, 0]))
+    Aa = np.block([[A, B[:, [0]] @ Cf], [np.zeros((nf, n)), Af]])
+    Ba = np.block([[np.zeros((n, 1)), noise_cols], [k * Bf, np.zeros((nf, noise_cols.shape[1]))]])
+    Ca = np.hstack([C[[1]], np.zeros((1, nf))])
+    rms = math.sqrt(max(float(output_gram(Aa, Ba, Ca)[0, 0]), 0.0))
+    if predicted is not None:
+        gap = (rms - predicted) / max(predicted, 1e-9)
+    peak = _simulate_peak(A, B, C, amp, spec, seed, duration_s)
+    rc, rp = rms / spec.continuous_force_n, peak / spec.peak_force_n
+    binding = "continuous force" if rc >= rp else "peak force"
+    return _set_limit(
+        actuators, sensors, max(rc, rp), rms, peak, relaxation, binding, True, notes, gap
+    )
+
+
+#: Force multiples of the map (the Omni's limits times 1, 2, 4).
+FORCE_SCALES = (1.0, 2.0, 4.0)
+#: Default members of the map's Latin hypercube.
+LIMIT_SAMPLES = 256
+#: Every set the map knows: ``"actuators/sensors"``.
+ALL_SETS = tuple(f"{a}/{s}" for s in SENSOR_SETS for a in ACTUATOR_SETS)
+#: The map's default sets: every actuator set with full information, and handle force and
+#: reference shaping with the handle's encoder and with the cab accelerometer added (the
+#: combined actuators under output feedback are left to ``sets``: with full information
+#: the reference alone already covers what they cover).
+DEFAULT_SETS = (
+    "force/full",
+    "reference/full",
+    "force+reference/full",
+    "force/handle",
+    "reference/handle",
+    "force/handle+cab",
+    "reference/handle+cab",
+)
+
+
+def split_set(name: str) -> tuple[str, str]:
+    """``"actuators/sensors"`` -> ``(actuators, sensors)``, checked.
+
+    Parameters
+    ----------
+    name : str
+        A set name of :data:`ALL_SETS`.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If it names no set.
+    """
+    if not isinstance(name, str) or name not in ALL_SETS:
+        raise ParameterError(f"limit map: a set must be one of {list(ALL_SETS)}; got {name!r}")
+    a, s_ = name.split("/")
+    return a, s_
+
+
+#: Information order of the sensor sets: each knows what the earlier ones know.
+_INFORMATION = ("handle", "handle+cab", "full")
+
+
+def set_contains(big: str, small: str) -> bool:
+    """Whether every controller of set ``small`` is a controller of set ``big``.
+
+    Its actuators are among ``big``'s, and its sensors tell no more than ``big``'s
+    (``handle`` < ``handle+cab`` < ``full``).
+
+    Parameters
+    ----------
+    big, small : str
+        Sets of :data:`ALL_SETS`.
+    """
+    (a1, s1), (a2, s2) = split_set(big), split_set(small)
+    acts = set(ACTUATOR_SETS[a2]) <= set(ACTUATOR_SETS[a1])
+    return acts and _INFORMATION.index(s2) <= _INFORMATION.index(s1)
+
+
+def _member_task(family, row, sets, spec, seed, basis_poles, duration_s):
+    loop = family.member(row)
+    out = []
+    for name in sets:
+        a, s_ = split_set(name)
+        out.append(
+            member_limit(
+                loop,
+                a,
+                spec,
+                sensors=s_,
+                seed=seed,
+                basis_poles=basis_poles,
+                duration_s=duration_s,
+            )
+        )
+    return out
+
+
+def _run(tasks, n_jobs: int, progress=None, total: int | None = None) -> list:
+    """Run joblib tasks in order, in this process (``n_jobs`` 1) or in ``n_jobs`` processes."""
+    runner = (
+        (fn(*args, **kw) for fn, args, kw in tasks)
+        if n_jobs == 1
+        else Parallel(n_jobs=n_jobs, return_as="generator", batch_size=2)(tasks)
+    )
+    out = []
+    for res in runner:
+        out.append(tuple(res))
+        if progress:
+            progress(len(out), total or len(tasks))
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class LimitMap:
+    """The limit map: per member and set, what the best verified controller needs.
+
+    Parameters
+    ----------
+    names : tuple of str
+        Parameter names (``family.names``).
+    values : numpy.ndarray (N, d)
+        The members: the Latin hypercube first, then the critical members.
+    labels : tuple of str
+        Per member, ``"lhs"`` or the critical member's label (``"nominal"``,
+        ``"open-loop worst"``).
+    sets : tuple of str
+        Sets ``"actuators/sensors"`` (:data:`ALL_SETS`).
+    limits : tuple of tuple of SetLimit
+        ``limits[i][j]``: member ``i``, set ``j``.
+    force_scales : tuple of float
+        Multiples of the device's force limits reported.
+    samples, seed : int
+        Latin-hypercube size and seed.
+    basis_poles : tuple of float
+        Lags of the basis, rad/s.
+    specification : dict
+        The specification (:meth:`Specification.to_json`).
+    noise : dict
+        Sensor noise: encoder resolution, mm, and accelerometer RMS.
+    """
+
+    names: tuple
+    values: np.ndarray
+    labels: tuple
+    sets: tuple
+    limits: tuple
+    force_scales: tuple
+    samples: int
+    seed: int
+    basis_poles: tuple
+    specification: dict
+    noise: dict
+
+    def lhs_index(self) -> np.ndarray:
+        """Boolean mask of the Latin-hypercube members (the critical members excluded)."""
+        return np.array([lab == "lhs" for lab in self.labels])
+
+    def own_required(self, name: str) -> np.ndarray:
+        """Required force multiple per member from the set's own problem (``inf``: none found).
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        """
+        j = self.sets.index(name)
+        return np.array(
+            [row[j].required_force if row[j].verified else math.inf for row in self.limits]
+        )
+
+    def required(self, name: str) -> np.ndarray:
+        """Required force multiple per member for one set, the best of the sets it contains.
+
+        A controller of a smaller set is a controller of ``name`` (an unused actuator held
+        at zero, an unused sensor ignored; full information knows every measured signal
+        without noise), so each member's requirement is the least over the map's sets
+        contained in ``name`` (:func:`set_contains`) of their verified requirements.
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        """
+        own = [self.own_required(x) for x in self.sets if set_contains(name, x)]
+        return np.min(np.vstack(own), axis=0)
+
+    def coverage(self, name: str, force_scale: float) -> float:
+        """Fraction of the Latin hypercube covered by one set at ``force_scale``.
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        force_scale : float
+            Multiple of the device's force limits.
+        """
+        req = self.required(name)[self.lhs_index()]
+        return float(np.mean(req <= force_scale))
+
+    def binding(self, name: str, force_scale: float) -> dict:
+        """Per constraint, the Latin-hypercube members it keeps uncovered at ``force_scale``.
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        force_scale : float
+            Multiple of the device's force limits.
+        """
+        j = self.sets.index(name)
+        req = self.required(name)
+        out = {}
+        for row, lhs, r in zip(self.limits, self.lhs_index(), req):
+            if not lhs or r <= force_scale:
+                continue
+            key = row[j].binding or "unverified"
+            out[key] = out.get(key, 0) + 1
+        return out
+
+    def scale_for(self, name: str, fraction: float = 0.95) -> float:
+        """Smallest force multiple covering ``fraction`` of the Latin hypercube (``inf``: none).
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        fraction : float
+            Coverage wanted, in (0, 1].
+        """
+        req = np.sort(self.required(name)[self.lhs_index()])
+        k = int(math.ceil(fraction * req.size)) - 1
+        return float(req[max(k, 0)])
+
+    def sets_json(self) -> list:
+        """Per set and force multiple: name, force_scale, coverage, samples, seed, binding."""
+        out = []
+        lhs = self.lhs_index()
+        for name in self.sets:
+            a, s_ = split_set(name)
+            for sc in self.force_scales:
+                cov = self.coverage(name, sc)
+                out.append(
+                    {
+                        "name": name,
+                        "actuators": list(ACTUATOR_SETS[a]),
+                        "sensors": s_,
+                        "force_scale": sc,
+                        "coverage": cov,
+                        "coverage_own": float(np.mean(self.own_required(name)[lhs] <= sc)),
+                        "covered": int(round(cov * self.samples)),
+                        "samples": self.samples,
+                        "seed": self.seed,
+                        "binding": self.binding(name, sc),
+                    }
+                )
+        return out
+
+    def to_json(self) -> dict:
+        """The ``bdft limit --json`` object (without the basis check and the page's path)."""
+        crit = []
+        for i, lab in enumerate(self.labels):
+            if lab == "lhs":
+                continue
+            crit.append(
+                {
+                    "label": lab,
+                    "parameters": dict(zip(self.names, map(float, self.values[i]))),
+                    "limits": [dataclasses.asdict(x) for x in self.limits[i]],
+                }
+            )
+        gaps = [
+            abs(x.gap) for row in self.limits for x in row if x.verified and math.isfinite(x.gap)
+        ]
+        return {
+            "sets": self.sets_json(),
+            "force_for_95": {name: self.scale_for(name, 0.95) for name in self.sets},
+            "critical": crit,
+            "samples": self.samples,
+            "seed": self.seed,
+            "method": "lhs",
+            "basis_poles": list(self.basis_poles),
+            "noise": dict(self.noise),
+            "solver_gap": {
+                "median": float(np.median(gaps)) if gaps else math.nan,
+                "max": float(np.max(gaps)) if gaps else math.nan,
+            },
+            "specification": self.specification,
+        }
+
+
+def limit_map(
+    family,
+    spec: Specification | None = None,
+    *,
+    samples: int = LIMIT_SAMPLES,
+    seed: int = 0,
+    sets=DEFAULT_SETS,
+    force_scales=FORCE_SCALES,
+    critical: bool = True,
+    basis_poles=BASIS_POLES,
+    duration_s: float = 20.0,
+    n_jobs: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> LimitMap:
+    """The limit map of ``family`` (module notes): every member's limit for every set.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        A family with the physical human.
+    spec : Specification, optional
+        The specification (default :class:`Specification` ``()``).
+    samples : int
+        Latin-hypercube members (>= 1).
+    seed : int
+        Seed of the Latin hypercube (and, ``seed + i``, of member ``i``'s simulation).
+    sets : sequence of str
+        Sets ``"actuators/sensors"`` of :data:`ALL_SETS`.
+    force_scales : sequence of float
+        Multiples of the device's force limits reported.
+    critical : bool
+        Add the nominal member and the open loop's worst member of the box for the
+        specification's pole region (:func:`uncertainty.margins.worst_member`).
+    basis_poles : sequence of float
+        The lag basis, rad/s.
+    duration_s : float
+        Peak-force simulation length, s.
+    n_jobs : int
+        Parallel processes.
+    progress : callable, optional
+        ``progress(done, total)`` members.
+
+    Returns
+    -------
+    LimitMap
+    """
+    spec = Specification() if spec is None else spec
+    samples = check_int("samples", samples, low=1, owner="limit_map")
+    n_jobs = check_int("n_jobs", n_jobs, low=1, owner="limit_map")
+    sets = tuple(dict.fromkeys(sets))
+    if not sets:
+        raise ParameterError("limit_map: sets must name at least one set; got none")
+    for name in sets:
+        split_set(name)
+    scales = tuple(float(x) for x in force_scales)
+    if not scales or any(not (math.isfinite(x) and x > 0) for x in scales):
+        raise ParameterError(
+            f"limit_map: force_scales must be positive numbers; got {force_scales!r}"
+        )
+    rows = list(sample(family.parameters, samples, method="lhs", seed=seed).values)
+    labels = ["lhs"] * samples
+    if critical:
+        rows.append(family.nominal_values())
+        labels.append("nominal")
+        _, worst = worst_member(family, 1.0, region=spec.region(), seed=seed)
+        rows.append(worst)
+        labels.append("open-loop worst")
+    values = np.asarray(rows, float)
+    poles = tuple(float(x) for x in basis_poles)
+    tasks = [
+        delayed(_member_task)(family, values[i], sets, spec, seed + i, poles, duration_s)
+        for i in range(len(values))
+    ]
+    results = _run(tasks, n_jobs, progress)
+    return LimitMap(
+        names=tuple(family.names),
+        values=values,
+        labels=tuple(labels),
+        sets=sets,
+        limits=tuple(results),
+        force_scales=scales,
+        samples=samples,
+        seed=seed,
+        basis_poles=poles,
+        specification=spec.to_json(),
+        noise={"encoder_mm": ENCODER_MM, "accel_rms": ACCEL_NOISE_RMS},
+    )
+
+
+def basis_check(
+    family,
+    lm: LimitMap,
+    *,
+    members: int = 8,
+    sets=None,
+    spec: Specification | None = None,
+    n_jobs: int = 1,
+) -> dict:
+    """How much a richer basis lowers the map's limits: the first members with twice the lags.
+
+    The basis is an inner approximation (module notes): a richer one can only lower a
+    member's required force multiple (up to the solver's accuracy). The first ``members``
+    members of the Latin hypercube are re-run with the map's lags and their geometric
+    midpoints (a basis that contains the map's), so the decrease measures how far the map
+    is from the limit of an infinite basis.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The map's family.
+    lm : LimitMap
+        The map.
+    members : int
+        Members re-run (>= 1).
+    sets : sequence of str, optional
+        Sets re-run (default: the map's sets with a force actuator).
+    spec : Specification, optional
+        The map's specification.
+    n_jobs : int
+        Parallel processes.
+
+    Returns
+    -------
+    dict
+        Per set: ``members``, ``poles`` (before, after), the required force multiples
+        before and after, and the median and largest relative decrease among members
+        finite in both.
+    """
+    spec = Specification() if spec is None else spec
+    members = check_int("members", members, low=1, owner="basis_check")
+    if sets is None:
+        sets = tuple(x for x in lm.sets if "f" in ACTUATOR_SETS[split_set(x)[0]])
+    sets = tuple(sets)
+    a = np.asarray(lm.basis_poles)
+    mids = np.sqrt(a[:-1] * a[1:])
+    rich = tuple(float(x) for x in np.sort(np.concatenate([a, mids])))
+    idx = np.flatnonzero(lm.lhs_index())[:members]
+    tasks = [
+        delayed(_member_task)(family, lm.values[i], sets, spec, lm.seed + int(i), rich, 20.0)
+        for i in idx
+    ]
+    runner = _run(tasks, n_jobs)
+    out = {}
+    for j, name in enumerate(sets):
+        k = lm.sets.index(name)
+        before = np.array(
+            [lm.limits[i][k].required_force if lm.limits[i][k].verified else math.inf for i in idx]
+        )
+        after = np.array([r[j].required_force if r[j].verified else math.inf for r in runner])
+        ok = np.isfinite(before) & np.isfinite(after) & (before > 1e-6)
+        dec = 1.0 - after[ok] / before[ok]
+        out[name] = {
+            "members": int(idx.size),
+            "poles": [len(lm.basis_poles), len(rich)],
+            "required_before": before.tolist(),
+            "required_after": after.tolist(),
+            "median_decrease": float(np.median(dec)) if dec.size else math.nan,
+            "largest_decrease": float(np.max(dec)) if dec.size else math.nan,
+        }
+    return out

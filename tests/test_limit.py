@@ -1,0 +1,331 @@
+"""The achievable-limit map: orthonormal bases, the affine closed-loop maps, member limits."""
+
+import json
+
+import control as ct
+import numpy as np
+import pytest
+
+import designs.limit as limit
+from bdft import main
+from designs.spec import Specification
+from robust.errors import ParameterError
+from robust.synthesis.forcefb import intent_filter
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.youla import (
+    LimitProblem,
+    affine_maps,
+    closed_loop,
+    force_responses,
+    h2_gram,
+    lag_basis,
+    observer_gain,
+    of_affine_maps,
+    of_closed_loop,
+    pole_basis,
+    quadrature_gram,
+    quadrature_grid,
+    realise_controller,
+    stabilising_gain,
+)
+from uncertainty import default_family
+
+
+@pytest.fixture(scope="module")
+def family():
+    return default_family()
+
+
+@pytest.fixture(scope="module")
+def nominal(family):
+    return family.member(family.nominal_values())
+
+
+def test_pole_basis_is_orthonormal_and_spans_its_poles():
+    poles = np.array([-0.3, -1 + 40j, -5, -0.4 + 7.7j, -314, -1000, -0.9 + 39.2j, -5.01])
+    A, b, C = pole_basis(poles)
+    assert A.shape == (11, 11)
+    # H2 inner products of the states: python-control's Gramian (SLICOT or scipy)
+    G = ct.gram(ct.ss(A, b, C, 0), "c")
+    np.testing.assert_allclose(G, np.eye(11), atol=1e-9)
+    # every 1/(s - p) and s/((s - p)(s - conj p)) lies in the span (least squares on a grid)
+    w = np.geomspace(0.01, 1e4, 300)
+    Phi = np.array([C @ np.linalg.solve(1j * x * np.eye(11) - A, b).ravel() for x in w])
+    targets = [1 / (1j * w - p) for p in (-0.3, -5, -314, -1000, -5.01)]
+    targets.append(1j * w / ((1j * w + 1) ** 2 + 40**2))
+    for t in targets:
+        coef, *_ = np.linalg.lstsq(Phi, t, rcond=None)
+        assert np.max(np.abs(Phi @ coef - t)) < 1e-7 * np.max(np.abs(t))
+    # lags: the Takenaka-Malmquist functions are orthonormal however close their poles
+    A, b, C = lag_basis(np.geomspace(0.3, 1000, 64))
+    np.testing.assert_allclose(ct.gram(ct.ss(A, b, C, 0), "c"), np.eye(64), atol=1e-9)
+    with pytest.raises(ParameterError, match="negative real parts"):
+        pole_basis([-1.0, 0.5])
+    with pytest.raises(ParameterError, match="positive"):
+        lag_basis([1.0, -2.0])
+
+
+@pytest.fixture(scope="module")
+def force_problem(nominal):
+    plant, _ = limit._member_plant(nominal, ("f", "r_corr"))
+    K0 = stabilising_gain(plant.A, plant.Bu, PoleRegion(0.1, 0.1))
+    basis = lag_basis([0.5, 3.0, 20.0, 150.0])
+    rng = np.random.default_rng(5)
+    Theta = rng.normal(size=(plant.m, 4))
+    return plant, K0, basis, Theta
+
+
+def test_stabilising_gain_meets_the_region(force_problem):
+    plant, K0, _, _ = force_problem
+    ev = np.linalg.eigvals(plant.A + plant.Bu @ K0)
+    assert ev.real.max() < -0.1
+    assert np.min(-ev.real / np.abs(ev)) > 0.1
+    # the open loop itself does not (lightly damped structure and arm modes)
+    ev0 = np.linalg.eigvals(plant.A)
+    assert np.min(-ev0.real / np.abs(ev0)) < 0.05
+
+
+def test_affine_maps_equal_the_closed_loop(force_problem):
+    # the affine formula T1 + T2 Theta phi against the closed loop built from the plant,
+    # K0 and the lag bank, evaluated by python-control
+    plant, K0, basis, Theta = force_problem
+    w = np.array([0.3, 2.0, 12.0, 40.0, 200.0])
+    maps = affine_maps(plant, K0, basis, w)
+    A, B, C = closed_loop(plant, K0, basis, Theta)
+    sys = ct.ss(A, B, C, np.array([[plant.Dyw], [0.0]]))
+    resp = ct.frequency_response(sys, w).complex
+    y = maps["y0"] + maps["y"] @ Theta.ravel()
+    f = maps["f0"] + maps["f"] @ Theta.ravel()
+    np.testing.assert_allclose(y, resp[0, 0], rtol=1e-8)
+    np.testing.assert_allclose(f, resp[1, 0], rtol=1e-8)
+
+
+def test_force_gram_equals_the_h2_norm(force_problem):
+    # theta' W theta is ||T_f F||_2^2 of the closed loop: python-control's H2 norm
+    plant, K0, basis, Theta = force_problem
+    F = intent_filter(2.0, 1.0)
+    W, nF2 = h2_gram(plant, K0, basis, (F.A, F.B, F.C))
+    th = np.concatenate([[1.0], Theta.ravel()])
+    A, B, C = closed_loop(plant, K0, basis, Theta)
+    loop = ct.ss(A, B, C[[1]], 0)
+    h2 = ct.norm(ct.series(F, loop), p=2, method="scipy")
+    assert th @ W @ th == pytest.approx(h2**2, rel=1e-7)
+    assert nF2 == pytest.approx(ct.norm(F, p=2, method="scipy") ** 2, rel=1e-9)
+
+
+def test_realised_controller_reproduces_the_loop(force_problem):
+    # the controller that reconstructs phi(s) w from the states, closed around the plant by
+    # python-control's feedback: same poles and same response as the loop in (x, xi)
+    plant, K0, basis, Theta = force_problem
+    Ac, Bc, Cc, Dc = realise_controller(plant, K0, basis, Theta)
+    # u_a = K x: the controller fed every state, closed by python-control (positive
+    # feedback of the states into the actuator inputs)
+    P = ct.ss(plant.A, plant.Bu, np.eye(plant.n), 0)
+    K = ct.ss(Ac, Bc, Cc, Dc)
+    cl = ct.feedback(P, K, sign=1)
+    nc = Ac.shape[0]
+    Acl = np.block([[plant.A + plant.Bu @ Dc, plant.Bu @ Cc], [Bc, Ac]])
+    np.testing.assert_allclose(
+        np.sort(np.linalg.eigvals(cl.A).real), np.sort(np.linalg.eigvals(Acl).real), rtol=1e-6
+    )
+    ev = np.sort_complex(np.linalg.eigvals(Acl))
+    A, _, _ = closed_loop(plant, K0, basis, Theta)
+    ev_ref = np.sort_complex(np.linalg.eigvals(A))
+    np.testing.assert_allclose(np.sort(ev.real), np.sort(ev_ref.real), rtol=1e-5, atol=1e-6)
+    sys = ct.ss(
+        Acl,
+        np.vstack([plant.Bw, np.zeros((nc, 1))]),
+        np.hstack([plant.Cy + plant.Dyu @ Dc, plant.Dyu @ Cc]),
+        plant.Dyw,
+    )
+    w = np.array([0.5, 5.0, 38.0])
+    maps = affine_maps(plant, K0, basis, w)
+    np.testing.assert_allclose(
+        ct.frequency_response(sys, w).complex.ravel(),
+        maps["y0"] + maps["y"] @ Theta.ravel(),
+        rtol=1e-6,
+    )
+
+
+def test_output_feedback_maps_and_force_variance(nominal):
+    # observer-based output feedback from the handle and the cab accelerometer: the affine
+    # maps against the realised loop (python-control), the force variance by quadrature
+    # against python-control's H2 norm of the loop with the intent and the sensor noise
+    plant, _ = limit._member_plant(nominal, ("f", "r_corr"))
+    noise = limit.sensor_noise(nominal, ("x", "c"), encoder_mm=0.055, accel_rms=0.05)
+    plant, meas = limit._member_plant(nominal, ("f", "r_corr"), ("x", "c"), noise)
+    region = PoleRegion(0.1, 0.1)
+    K0 = stabilising_gain(plant.A, plant.Bu, region)
+    L = observer_gain(plant, meas, region)
+    assert region.violation(np.linalg.eigvals(plant.A - L @ meas.Cm)) < 0
+    basis = lag_basis([0.5, 3.0, 20.0])
+    Theta = np.random.default_rng(2).normal(size=(2, 2, 3)) * 1e-3
+    w = np.array([0.3, 2.0, 12.0, 40.0])
+    A, B, C = of_closed_loop(plant, meas, K0, L, basis, Theta)
+    assert region.violation(np.linalg.eigvals(A)) < 0
+    sys = ct.ss(A, B, C, np.zeros((2, 3)))
+    maps = of_affine_maps(plant, meas, K0, L, basis, w)
+    np.testing.assert_allclose(
+        maps["y0"] + maps["y"] @ Theta.ravel(),
+        ct.frequency_response(sys, w).complex[0, 0] + plant.Dyw,
+        rtol=1e-8,
+    )
+    F = intent_filter(2.0, 1.0)
+    poles = np.concatenate(
+        [np.linalg.eigvals(A), np.linalg.eigvals(F.A), np.linalg.eigvals(basis[0])]
+    )
+    wq, wts = quadrature_grid(poles)
+    Fq = np.array([(F.C @ np.linalg.solve(1j * x * np.eye(2) - F.A, F.B))[0, 0] for x in wq])
+    resp = force_responses(plant, K0, basis, wq, meas=meas, L=L)
+    W = quadrature_gram(resp, wts, intent=np.abs(Fq) ** 2, noise=meas.noise)
+    th = np.concatenate([[1.0], Theta.ravel()])
+    # the loop driven by [intent white noise -> F, the sensor noises], as one system
+    n = A.shape[0]
+    Aa = np.block([[A, B[:, [0]] @ F.C], [np.zeros((2, n)), F.A]])
+    Ba = np.block([[np.zeros((n, 1)), B[:, 1:] * np.sqrt(meas.noise)], [F.B, np.zeros((2, 2))]])
+    Ca = np.hstack([C[[1]], np.zeros((1, 2))])
+    h2 = ct.norm(ct.ss(Aa, Ba, Ca, 0), p=2, method="slycot")  # SLICOT AB13BD
+    assert th @ W @ th == pytest.approx(h2**2, rel=1e-3)
+
+
+def test_sensor_noise_and_set_order(nominal):
+    # encoder: uniform quantisation q / sqrt(12) at 1 kHz, in handle units
+    q = 0.055e-3 * nominal.handle_units_per_m()
+    n = limit.sensor_noise(nominal, ("x", "c"), encoder_mm=0.055, accel_rms=0.05)
+    np.testing.assert_allclose(n, [q**2 / 12 * 1e-3, 0.05**2 * 1e-3])
+    assert limit.set_contains("force+reference/full", "force/handle")
+    assert limit.set_contains("force/handle+cab", "force/handle")
+    assert not limit.set_contains("force/handle", "force/handle+cab")
+    assert not limit.set_contains("reference/full", "force/full")
+
+
+def test_lifted_simulation_equals_dlsim():
+    import scipy.signal as sig
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(30, 30))
+    A -= (np.abs(np.linalg.eigvals(A)).max() + 0.5) * np.eye(30)
+    B, C = rng.normal(size=(30, 1)), rng.normal(size=(1, 30))
+    Ad, Bd, Cd, Dd, _ = sig.cont2discrete((A, B, C, np.zeros((1, 1))), 1e-3, method="foh")
+    u = rng.normal(size=5003)
+    y = limit._lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
+    _, ref, _ = sig.dlsim((Ad, Bd, Cd, Dd, 1e-3), u)
+    np.testing.assert_allclose(y, ref[:, 0], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+def test_member_limits_of_the_nominal_member(nominal):
+    spec = Specification()
+    force = limit.member_limit(nominal, "force", spec, problems={})
+    ref = limit.member_limit(nominal, "reference", spec, problems={})
+    # handle force alone: a verified controller within the Omni's limits (measured 0.32 x,
+    # continuous force binding); the solver's optimum agrees with the re-check
+    assert force.verified and force.binding == "continuous force"
+    assert 0.15 < force.required_force < 0.65
+    assert force.rms_force_n == pytest.approx(force.required_force * 0.88, rel=1e-9)
+    assert force.peak_force_n < 3.3 * force.required_force
+    assert abs(force.gap) < 0.02
+    # shaping the reference with the member known exactly nearly cancels the feedthrough:
+    # tracking and feedthrough at a small fraction of their limits (measured 0.048)
+    assert ref.verified and ref.required_force == 0.0 and ref.relaxation < 0.2
+
+
+def test_limit_problem_infeasible_then_relaxed():
+    # a tracking error the parameter cannot move (0.5 at every frequency on one grid, 0.5j
+    # on the other): the force problem is infeasible and the smallest relaxation is exactly
+    # 0.5 / 0.2 = 2.5 (the feedthrough limit of 1 is met)
+    prob = LimitProblem(3, 4, 2, 4)
+    rng = np.random.default_rng(0)
+    prob.set(
+        track0=np.full(4, 0.5 + 0j),
+        track=np.zeros((4, 3), complex),
+        feed0=np.full(2, 0.5j),
+        feed=rng.normal(size=(2, 3)) * 0,
+        lim_t=0.2,
+        lim_f=1.0,
+        R=np.eye(4, 3),
+        r0=np.ones(4),
+        eps=0.0,
+    )
+    assert prob.solve("force", step="test") is None
+    theta, rho = prob.solve("relax", step="test")
+    assert rho == pytest.approx(2.5, rel=1e-6)
+    # with a parameter that moves the error, the force problem has the closed-form optimum
+    prob.set(
+        track0=np.full(4, 0.5 + 0j),
+        track=np.ones((4, 3), complex) * np.array([1.0, 0, 0]),
+        feed0=np.zeros(2, complex),
+        feed=np.zeros((2, 3), complex),
+        lim_t=0.2,
+        lim_f=1.0,
+        R=np.eye(4, 3),
+        r0=np.zeros(4),
+        eps=0.0,
+    )
+    theta, value = prob.solve("force", step="test")
+    # |0.5 + theta_0| <= 0.2 at least cost |theta|: theta_0 = -0.3
+    assert value == pytest.approx(0.3, rel=1e-6) and theta[0] == pytest.approx(-0.3, rel=1e-6)
+
+
+def test_limit_map_and_its_json(family):
+    lm = limit.limit_map(
+        family,
+        samples=4,
+        seed=3,
+        sets=("reference/full", "force/full", "force/handle"),
+        critical=False,
+        n_jobs=1,
+    )
+    j = lm.to_json()
+    assert [(e["name"], e["force_scale"]) for e in j["sets"]] == [
+        (a, s) for a in ("reference/full", "force/full", "force/handle") for s in (1.0, 2.0, 4.0)
+    ]
+    for e in j["sets"]:
+        req = lm.required(e["name"])
+        assert e["coverage"] == pytest.approx(np.mean(req <= e["force_scale"]))
+        assert e["samples"] == 4 and e["seed"] == 3
+        assert sum(e["binding"].values()) == 4 - e["covered"]
+    # more force never covers fewer members; full information contains the handle's
+    # controllers, so it never needs more force than the handle set
+    cov = [lm.coverage("force/full", s) for s in (1.0, 2.0, 4.0)]
+    assert cov == sorted(cov)
+    assert np.all(lm.required("force/full") <= lm.own_required("force/handle"))
+    assert np.all(lm.required("force/full") <= lm.own_required("force/full"))
+    with pytest.raises(ParameterError, match="set must be one of"):
+        limit.limit_map(family, samples=2, sets=("magic",))
+    with pytest.raises(ParameterError, match="force_scales"):
+        limit.limit_map(family, samples=2, force_scales=(0.0,))
+
+
+def test_cli_limit_json_and_page(tmp_path, capsys):
+    out = tmp_path / "limit"
+    code = main(
+        [
+            "limit",
+            "--samples",
+            "3",
+            "--sets",
+            "force/full,reference/handle",
+            "--basis-check",
+            "1",
+            "--jobs",
+            "1",
+            "--out",
+            str(out),
+            "--json",
+        ]
+    )
+    assert code == 0
+    obj = json.loads(capsys.readouterr().out)
+    assert {"name", "force_scale", "coverage", "samples", "seed", "binding"} <= set(obj["sets"][0])
+    assert [c["label"] for c in obj["critical"]] == ["nominal", "open-loop worst"]
+    assert obj["basis_check"]["force/full"]["poles"] == [32, 63]
+    html = (out / "index.html").read_text()
+    assert "What the map bounds" in html and "coverage_curve.png" in html
+    assert json.loads((out / "limit.json").read_text())["sets"] == obj["sets"]
+
+
+def test_cli_limit_bad_options(capsys):
+    assert main(["limit", "--sets", "force/full,magic"]) == 2
+    assert "--sets" in capsys.readouterr().err
+    assert main(["limit", "--force-scales", "none"]) == 2
+    assert "--force-scales" in capsys.readouterr().err
