@@ -16,6 +16,7 @@ __all__ = [
     "print_json",
     "add_margin_boxes_argument",
     "add_coverage_arguments",
+    "add_jobs_argument",
     "member_progress",
 ]
 
@@ -69,6 +70,17 @@ def add_coverage_arguments(p, subject: str) -> None:
         f"checked for the coverage certificate of {subject} (0: not computed; "
         "default: %(default)s)",
     )
+    add_jobs_argument(p)
+
+
+def add_jobs_argument(p) -> None:
+    """Add ``--jobs``: parallel processes, 1 to 256 (default: the number of cores).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    """
     p.add_argument(
         "--jobs",
         type=integer("--jobs", low=1, high=256),

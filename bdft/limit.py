@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 from bdft.args import UsageError, check_report_dir, factor_list, integer, seed
-from bdft.common import member_progress, print_json
+from bdft.common import add_jobs_argument, member_progress, print_json
 from designs.limit import (
     ALL_SETS,
     DEFAULT_SETS,
@@ -83,12 +82,7 @@ def register(sub) -> None:
         help="members re-run with a basis of twice as many poles to measure convergence "
         "(0: skipped; default: %(default)s)",
     )
-    p.add_argument(
-        "--jobs",
-        type=integer("--jobs", low=1, high=256),
-        default=max(1, os.cpu_count() or 1),
-        help="parallel processes (default: the number of cores, %(default)s)",
-    )
+    add_jobs_argument(p)
     p.add_argument(
         "--out",
         default="reports/out/limit",
