@@ -17,7 +17,7 @@ from designs.limit import (
     basis_check,
     limit_map,
 )
-from reports.limit import limit_conclusions, write_limit_report
+from reports.limit import best_set, limit_conclusions, write_limit_report
 from uncertainty import default_family
 
 __all__ = ["register", "run"]
@@ -137,6 +137,7 @@ def run(args) -> int:
         obj = lm.to_json()
         obj["basis_check"] = basis
         obj["conclusions"] = limit_conclusions(lm)
+        obj["best_set"] = best_set(lm)
         obj["report"] = str(index)
         print_json(obj)
     else:

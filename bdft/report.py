@@ -10,6 +10,7 @@ from bdft.args import (
     check_artifact_targets,
     check_report_dir,
     factor_list,
+    integer,
     members,
     members_help,
     seed,
@@ -20,10 +21,12 @@ from bdft.common import (
     member_progress,
     print_json,
 )
+from designs.limit import limit_map
 from designs.registry import design_names
 from designs.robust_lmi import force_tradeoff
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
+from reports.limit import limit_conclusions
 from uncertainty import default_family
 
 __all__ = ["register", "run"]
@@ -65,6 +68,14 @@ def register(sub) -> None:
     add_margin_boxes_argument(p, "each design")
     add_coverage_arguments(p, "each design")
     p.add_argument(
+        "--limit-samples",
+        type=integer("--limit-samples", low=0, high=100_000),
+        default=64,
+        help="members of the achievable-limit map shown beside the designs' coverage "
+        "(bdft limit's computation, default sets; 0: not computed; default: %(default)s, "
+        "about a second per member per core)",
+    )
+    p.add_argument(
         "--tradeoff",
         type=factor_list("--tradeoff"),
         default=(0.5, 1.0, 2.0, 4.0),
@@ -93,7 +104,9 @@ def run(args) -> int:
         a previous report; it and the artifacts' folder are checked before any work),
         ``margin_boxes`` (sub-boxes per scale of each design's certified robust margin,
         0 skips it), ``tradeoff`` (force-limit multiples of the Pareto sweep, empty skips
-        it) and ``json``.
+        it), ``coverage_samples`` and ``jobs`` (each design's coverage certificate),
+        ``limit_samples`` (members of the achievable-limit map shown beside the designs'
+        coverage, 0 skips it) and ``json``.
 
     Returns
     -------
@@ -127,9 +140,26 @@ def run(args) -> int:
             args.tradeoff,
             progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
         )
+    limit = None
+    if args.limit_samples:
+        print("[bdft report] achievable-limit map ...", file=sys.stderr, flush=True)
+        lm = limit_map(
+            default_family(),
+            samples=args.limit_samples,
+            seed=args.seed,
+            n_jobs=args.jobs,
+            progress=member_progress("limit map"),
+        )
+        limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
     path = write_design_report(
-        runs, out, samples=args.samples, seed=args.seed, coverage=coverage, tradeoff=tradeoff
+        runs,
+        out,
+        samples=args.samples,
+        seed=args.seed,
+        coverage=coverage,
+        tradeoff=tradeoff,
+        limit=limit,
     )
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
@@ -137,6 +167,7 @@ def run(args) -> int:
             {
                 "report": str(path),
                 "family": coverage.to_json(),
+                "limit": limit,
                 "tradeoff": [dataclasses.asdict(p) for p in tradeoff or []],
                 "designs": {
                     k: (str(r) if isinstance(r, Exception) else r.to_json())

@@ -101,6 +101,8 @@ __all__ = [
     "limit_map",
     "LimitMap",
     "basis_check",
+    "design_set",
+    "limit_coverage_of",
 ]
 
 #: Actuator sets: name -> the loop's actuator signals.
@@ -1081,3 +1083,63 @@ def basis_check(
             "largest_decrease": float(np.max(dec)) if dec.size else math.nan,
         }
     return out
+
+
+def design_set(controller) -> str | None:
+    """The smallest set of the map that contains a compensator's actuators and sensors.
+
+    Outputs ``f`` / ``r_corr`` give the actuators; inputs within ``x`` give ``handle``,
+    within ``x, c`` give ``handle+cab``, any other measured signal (the cylinder position
+    ``y``) ``full``.
+
+    Parameters
+    ----------
+    controller : control.StateSpace or None
+        A compensator in the loop's convention; ``None`` (no compensator) gives ``None``.
+
+    Returns
+    -------
+    str or None
+        A name of :data:`ALL_SETS`.
+    """
+    if controller is None:
+        return None
+    outs = set(controller.output_labels)
+    ins = set(controller.input_labels)
+    acts = {("f",): "force", ("r_corr",): "reference", ("f", "r_corr"): "force+reference"}.get(
+        tuple(sorted(outs & {"f", "r_corr"}))
+    )
+    if acts is None:
+        return None
+    if ins <= {"x"}:
+        sens = "handle"
+    elif ins <= {"x", "c"}:
+        sens = "handle+cab"
+    else:
+        sens = "full"
+    return f"{acts}/{sens}"
+
+
+def limit_coverage_of(sets_json: list, name: str, force_scale: float = 1.0):
+    """The map's coverage for set ``name``, or for the smallest computed set containing it.
+
+    Parameters
+    ----------
+    sets_json : list of dict
+        :meth:`LimitMap.sets_json` (or the ``sets`` of ``bdft limit --json``).
+    name : str
+        A set of :data:`ALL_SETS`.
+    force_scale : float
+        The force multiple.
+
+    Returns
+    -------
+    (str, dict) or None
+        The set used and its entry; ``None`` when no computed set contains ``name``.
+    """
+    entries = [e for e in sets_json if e["force_scale"] == force_scale]
+    inside = [e for e in entries if set_contains(e["name"], name)]
+    if not inside:
+        return None
+    best = min(inside, key=lambda e: e["coverage"])
+    return best["name"], best

@@ -11,6 +11,7 @@ import numpy as np
 
 from designs import design_names, run_design
 from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
+from designs.limit import design_set, limit_coverage_of
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.html import HtmlPage, write_report_dir
 from robust.analysis.loops import loop_poles
@@ -175,8 +176,8 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
     plt.close(fig)
 
 
-def _population_coverage_section(page: HtmlPage, runs: dict) -> None:
-    """Every design's coverage of the population with its certificate, beside its margin."""
+def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None = None) -> None:
+    """Every design's coverage with its certificate, beside its margin and its set's limit."""
     covered = {
         k: r
         for k, r in runs.items()
@@ -191,32 +192,43 @@ def _population_coverage_section(page: HtmlPage, runs: dict) -> None:
         fails = {k: v for k, v in c["binding"].items() if v}
         top = max(fails, key=fails.get) if fails else "-"
         m = r.details.get("robust_margin", {})
-        rows.append(
-            [
-                name,
-                f"{100 * c['fraction']:.2f} %",
-                f"{c['failures']} / {c['samples']}",
-                f"{c['epsilon']:.3g}",
-                f"{100 * c['lower']:.2f} %",
-                top if not fails else f"{top} ({fails[top]})",
-                m.get("lower", float("nan")),
-            ]
-        )
+        row = [
+            name,
+            f"{100 * c['fraction']:.2f} %",
+            f"{c['failures']} / {c['samples']}",
+            f"{c['epsilon']:.3g}",
+            f"{100 * c['lower']:.2f} %",
+            top if not fails else f"{top} ({fails[top]})",
+            m.get("lower", float("nan")),
+        ]
+        if limit is not None:
+            row += _limit_cells(r, limit)
+        rows.append(row)
         classes.append("holds" if c["failures"] == 0 else "fails")
     first = next(iter(covered.values())).coverage.bound
-    page.table(
-        [
-            "design",
-            "coverage (observed)",
-            "failures / members",
-            f"epsilon (confidence {first.confidence:g})",
-            "certified coverage 1 - epsilon",
-            "most frequent binding constraint",
-            "margin, certified lower",
-        ],
-        rows,
-        row_classes=classes,
-    )
+    head = [
+        "design",
+        "coverage (observed)",
+        "failures / members",
+        f"epsilon (confidence {first.confidence:g})",
+        "certified coverage 1 - epsilon",
+        "most frequent binding constraint",
+        "margin, certified lower",
+    ]
+    if limit is not None:
+        head += ["its set (actuators/sensors)", "limit coverage of the set, Omni's force"]
+    page.table(head, rows, row_classes=classes)
+    if limit is not None:
+        page.p(
+            f"Limit coverage: the achievable-limit map (bdft limit) on {limit['samples']} "
+            f"members (Latin hypercube, seed {limit['seed']}): the fraction that a "
+            "compensator with the design's actuators and sensors, knowing the member exactly, "
+            "can protect within the Omni's force limits (for a set the map did not compute, "
+            "the smallest computed set containing it). A design cannot exceed it beyond the "
+            "sampling error of both fractions. Best set at the Omni's limits: "
+            f"{limit['conclusions'][0] if limit.get('conclusions') else '-'}",
+            cls="note",
+        )
     page.p(
         f"Coverage: the fraction of the population (the default family's distributions) on "
         f"which the whole specification holds, checked member by member on {first.samples} "
@@ -228,6 +240,22 @@ def _population_coverage_section(page: HtmlPage, runs: dict) -> None:
         "member of the scaled box, no probability.",
         cls="note",
     )
+
+
+def _limit_cells(run, limit: dict) -> list:
+    """The design's set and that set's limit coverage at the Omni's force (two table cells)."""
+    default_k = default_family().k_psf
+    if run.family is not None and abs(run.family.k_psf - default_k) > 1e-12 * default_k:
+        return ["another machine (workspace changed)", "-"]
+    name = design_set(run.controller)
+    if name is None:
+        return ["-", "-"]
+    found = limit_coverage_of(limit["sets"], name, 1.0)
+    if found is None:
+        return [name, "not computed"]
+    used, e = found
+    note = "" if used == name else f" (as {used})"
+    return [name, f"{100 * e['coverage']:.1f} % of {e['samples']}{note}"]
 
 
 def _fmt(value) -> str:
@@ -629,6 +657,7 @@ def write_design_report(
     seed: int,
     coverage: FamilyCoverage | None = None,
     tradeoff=None,
+    limit: dict | None = None,
 ):
     """One HTML page comparing the designs: table, pole clouds, ratio envelopes, force histories.
 
@@ -652,6 +681,9 @@ def write_design_report(
     tradeoff : list of designs.robust_lmi.TradeoffPoint, optional
         The force-budget sweep (:func:`designs.robust_lmi.force_tradeoff`), drawn as a
         Pareto curve.
+    limit : dict, optional
+        The achievable-limit map (``bdft limit --json``'s object, with ``conclusions``):
+        each design's coverage is shown beside its set's limit coverage.
 
     Returns
     -------
@@ -737,7 +769,7 @@ def write_design_report(
         cls="note",
     )
     _margin_section(page, runs)
-    _population_coverage_section(page, runs)
+    _population_coverage_section(page, runs, limit)
     _spec_section(page, runs)
     _tradeoff_section(page, tradeoff)
     _saturation_section(page, runs)

@@ -93,3 +93,16 @@ def test_bad_input_other():
         samples_needed(0.0)
     with pytest.raises(ParameterError, match="independent draws"):
         CoverageBound(100, 0, method="lhs")
+
+
+def test_hoeffding_and_consistency():
+    from uncertainty.randomized import coverage_consistent, hoeffding_halfwidth
+
+    # sqrt(ln(2 / beta) / (2 N)): beta = 1e-3, N = 2000 -> 0.0436
+    assert hoeffding_halfwidth(2000, 0.999) == pytest.approx(math.sqrt(math.log(2000) / 4000))
+    # the bound holds empirically for a fair coin
+    rng = np.random.default_rng(3)
+    frac = rng.binomial(400, 0.5, size=20000) / 400
+    assert np.mean(np.abs(frac - 0.5) > hoeffding_halfwidth(400, 0.99)) < 0.01
+    assert coverage_consistent(0.31, 2000, 0.30, 256)
+    assert not coverage_consistent(0.60, 2000, 0.30, 256)

@@ -1,14 +1,36 @@
 """The design comparison page: table, verdict and figures from real design runs."""
 
+from designs.limit import design_set, limit_coverage_of, limit_map
 from reports.designs import run_all_designs, verdict, write_design_report
+from reports.limit import limit_conclusions
+from uncertainty import default_family
+from uncertainty.randomized import coverage_consistent
 
 
 def test_comparison_page_with_verdict(tmp_path):
     runs = run_all_designs(
         samples=200, seed=0, names=["workspace", "hinf-nominal"], coverage_samples=60, n_jobs=2
     )
-    index = write_design_report(runs, tmp_path / "designs", samples=200, seed=0)
+    lm = limit_map(
+        default_family(),
+        samples=8,
+        seed=0,
+        sets=("force/handle+cab", "reference/handle+cab"),
+        critical=False,
+        n_jobs=2,
+    )
+    limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
+    index = write_design_report(runs, tmp_path / "designs", samples=200, seed=0, limit=limit)
     html = index.read_text()
+    # each design beside its set's limit: the doubled workspace is another machine; the
+    # nominal H-infinity design measures the handle and the cab and drives the force
+    assert "limit coverage of the set" in html and "another machine" in html
+    hn = runs["hinf-nominal"]
+    name = design_set(hn.controller)
+    assert name == "force/handle+cab"
+    _, entry = limit_coverage_of(limit["sets"], name, 1.0)
+    # consistency: no design covers more than its set's limit, up to both sampling errors
+    assert coverage_consistent(hn.coverage.fraction, 60, entry["coverage"], entry["samples"])
     out = index.parent
     assert "Verdict" in html and "hinf-nominal" in html and "workspace" in html
     # each design's coverage of the population with its certificate (60 fresh members)

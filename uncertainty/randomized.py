@@ -33,7 +33,14 @@ from robust.checks import Spec, check_int, check_scalar
 from robust.errors import ParameterError
 from robust.jsonio import to_jsonable
 
-__all__ = ["DEFAULT_CONFIDENCE", "CoverageBound", "failure_bound", "samples_needed"]
+__all__ = [
+    "DEFAULT_CONFIDENCE",
+    "CoverageBound",
+    "failure_bound",
+    "samples_needed",
+    "hoeffding_halfwidth",
+    "coverage_consistent",
+]
 
 #: Default confidence ``1 - beta`` of the certificates.
 DEFAULT_CONFIDENCE = 0.999
@@ -172,3 +179,63 @@ class CoverageBound:
         out = to_jsonable(self)
         out.update(fraction=self.fraction, epsilon=self.epsilon, lower=self.lower)
         return out
+
+
+def hoeffding_halfwidth(samples: int, confidence: float = DEFAULT_CONFIDENCE) -> float:
+    """Two-sided half-width of an observed fraction: ``sqrt(ln(2/beta) / (2 N))``.
+
+    Hoeffding's inequality: the fraction of ``N`` independent Bernoulli trials lies within
+    this of its mean with probability at least ``1 - beta``. A Latin hypercube's fraction
+    has at most ``N / (N - 1)`` times the variance of independent draws (Owen 1997), so
+    the half-width serves it too with that factor.
+
+    Parameters
+    ----------
+    samples : int
+        ``N`` (>= 1).
+    confidence : float
+        ``1 - beta``, in (0, 1).
+
+    Returns
+    -------
+    float
+    """
+    n = check_int("samples", samples, low=1, owner="hoeffding_halfwidth")
+    conf = check_scalar("hoeffding_halfwidth: confidence", confidence, _OPEN_UNIT)
+    return math.sqrt(math.log(2.0 / (1.0 - conf)) / (2.0 * n))
+
+
+def coverage_consistent(
+    design: float,
+    design_samples: int,
+    limit: float,
+    limit_samples: int,
+    confidence: float = DEFAULT_CONFIDENCE,
+) -> bool:
+    """Whether a design's coverage is at most a limit coverage plus both sampling errors.
+
+    ``design <= limit + h(design_samples) + h(limit_samples) * sqrt(L / (L - 1))`` with
+    ``h`` :func:`hoeffding_halfwidth` (``L`` the limit's members, a Latin hypercube).
+
+    Parameters
+    ----------
+    design : float
+        The design's observed coverage (independent draws).
+    design_samples : int
+        Its members.
+    limit : float
+        The limit's observed coverage.
+    limit_samples : int
+        Its members (>= 2).
+    confidence : float
+        Confidence of each half-width.
+
+    Returns
+    -------
+    bool
+    """
+    lim_n = check_int("limit_samples", limit_samples, low=2, owner="coverage_consistent")
+    slack = hoeffding_halfwidth(design_samples, confidence) + hoeffding_halfwidth(
+        lim_n, confidence
+    ) * math.sqrt(lim_n / (lim_n - 1))
+    return float(design) <= float(limit) + slack
