@@ -1072,7 +1072,7 @@ def basis_check(
             [lm.limits[i][k].required_force if lm.limits[i][k].verified else math.inf for i in idx]
         )
         after = np.array([r[j].required_force if r[j].verified else math.inf for r in runner])
-        ok = np.isfinite(before) & np.isfinite(after) & (before > 1e-6)
+        ok = np.isfinite(before) & np.isfinite(after) & (before > 1e-3)
         dec = 1.0 - after[ok] / before[ok]
         out[name] = {
             "members": int(idx.size),

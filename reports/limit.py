@@ -330,8 +330,8 @@ def write_limit_report(lm: LimitMap, out_dir, *, basis: dict | None = None):
                     a,
                     b["members"],
                     f"{b['poles'][0]} -> {b['poles'][1]}",
-                    f"{100 * b['median_decrease']:.1f} %",
-                    f"{100 * b['largest_decrease']:.1f} %",
+                    _pct(b["median_decrease"]),
+                    _pct(b["largest_decrease"]),
                 ]
             )
         page.table(
@@ -341,7 +341,8 @@ def write_limit_report(lm: LimitMap, out_dir, *, basis: dict | None = None):
         page.p(
             "The first members of the sample again with a basis of twice as many poles over "
             "the same range: the decrease of their required force multiple says how far the "
-            "map's numbers are from the limit of an infinite basis.",
+            "map's numbers are from the limit of an infinite basis ('-': no member needs a "
+            "force above a thousandth of the Omni's).",
             cls="note",
         )
     obj = lm.to_json()
