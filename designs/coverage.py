@@ -37,6 +37,7 @@ from designs.spec import (
 from robust.checks import check_int
 from robust.errors import ParameterError
 from robust.jsonio import to_jsonable
+from robust.synthesis.solve import deterministic_solvers
 from uncertainty import sample
 from uncertainty.randomized import DEFAULT_CONFIDENCE, CoverageBound
 
@@ -85,6 +86,12 @@ class MemberVerdicts:
 
 
 def _check_chunk(family, rows, controller, spec, seeds, duration_s):
+    # one BLAS thread: the same members give the same numbers in this process or a worker
+    with deterministic_solvers():
+        return _check_rows(family, rows, controller, spec, seeds, duration_s)
+
+
+def _check_rows(family, rows, controller, spec, seeds, duration_s):
     t = peak_time_grid(duration_s)
     i_peak = CONSTRAINTS.index("peak force")
     violated = np.zeros((len(rows), len(CONSTRAINTS)), bool)

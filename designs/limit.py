@@ -64,6 +64,7 @@ from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.model.wiring import connect
 from robust.synthesis.forcefb import intent_filter
 from robust.synthesis.region import PoleRegion
+from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.youla import (
     LimitProblem,
     Measurements,
@@ -712,6 +713,13 @@ def set_contains(big: str, small: str) -> bool:
 
 
 def _member_task(family, row, sets, spec, seed, basis_poles, duration_s):
+    # one BLAS and one solver thread: the same member gives the same bytes in this process
+    # or a worker, whatever OPENBLAS_NUM_THREADS says
+    with deterministic_solvers():
+        return _member_limits(family, row, sets, spec, seed, basis_poles, duration_s)
+
+
+def _member_limits(family, row, sets, spec, seed, basis_poles, duration_s):
     loop = family.member(row)
     out = []
     for name in sets:

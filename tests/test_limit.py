@@ -329,3 +329,17 @@ def test_cli_limit_bad_options(capsys):
     assert "--sets" in capsys.readouterr().err
     assert main(["limit", "--force-scales", "none"]) == 2
     assert "--force-scales" in capsys.readouterr().err
+
+
+def test_limit_json_is_the_same_bytes_in_one_or_two_processes(tmp_path, capsys):
+    # every member is solved afresh on one BLAS and one solver thread, so which worker
+    # solved which member before does not reach the numbers
+    outs = []
+    for jobs in ("1", "2"):
+        argv = ["limit", "--samples", "3", "--sets", "force/handle", "--basis-check", "0"]
+        argv += ["--jobs", jobs, "--out", str(tmp_path / f"l{jobs}"), "--json"]
+        assert main(argv) == 0
+        obj = json.loads(capsys.readouterr().out)
+        obj.pop("report")
+        outs.append(json.dumps(obj, sort_keys=True))
+    assert outs[0] == outs[1]

@@ -190,6 +190,7 @@ def solve_problem(
     solvers=DEFAULT_SOLVERS,
     gap_tol: float | None = None,
     verbose: bool = False,
+    warm_start: bool = True,
 ) -> SolveResult:
     """Solve ``problem``, falling back through ``solvers``; map failure to exceptions.
 
@@ -207,6 +208,10 @@ def solve_problem(
         loosened: the LMI strictness margins rely on them.
     verbose : bool
         Passed to the solver.
+    warm_start : bool
+        cvxpy's ``warm_start``: with it, a re-solved parameterised problem reuses the
+        solver's previous workspace (Clarabel's ``update``), so its answer depends in the
+        last digits on what was solved before; ``False`` solves afresh each time.
 
     Returns
     -------
@@ -249,7 +254,7 @@ def solve_problem(
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)
-                problem.solve(solver=name, verbose=verbose, **opts)
+                problem.solve(solver=name, verbose=verbose, warm_start=warm_start, **opts)
         except cp.error.SolverError as exc:
             attempts.append((name, f"solver error: {exc}"))
             continue

@@ -523,7 +523,8 @@ class LimitProblem:
         """Solve ``"force"`` or ``"relax"``: ``(theta, objective)``, or ``None`` if infeasible."""
         prob = self.force if which == "force" else self.relax
         try:
-            res = solve_problem(prob, step=step)
+            # afresh: the answer must not depend on which members this process solved before
+            res = solve_problem(prob, step=step, warm_start=False)
         except InfeasibleError:
             return None
         del res
