@@ -7,7 +7,10 @@ The design, top to bottom:
    the device limits on the design members; decay-rate margin 0.3 rad/s;
 3. synthesis: the nominal LMI design (:mod:`designs.hinf_nominal`), reduced, then
    multi-model spectral-abscissa tuning over sampled members with scenario
-   enlargement (:func:`design_hinf_robust`, :mod:`designs.multimodel`); the weighted
+   enlargement (:func:`design_hinf_robust`, :mod:`designs.multimodel`), the design
+   members seen through a half-sample lag at the controller's output (the 1 kHz
+   zero-order hold's delay: without it the tuned controller's nominal sampled-data loop
+   can be unstable while its continuous loop decays); the weighted
    closed-loop H-infinity norm of every design member is recomputed independently; the
    synthesis and tuning run on one BLAS and one solver thread
    (:func:`robust.synthesis.solve.deterministic_solvers`), so the controller does not
@@ -191,6 +194,7 @@ def design_hinf_robust(
         tracking=tracking,
         output_scales=scales,
         force_while_stabilising=reference_correction,
+        actuator_lag_s=0.5 * lim.sample_time_s,
         progress=progress,
     )
     K = as_loop_controller(tuned.controller, name="hinf_robust")

@@ -85,11 +85,17 @@ class OpenLoopData:
     Cy: np.ndarray  # (N, n): cylinder position y (no feedthrough)
 
 
-def open_loop_data(members, K) -> OpenLoopData:
+def open_loop_data(members, K, lag_s: float = 0.0) -> OpenLoopData:
     """Cut each member's Figure 5 loop open at ``K``'s signals.
 
     The plant's inputs are ``u`` and K's outputs, its outputs ``y`` and K's inputs
-    (:func:`robust.analysis.sampled.open_plant`).
+    (:func:`robust.analysis.sampled.open_plant`). With ``lag_s > 0`` every controller
+    output reaches the plant through a first-order lag ``1 / (1 + s lag_s)``: at the
+    frequencies the loop uses, its phase ``-w lag_s`` is that of a delay ``lag_s``, so a
+    controller tuned on these plants keeps its decay rate when the sampled-data loop adds
+    the zero-order hold's half-sample delay and the computation's (a lag of one sample
+    time covers both). The lag is strictly proper, so the closed loop stays affine in the
+    controller's data.
 
     Parameters
     ----------
@@ -97,6 +103,8 @@ def open_loop_data(members, K) -> OpenLoopData:
         Family members with the same number of states.
     K : control.StateSpace
         Controller in the loop convention; only its signal names are used.
+    lag_s : float
+        Time constant of the actuator lag, s (0: none).
 
     Returns
     -------
@@ -118,12 +126,20 @@ def open_loop_data(members, K) -> OpenLoopData:
                 "the plant seen from the controller has a direct feedthrough; "
                 "the affine closed-loop form needs D = 0"
             )
+        Bv, Cm, Bu, Cy = B[:, 1:], C[1:], B[:, 0], C[0]
+        if lag_s > 0:
+            n, nv = A.shape[0], Bv.shape[1]
+            A = np.block([[A, Bv], [np.zeros((nv, n)), -np.eye(nv) / lag_s]])
+            Bv = np.vstack([np.zeros((n, nv)), np.eye(nv) / lag_s])
+            Cm = np.hstack([Cm, np.zeros((Cm.shape[0], nv))])
+            Bu = np.concatenate([Bu, np.zeros(nv)])
+            Cy = np.concatenate([Cy, np.zeros(nv)])
         As.append(A)
-        Bs.append(B[:, 1:])
-        Cs.append(C[1:])
-        Bus.append(B[:, 0])
+        Bs.append(Bv)
+        Cs.append(Cm)
+        Bus.append(Bu)
         Dus.append(D[1:, 0])
-        Cys.append(C[0])
+        Cys.append(Cy)
     if len({a.shape for a in As}) != 1:
         raise ModelStructureError("members must have the same number of states to be stacked")
     return OpenLoopData(*(np.array(x) for x in (As, Bs, Cs, Bus, Dus, Cys)))
@@ -486,6 +502,7 @@ def tune_spectral_abscissa(
     tracking=None,
     force_while_stabilising: bool = True,
     output_scales=None,
+    actuator_lag_s: float = 0.0,
     progress=None,
 ) -> RobustTuning:
     """Tune ``K0``'s entries so every sampled member's closed loop decays faster than ``margin``.
@@ -525,6 +542,11 @@ def tune_spectral_abscissa(
         stabilising, on every design member in the second phase.
     force_while_stabilising : bool
         Apply the force budget on the nominal member during the stabilising rounds too.
+    actuator_lag_s : float
+        Time constant of a lag at the controller's outputs in the design members' plants
+        (:func:`open_loop_data`; one sample time makes the tuned decay rate survive the
+        1 kHz sampled-data loop); the validation of the samples, the stopping rule and the
+        reported abscissas are those of the continuous loop without it.
     progress : callable, optional
         Called after each round's validation as ``progress(round, entry)``, ``entry``
         being that round's ``history`` tuple (see :class:`RobustTuning`).
@@ -541,6 +563,10 @@ def tune_spectral_abscissa(
     for name, val in (("margin", margin), ("tau", tau)):
         if not (np.isfinite(val) and val > 0):
             raise ParameterError(f"{name} must be positive; got {val!r}")
+    if not (np.isfinite(actuator_lag_s) and actuator_lag_s >= 0):
+        raise ParameterError(
+            f"actuator_lag_s must be a finite value >= 0, s; got {actuator_lag_s!r}"
+        )
     nk = K0.nstates
     Om0 = _omega(K0)
     # entrywise units of the parameters (diagonal preconditioning): the controller's
@@ -556,7 +582,9 @@ def tune_spectral_abscissa(
     second_phase = False
     data = None
     nominal_data = (
-        open_loop_data([family.member(rows[0])], K0) if (force or tracking) is not None else None
+        open_loop_data([family.member(rows[0])], K0, actuator_lag_s)
+        if (force or tracking) is not None
+        else None
     )
 
     def fun(theta):
@@ -591,7 +619,7 @@ def tune_spectral_abscissa(
             break
         new = [samples.values[i] for i in worst[:add_per_round] if v.max_real[i] >= -margin]
         rows += new
-        data = open_loop_data([family.member(x) for x in rows], K0)
+        data = open_loop_data([family.member(x) for x in rows], K0, actuator_lag_s)
 
         K = _minimise(fun, K, unit, nk, K0, max_iter)
     else:
@@ -601,7 +629,7 @@ def tune_spectral_abscissa(
     force_phase = None
     if (force is not None or tracking is not None) and converged:
         # second phase: the force budget on the design members, the margin kept by the same term
-        data = open_loop_data([family.member(x) for x in rows], K0)
+        data = open_loop_data([family.member(x) for x in rows], K0, actuator_lag_s)
         second_phase = True
         K_f = _minimise(fun, K, unit, nk, K0, max_iter)
         v = validate_family(family, samples, controller=K_f)

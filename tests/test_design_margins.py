@@ -46,9 +46,11 @@ def test_hinf_robust_stabilises_every_sampled_member(runs):
     assert r.order_reduced <= 10
     _force_flag_consistent(ev)
     # continuous and 1 kHz sampled-data loops agree on stability on the nominal and worst
-    # members; the 1 kHz loop loses under 0.1 rad/s of decay rate (worst member
-    # -0.300 -> -0.272 rad/s), the same on every thread count since the tuning runs
-    # single-threaded
+    # members; the 1 kHz loop loses under 0.1 rad/s of decay rate (measured: nominal -0.468
+    # -> -0.468, worst -0.303 -> -0.318 rad/s), the same on every thread count since the
+    # tuning runs single-threaded. The tuning sees a half-sample lag at the controller's
+    # output (the zero-order hold's delay); without it the tuned controller's nominal 1 kHz
+    # loop was unstable (+0.53 rad/s) while its continuous loop decayed at -0.35 rad/s
     for label in ("nominal", "worst"):
         chk = r.details["sampled_data_check"][label]
         assert chk["stable_continuous"] and chk["stable_discrete"]
@@ -127,14 +129,16 @@ def _certified(r, boxes=400):
 
 @pytest.mark.parametrize(
     "name, floor",
-    [("workspace", 0.05), ("hinf-robust", 0.005)],
+    [("workspace", 0.05), ("hinf-robust", 0.002)],
     ids=["workspace", "hinf-robust"],
 )
 def test_certified_robust_margin_of_shipped_designs(runs, name, floor):
     # the certified lower bound covers every member of the scaled box (open left
     # half-plane), not samples; the floors sit below the values measured on this sample
-    # (workspace 0.076, hinf-robust 0.0076 with 400 sub-boxes per scale), which the box
-    # budget and the single-threaded robust synthesis set the same on every machine
+    # (workspace 0.076, hinf-robust 0.0027 with 400 sub-boxes per scale; hinf-robust is tuned
+    # with a half-sample lag at its output since it went unstable in the 1 kHz loop), which
+    # the box budget and the single-threaded robust synthesis set the same on every thread
+    # count
     m = _certified(_run(runs, name))
     assert m.region.describe() == "open left half-plane"
     assert m.certificate["certified_stats"]["worst_check"] < 0
