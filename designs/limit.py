@@ -76,6 +76,7 @@ from robust.synthesis.youla import (
     observer_gain,
     of_affine_maps,
     of_closed_loop,
+    of_controller,
     output_gram,
     pole_basis,
     quadrature_gram,
@@ -99,6 +100,7 @@ __all__ = [
     "BASIS_POLES",
     "SetLimit",
     "member_limit",
+    "member_controller",
     "limit_map",
     "LimitMap",
     "basis_check",
@@ -235,10 +237,12 @@ def _schur_response(A, b, c, omega) -> np.ndarray:
     return out
 
 
-def _member_plant(loop, actuators, sensors=None, noise=None):
+def _member_plant(loop, actuators, sensors=None, noise=None, *, scales: bool = False):
     """The member's open loop: actuators, the tracked output ``y`` and the measurements.
 
-    Returns ``(plant, meas)`` with ``meas`` ``None`` for full information.
+    Returns ``(plant, meas)`` with ``meas`` ``None`` for full information; with ``scales``
+    also the actuators' and measurements' unit changes ``(s_u, s_m)`` (an actuator in loop
+    units is ``u / s_u``, a measurement in the plant's units ``y_m / s_m``).
     """
     A, B, C, D = _open_loop(loop)
     cols = [1 + ("f", "r_corr").index(a) for a in actuators]
@@ -257,6 +261,7 @@ def _member_plant(loop, actuators, sensors=None, noise=None):
         force_gain=1.0 if force is None else 1.0 / float(s_u[force]),
     )
     meas = None
+    sc = np.ones(0)
     if sensors:
         rows = [1 + ("x", "c").index(x) for x in sensors]
         if np.any(D[rows][:, 1:]):
@@ -268,6 +273,8 @@ def _member_plant(loop, actuators, sensors=None, noise=None):
         meas = Measurements(
             Cm / sc[:, None], Dmw / sc[:, None], np.asarray(noise) / sc**2, tuple(sensors)
         )
+    if scales:
+        return plant, meas, (s_u, sc)
     return plant, meas
 
 
@@ -407,6 +414,8 @@ def member_limit(
 ) -> SetLimit:
     """The best compensator of one member for one actuator and sensor set (module notes).
 
+    :func:`member_controller` returns the compensator itself.
+
     Parameters
     ----------
     loop : robust.model.loop.BDFTLoop
@@ -432,6 +441,100 @@ def member_limit(
     -------
     SetLimit
     """
+    return _member_limit(
+        loop,
+        actuators,
+        spec,
+        sensors,
+        seed,
+        basis_poles,
+        duration_s,
+        encoder_mm,
+        accel_rms,
+        problems,
+        realise=False,
+    )
+
+
+def member_controller(
+    loop,
+    actuators: str,
+    sensors: str,
+    spec: Specification | None = None,
+    *,
+    seed: int = 0,
+    basis_poles=BASIS_POLES,
+    duration_s: float = 20.0,
+    encoder_mm: float = ENCODER_MM,
+    accel_rms: float = ACCEL_NOISE_RMS,
+):
+    """The compensator :func:`member_limit` finds for a member, as a loop controller.
+
+    Output feedback only (measured ``sensors``, not ``"full"``): the observer-based
+    controller with its Youla parameter (:func:`robust.synthesis.youla.of_controller`),
+    in the loop's units and signal names (inputs the measurements, outputs the actuators),
+    ready for :meth:`robust.model.loop.BDFTLoop.system` and the specification check.
+
+    Parameters
+    ----------
+    loop, actuators, spec, seed, basis_poles, duration_s, encoder_mm, accel_rms
+        As for :func:`member_limit`.
+    sensors : str
+        ``"handle"`` or ``"handle+cab"``.
+
+    Returns
+    -------
+    (SetLimit, control.StateSpace or None)
+        The member's limit and its controller (``None`` where no controller met tracking
+        and feedthrough).
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``sensors`` is ``"full"`` (a state feedback is no loop controller) or unknown.
+    """
+    if sensors == "full":
+        raise ParameterError(
+            "member_controller: sensors must be measured signals ('handle' or 'handle+cab'); "
+            "got 'full' (every state, no loop controller)"
+        )
+    out = _member_limit(
+        loop,
+        actuators,
+        spec,
+        sensors,
+        seed,
+        basis_poles,
+        duration_s,
+        encoder_mm,
+        accel_rms,
+        None,
+        realise=True,
+    )
+    return out if isinstance(out, tuple) else (out, None)
+
+
+def _member_limit(*args, **kwargs):
+    # one BLAS and one solver thread wherever it is called from: the cached gains, observers
+    # and responses a process keeps are then the same digits in this process or a worker
+    with deterministic_solvers():
+        return _member_limit_body(*args, **kwargs)
+
+
+def _member_limit_body(
+    loop,
+    actuators,
+    spec,
+    sensors,
+    seed,
+    basis_poles,
+    duration_s,
+    encoder_mm,
+    accel_rms,
+    problems,
+    *,
+    realise,
+):
     spec = Specification() if spec is None else spec
     if actuators not in ACTUATOR_SETS:
         raise ParameterError(
@@ -452,7 +555,7 @@ def member_limit(
     noise = None
     if sens:
         noise = sensor_noise(loop, sens, encoder_mm=encoder_mm, accel_rms=accel_rms)
-    plant, meas = _member_plant(loop, acts, sens, noise)
+    plant, meas, (s_u, s_m) = _member_plant(loop, acts, sens, noise, scales=True)
     region = spec.region()
     pole_region = PoleRegion(spec.decay_rate, spec.min_damping)
     nan = math.nan
@@ -551,7 +654,7 @@ def member_limit(
     else:
         A, B, C = of_closed_loop(plant, meas, K0, L, basis, Theta)
         noise_cols = B[:, 1:] * np.sqrt(meas.noise)[None, :]
-    return _verify(
+    res = _verify(
         plant,
         A,
         B,
@@ -568,6 +671,20 @@ def member_limit(
         duration_s,
         predicted,
     )
+    if not realise:
+        return res
+    Ac, Bc, Cc = of_controller(plant, meas, K0, L, basis, Theta)
+    # back to the loop's units: y_m' = y_m / s_m, u = u' / s_u
+    K = ct.ss(
+        Ac,
+        Bc / s_m[None, :],
+        Cc / s_u[:, None],
+        np.zeros((len(acts), len(sens))),
+        inputs=list(sens),
+        outputs=list(acts),
+        name=f"limit_{actuators}_{sensors}",
+    )
+    return res, K
 
 
 def _stack(A, omega, B):

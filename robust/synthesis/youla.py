@@ -68,6 +68,7 @@ __all__ = [
     "observer_gain",
     "of_affine_maps",
     "of_closed_loop",
+    "of_controller",
     "force_responses",
     "quadrature_grid",
     "quadrature_gram",
@@ -756,6 +757,49 @@ def of_closed_loop(plant: YoulaPlant, meas: Measurements, K0, L, basis, Theta):
     Cy = np.hstack([plant.Cy, np.zeros((1, n + p * ns))]) + plant.Dyu @ Cu
     Cf = plant.force_gain * Cu[[plant.force]] if plant.force is not None else np.zeros((1, N))
     return A, B, np.vstack([Cy, Cf])
+
+
+def of_controller(plant: YoulaPlant, meas: Measurements, K0, L, basis, Theta):
+    """State-space ``(Ac, Bc, Cc)`` of the output-feedback controller ``y_m -> u`` (``D = 0``).
+
+    The controller of :func:`of_closed_loop` on its own: states ``(xhat, xi_1..xi_p)``,
+    ``xhat' = (A - L Cm + Bu K0) xhat + Bu G xi + L y_m``, ``xi_j' = A_phi xi_j + b_phi
+    (y_m,j - Cm_j xhat)``, ``u = K0 xhat + G xi`` with ``G = [Theta_j C_phi]_j``. Closed
+    around the plant it gives the poles of :func:`of_closed_loop` (a change of
+    coordinates).
+
+    Parameters
+    ----------
+    plant : YoulaPlant
+        The plant.
+    meas : Measurements
+        The measurements.
+    K0 : ndarray (m, n)
+        State feedback.
+    L : ndarray (n, p)
+        Observer gain.
+    basis : tuple
+        ``(A_phi, b_phi, C_phi)``.
+    Theta : array_like (m, p, nb)
+        The Youla parameter's coefficients.
+    """
+    A_phi, b_phi, C_phi = basis
+    nb, ns = C_phi.shape
+    n, m, p = plant.n, plant.m, meas.p
+    Th = np.asarray(Theta, float).reshape(m, p, nb)
+    G = np.hstack([Th[:, j, :] @ C_phi for j in range(p)])
+    N = n + p * ns
+    Ac = np.zeros((N, N))
+    Bc = np.zeros((N, p))
+    Ac[:n, :n] = plant.A - L @ meas.Cm + plant.Bu @ K0
+    Ac[:n, n:] = plant.Bu @ G
+    Bc[:n] = L
+    for j in range(p):
+        r = slice(n + j * ns, n + (j + 1) * ns)
+        Ac[r, :n] = -b_phi @ meas.Cm[[j]]
+        Ac[r, r] = A_phi
+        Bc[r, j] = b_phi.ravel()
+    return Ac, Bc, np.hstack([K0, G])
 
 
 def force_responses(plant: YoulaPlant, K0, basis, omega, meas=None, L=None) -> dict:
