@@ -7,6 +7,7 @@ import sys
 from bdft.args import (
     UsageError,
     check_artifact_targets,
+    integer,
     members,
     members_help,
     seed,
@@ -18,6 +19,9 @@ from bdft.common import (
     print_json,
 )
 from designs.registry import design_names, run_design
+from designs.scheduled import CELLS_PER_AXIS, scheduled_design
+from robust.jsonio import atomic_write_json
+from uncertainty import default_family
 
 __all__ = ["register", "run"]
 
@@ -65,12 +69,78 @@ def register(sub) -> None:
     )
     add_margin_boxes_argument(p, "the design")
     add_coverage_arguments(p, "the design")
+    p.add_argument(
+        "--cells",
+        type=integer("--cells", low=1, high=8),
+        default=CELLS_PER_AXIS,
+        help="scheduled only: cells per identified quantity of the bank, 1 to 8 (default: "
+        "%(default)s)",
+    )
+    p.add_argument(
+        "--limit-samples",
+        type=integer("--limit-samples", low=0, high=4096),
+        default=64,
+        help="scheduled only: Latin-hypercube members of the limit map the bank's coverage is "
+        "compared with (0: not computed; default: %(default)s)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
 
+#: Designs run outside :func:`designs.registry.run_design` (their own pipeline).
+SCHEDULED = "scheduled"
+
+
+def _all_names() -> list[str]:
+    return [*design_names(), SCHEDULED]
+
+
 def _names() -> str:
-    return ", ".join(design_names())
+    return ", ".join(_all_names())
+
+
+def _run_scheduled(args) -> int:
+    """``bdft design scheduled``: the per-operator bank (:mod:`designs.scheduled`)."""
+    if args.coverage_samples < 1:
+        raise UsageError(
+            "--coverage-samples: expected at least 1 for the scheduled bank (its coverage is "
+            f"its result); got {args.coverage_samples}"
+        )
+    out = check_artifact_targets("--out", args.out, [SCHEDULED])
+    print(
+        f"[bdft design] scheduled bank, {args.cells} cells per axis, coverage on "
+        f"{args.coverage_samples} members (seed {args.seed + 2}) ...",
+        file=sys.stderr,
+    )
+    bank, obj = scheduled_design(
+        default_family(),
+        cells_per_axis=args.cells,
+        samples=args.coverage_samples,
+        seed=args.seed,
+        limit_samples=args.limit_samples,
+        n_jobs=args.jobs,
+        progress=member_progress("calibrations"),
+    )
+    art = dict(bank.to_json(), kind="bdft-controller-bank", name=SCHEDULED, result=obj)
+    obj["artifact"] = str(atomic_write_json(out / f"{SCHEDULED}.json", art))
+    if args.json:
+        print_json(obj)
+    else:
+        cov = obj["coverage"]
+        print(f"{'limit set':20s} {obj['limit_set']} (force x{obj['force_scale']:g})")
+        print(f"{'cells':20s} {obj['cells']}")
+        print(
+            f"{'coverage':20s} {cov['fraction']:.4f} ({cov['failures']} failures in "
+            f"{cov['samples']}; P(failure) <= {cov['epsilon']:.4f} at {cov['confidence']})"
+        )
+        print(f"{'right cell':20s} {cov['right_cell']:.4f}")
+        if obj["limit"]:
+            lim = obj["limit"]
+            print(f"{'limit coverage':20s} {lim['coverage']:.4f} (best: {lim['best_sets']})")
+        for row in obj["coverage_by_cells"]:
+            print(f"{'cells ' + str(row['cells']):20s} {row['fraction']:.4f}")
+        print(f"{'artifact':20s} {obj['artifact']}")
+    return 0
 
 
 def run(args) -> int:
@@ -100,12 +170,14 @@ def run(args) -> int:
         is computed).
     """
     if args.list:
-        print("\n".join(design_names()))
+        print("\n".join(_all_names()))
         return 0
     if not args.name:
         raise UsageError(f"NAME: expected a design name or --list; got neither ({_names()})")
-    if args.name not in design_names():
+    if args.name not in _all_names():
         raise UsageError(f"NAME: unknown design {args.name!r}; expected one of {_names()}")
+    if args.name == SCHEDULED:
+        return _run_scheduled(args)
     check_artifact_targets("--out", args.out, [args.name])
     print(
         f"[bdft design] running {args.name!r} on {args.samples} members (seed {args.seed}) ...",

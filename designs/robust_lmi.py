@@ -268,6 +268,23 @@ def _start(family, options: RobustOptions, limits) -> ct.StateSpace:
     )
 
 
+def _given_start(K, options: RobustOptions) -> ct.StateSpace:
+    """A caller's start in the plant convention, its signals checked against the options."""
+    if not isinstance(K, ct.StateSpace):
+        raise ParameterError(f"start must be a control.StateSpace; got {type(K).__name__}")
+    if (
+        tuple(K.input_labels) != tuple(options.measurements)
+        or tuple(K.output_labels) != tuple(options.controls)
+        or K.nstates != options.order
+    ):
+        raise ParameterError(
+            f"start must map {list(options.measurements)} to {list(options.controls)} with "
+            f"{options.order} states; got {list(K.input_labels)} -> {list(K.output_labels)} "
+            f"with {K.nstates}"
+        )
+    return ct.ss(K.A, K.B, K.C, K.D)
+
+
 def _members(family, rows, options: RobustOptions, spec: Specification, limits):
     out = []
     for i, r in enumerate(rows):
@@ -402,6 +419,7 @@ def maximise_margin(
     options: RobustOptions | None = None,
     limits=None,
     progress=None,
+    start=None,
 ) -> RobustLMIDesign:
     """The controller with the largest certified family scale that meets the specification.
 
@@ -419,6 +437,10 @@ def maximise_margin(
         Device limits (workspace of the intended motion; default: the specification's).
     progress : callable, optional
         Called with a short message after each round.
+    start : control.StateSpace, optional
+        The starting controller in the loop convention (inputs ``options.measurements``,
+        outputs ``options.controls``, order ``options.order``); default: the module's
+        start (step 2 of the module notes).
 
     Returns
     -------
@@ -437,11 +459,11 @@ def maximise_margin(
     # differences (thread counts, the machine's load) would bend, and the result must not
     # depend on them
     with deterministic_solvers():
-        return _maximise(family, spec, options, limits, progress)
+        return _maximise(family, spec, options, limits, progress, start)
 
 
-def _maximise(family, spec, options, limits, progress) -> RobustLMIDesign:
-    K = _start(family, options, limits)
+def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMIDesign:
+    K = _start(family, options, limits) if start is None else _given_start(start, options)
     rows = [family.nominal_values()]
     levels = []
     best = None  # (scale, outcome, rows) of the largest scale reached

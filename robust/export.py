@@ -35,6 +35,7 @@ from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.version import __version__
 
 __all__ = [
+    "ARTIFACT_KINDS",
     "ControllerArtifact",
     "discretize",
     "write_artifact",
@@ -45,6 +46,9 @@ __all__ = [
     "MAX_ARTIFACT_BYTES",
     "SIGNAL_UNITS",
 ]
+
+#: ``kind`` of the JSON artifacts this project writes: one controller, a scheduled bank.
+ARTIFACT_KINDS = ("bdft-controller", "bdft-controller-bank")
 
 FORMAT_VERSION = 1
 
@@ -259,9 +263,9 @@ def is_artifact_file(path: str | Path) -> bool:
     """Whether ``path`` is a controller artifact file (JSON or ``.mat``) written by this module.
 
     Used before replacing a file, so that only artifacts are ever overwritten. The
-    check is by content, not name: a JSON file must hold an object whose ``kind`` is
-    ``"bdft-controller"``; a ``.mat`` file must hold the variables ``Ac`` and
-    ``meta_json`` that :func:`write_artifact` writes.
+    check is by content, not name: a JSON file must hold an object whose ``kind`` is one
+    of :data:`ARTIFACT_KINDS` (a controller, or a scheduled bank of them); a ``.mat`` file
+    must hold the variables ``Ac`` and ``meta_json`` that :func:`write_artifact` writes.
 
     Parameters
     ----------
@@ -286,7 +290,7 @@ def is_artifact_file(path: str | Path) -> bool:
         obj = json.loads(path.read_bytes().decode("utf-8"))
     except Exception:  # noqa: BLE001 - any failure to read it means it is not an artifact
         return False
-    return isinstance(obj, dict) and obj.get("kind") == "bdft-controller"
+    return isinstance(obj, dict) and obj.get("kind") in ARTIFACT_KINDS
 
 
 def check_artifact_target(path: str | Path, *, mat: bool = True) -> tuple[Path, Path | None]:

@@ -5,6 +5,7 @@ to 0.005); every certified number is re-checked independently here, and the same
 gives the same controller under one and two BLAS threads.
 """
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -15,6 +16,7 @@ import control as ct
 import numpy as np
 import pytest
 
+from designs.cancellation import cancellation_controller
 from designs.robust_lmi import RobustOptions, force_tradeoff, maximise_margin
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
@@ -192,3 +194,15 @@ def test_tradeoff_point_reports_scale_and_certified_margin(family):
     # the certified margin of the point's controller covers a box, and stays below what the
     # sampled checks reached at the next scale
     assert 0.0 < pt.certified_scale <= 1e-3
+
+
+def test_a_given_start_is_checked_against_the_options():
+    fam = default_family()
+    opts = RobustOptions(controls=("r_corr",), measurements=("c",), order=4)
+    Kc = cancellation_controller(fam.member(fam.nominal_values()))  # c -> r_corr, 4 states
+    with pytest.raises(ParameterError, match="start must map"):
+        maximise_margin(fam, options=dataclasses.replace(opts, order=3), start=Kc)
+    with pytest.raises(ParameterError, match="start must map"):
+        maximise_margin(fam, options=dataclasses.replace(opts, measurements=("x",)), start=Kc)
+    with pytest.raises(ParameterError, match="StateSpace"):
+        maximise_margin(fam, options=opts, start=np.eye(2))
