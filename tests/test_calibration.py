@@ -41,7 +41,7 @@ def test_noise_free_record_gives_the_true_response_and_modes():
     # no encoder, accelerometer or remnant: the ratio of the two H1 estimates is the
     # hand's response to the cab (the true human, its own mass ratio) to within the
     # discretisation, and the modes come back to within the spectral estimate's bias
-    # (measured: the upper frequency 1.6 % low: leakage of the 0.12 Hz resolution at the
+    # (measured: the upper frequency 1.9 % low: leakage of the 0.06 Hz resolution at the
     # lightly damped lower mode) and inside the error bound
     row = FAM.nominal_values()
     loop = FAM.member(row)
@@ -72,7 +72,7 @@ def test_noise_free_record_gives_the_true_response_and_modes():
 
 def test_seeded_operators_lie_within_their_error_bounds():
     # 20 operators of the default family, each with its own record (measured: all four
-    # quantities inside the bound for 19 of 20; the frequencies' median error 1 %)
+    # quantities inside the bound for 19 of 20; the frequencies' median error 0.6 %)
     rows = sample(FAM.parameters, 20, method="mc", seed=11).values
     inside, errs, widths = 0, [], []
     for i, row in enumerate(rows):
@@ -130,7 +130,8 @@ def test_bad_calibration_input():
 def test_calibration_is_worth_something_to_the_cancellation():
     # eight operators: the shipped cancellation (nominal human) holds on none; built from
     # each operator's identified modes it holds on about as many as with the true human
-    # (measured on 40 members: nominal 0 %, identified 62.5 %, exact 75 %)
+    # (measured on these 8: nominal 0, identified 7, exact 7; on 400 members in
+    # benchmarks/bench_calibration.py: see its output)
     rows = sample(FAM.parameters, 8, method="mc", seed=21).values
     g = cancellation_gap(FAM, rows, seed=1000)
     assert g["nominal"].sum() == 0

@@ -63,11 +63,11 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
     assert cov.bound.samples == 24 and cov.cells == 16
     assert sum(cov.binding.values()) == cov.bound.failures
     # a cancellation needs the operator's modes to within a few percent: the 16-cell bank
-    # covers almost nobody (measured 5 % of 60), the compensator built from each operator's
-    # own estimate more than half (58 %; 57 % of 400 in benchmarks/bench_calibration.py)
+    # covers almost nobody (measured 1 of these 24; 3 % of 400 in bdft design scheduled),
+    # the compensator built from each operator's own estimate most (19 of 24; 74 % of 400)
     cont = continuous_coverage(FAM, rows, est)
     assert cov.bound.fraction <= 0.25
-    assert cont.mean() >= 0.35
+    assert cont.mean() >= 0.5
     assert cont.mean() > cov.bound.fraction + 0.2
 
 
