@@ -26,6 +26,8 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
                 "5",
                 "--coverage-samples",
                 "60",
+                "--margin-boxes",
+                "20",
                 "--jobs",
                 "2",
                 "--out",
