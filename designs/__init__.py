@@ -7,7 +7,11 @@ weights, synthesis; validation and export through the common pipeline):
 Each defines ``DESIGN`` (a :class:`Design`) whose ``build`` returns a
 :class:`DesignResult`; :mod:`designs.registry` lists them and
 :func:`run_design` runs one end to end. :mod:`designs.evaluate` holds the numbers
-every design reports, :mod:`designs.multimodel` the multi-model tuning.
+every design reports, :mod:`designs.multimodel` the multi-model tuning,
+:mod:`designs.coverage` the coverage certificates, :mod:`designs.limit` the
+achievable-limit map, :mod:`designs.calibration` the operator's calibration and
+:mod:`designs.scheduled` the per-operator scheduled bank (``bdft design scheduled``, run
+outside the registry's pipeline: it is a bank, not one controller).
 
 Builds on :mod:`robust` and :mod:`uncertainty`; the reports and the command line build on it.
 """
