@@ -77,6 +77,14 @@ def register(sub) -> None:
         "%(default)s)",
     )
     p.add_argument(
+        "--damped-samples",
+        type=integer("--damped-samples", low=0, high=100_000),
+        default=200,
+        help="scheduled only: members (the first of the coverage members) on which the "
+        "compensator designed at each calibration with the cab's damper is checked, about "
+        "2.6 s each (0: not computed; default: %(default)s)",
+    )
+    p.add_argument(
         "--limit-samples",
         type=integer("--limit-samples", low=0, high=4096),
         default=64,
@@ -118,6 +126,7 @@ def _run_scheduled(args) -> int:
         samples=args.coverage_samples,
         seed=args.seed,
         limit_samples=args.limit_samples,
+        damped_samples=args.damped_samples,
         n_jobs=args.jobs,
         progress=member_progress("calibrations"),
     )
