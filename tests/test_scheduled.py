@@ -75,7 +75,7 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
 def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     out = tmp_path / "designs"
     argv = ["design", "scheduled", "--coverage-samples", "8", "--cells", "1"]
-    argv += ["--limit-samples", "1", "--damped-samples", "0", "--jobs", "1"]
+    argv += ["--limit-samples", "1", "--damped-samples", "1", "--jobs", "1"]
     argv += ["--out", str(out), "--json"]
     assert main(argv) == 0
     obj = json.loads(capsys.readouterr().out)
@@ -84,12 +84,15 @@ def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     assert {"fraction", "samples", "failures", "epsilon", "confidence"} <= set(cov)
     assert cov["samples"] == 8 and cov["seed"] == 2
     assert obj["limit"]["samples"] == 1 and LIMIT_SET in obj["limit"]["coverage_by_set"]
-    assert [r["cells"] for r in obj["coverage_by_cells"]][-1] == "continuous"
+    cells = [r["cells"] for r in obj["coverage_by_cells"]]
+    assert cells[-2:] == ["continuous", "continuous with the cab damper"]
+    assert obj["coverage_by_cells"][-1]["samples"] == 1
     art = json.loads((out / "scheduled.json").read_text())
     assert art["kind"] == "bdft-controller-bank" and len(art["cells"]) == 1
     # a second run (without the limit map) replaces its own artifact
     argv[argv.index("--limit-samples") + 1] = "0"
     argv[argv.index("--coverage-samples") + 1] = "2"
+    argv[argv.index("--damped-samples") + 1] = "0"
     assert main(argv) == 0
     assert json.loads(capsys.readouterr().out)["limit"] is None
     assert "scheduled" in [*map(str.strip, _listed(capsys))]
