@@ -82,7 +82,7 @@ def register(sub) -> None:
         default=200,
         help="scheduled only: members (the first of the coverage members) on which the "
         "compensator designed at each calibration with the cab's damper is checked, about "
-        "2.6 s each (0: not computed; default: %(default)s)",
+        "2.2 core-seconds each (0: not computed; default: %(default)s)",
     )
     p.add_argument(
         "--limit-samples",

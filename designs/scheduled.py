@@ -659,7 +659,8 @@ def scheduled_design(
         Members of the comparison.
     damped_samples : int
         Members on which the compensator designed from each calibration with the cab's
-        damper (:func:`damped_cancellation`, about 2.6 s each) is checked (0 skips it).
+        damper (:func:`damped_cancellation`, about 2.2 core-seconds each) is checked (0 skips
+        it).
     limit_samples : int
         Latin-hypercube members of the limit map computed for the default sets at the
         Omni's force (:func:`designs.limit.limit_map`, seed ``seed``): which set covers
