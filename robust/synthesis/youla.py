@@ -704,6 +704,12 @@ def of_affine_maps(plant: YoulaPlant, meas: Measurements, K0, L, basis, omega) -
     return {"y0": y0, "y": y}
 
 
+def _bank_output(plant: YoulaPlant, meas: Measurements, C_phi, Theta) -> np.ndarray:
+    """``G = [Theta_1 C_phi, ..., Theta_p C_phi]``: the actuators from the per-measurement banks."""
+    Th = np.asarray(Theta, float).reshape(plant.m, meas.p, C_phi.shape[0])
+    return np.hstack([Th[:, j, :] @ C_phi for j in range(meas.p)])
+
+
 def of_closed_loop(plant: YoulaPlant, meas: Measurements, K0, L, basis, Theta):
     """The output-feedback loop: ``(A, B, C)``, inputs ``[w, n_1..n_p]``, rows y, f.
 
@@ -730,10 +736,9 @@ def of_closed_loop(plant: YoulaPlant, meas: Measurements, K0, L, basis, Theta):
         The Youla parameter's coefficients.
     """
     A_phi, b_phi, C_phi = basis
-    nb, ns = C_phi.shape
-    n, m, p = plant.n, plant.m, meas.p
-    Th = np.asarray(Theta, float).reshape(m, p, nb)
-    G = np.hstack([Th[:, j, :] @ C_phi for j in range(p)])  # u = K0 (x - eps) + G xi
+    ns = C_phi.shape[1]
+    n, p = plant.n, meas.p
+    G = _bank_output(plant, meas, C_phi, Theta)  # u = K0 (x - eps) + G xi
     N = 2 * n + p * ns
     A = np.zeros((N, N))
     B = np.zeros((N, 1 + p))
@@ -784,10 +789,9 @@ def of_controller(plant: YoulaPlant, meas: Measurements, K0, L, basis, Theta):
         The Youla parameter's coefficients.
     """
     A_phi, b_phi, C_phi = basis
-    nb, ns = C_phi.shape
-    n, m, p = plant.n, plant.m, meas.p
-    Th = np.asarray(Theta, float).reshape(m, p, nb)
-    G = np.hstack([Th[:, j, :] @ C_phi for j in range(p)])
+    ns = C_phi.shape[1]
+    n, p = plant.n, meas.p
+    G = _bank_output(plant, meas, C_phi, Theta)
     N = n + p * ns
     Ac = np.zeros((N, N))
     Bc = np.zeros((N, p))
