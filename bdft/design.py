@@ -77,12 +77,12 @@ def register(sub) -> None:
         "%(default)s)",
     )
     p.add_argument(
-        "--damped-samples",
-        type=integer("--damped-samples", low=0, high=100_000),
-        default=200,
-        help="scheduled only: members (the first of the coverage members) on which the "
-        "compensator designed at each calibration with the cab's damper is checked, about "
-        "2.2 core-seconds each (0: not computed; default: %(default)s)",
+        "--border-samples",
+        type=integer("--border-samples", low=0, high=100_000),
+        default=50,
+        help="scheduled only: members (the first of the coverage members) on which designs "
+        "from estimates wrong by the error bound are checked, 16 designs each, about 1 "
+        "core-second per member (0: not computed; default: %(default)s)",
     )
     p.add_argument(
         "--limit-samples",
@@ -126,7 +126,7 @@ def _run_scheduled(args) -> int:
         samples=args.coverage_samples,
         seed=args.seed,
         limit_samples=args.limit_samples,
-        damped_samples=args.damped_samples,
+        border_samples=args.border_samples,
         n_jobs=args.jobs,
         progress=member_progress("calibrations"),
     )
@@ -137,15 +137,25 @@ def _run_scheduled(args) -> int:
     else:
         cov = obj["coverage"]
         print(f"{'limit set':20s} {obj['limit_set']} (force x{obj['force_scale']:g})")
-        print(f"{'cells':20s} {obj['cells']}")
         print(
             f"{'coverage':20s} {cov['fraction']:.4f} ({cov['failures']} failures in "
             f"{cov['samples']}; P(failure) <= {cov['epsilon']:.4f} at {cov['confidence']})"
         )
-        print(f"{'right cell':20s} {cov['right_cell']:.4f}")
+        print(f"{'within error bound':20s} {cov['operator_within_error_bound']:.4f} (operator)")
+        if obj["wrong_within_bound"]:
+            wb = obj["wrong_within_bound"]
+            print(
+                f"{'wrong by the bound':20s} stable {wb['stable']:.4f}, specification "
+                f"{wb['specification']:.4f} ({wb['designs']} designs)"
+            )
         if obj["limit"]:
             lim = obj["limit"]
             print(f"{'limit coverage':20s} {lim['coverage']:.4f} (best: {lim['best_sets']})")
+        bank = obj["bank"]
+        print(
+            f"{'bank':20s} {bank['cells']} cells: {bank['fraction']:.4f}, right cell "
+            f"{bank['right_cell']:.4f}, wrong cell stable {bank['wrong_choice_stable']:.4f}"
+        )
         for row in obj["coverage_by_cells"]:
             print(f"{'cells ' + str(row['cells']):20s} {row['fraction']:.4f}")
         print(f"{'artifact':20s} {obj['artifact']}")

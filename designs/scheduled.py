@@ -1,4 +1,4 @@
-"""A per-operator scheduled bank: a short calibration picks the compensator.
+"""A per-operator design: a short calibration picks (or builds) the compensator.
 
 The design, top to bottom:
 
@@ -9,34 +9,42 @@ The design, top to bottom:
 2. what is scheduled on: what the calibration identifies (:mod:`designs.calibration`):
    the seated chain's two modes, each a natural frequency and a damping ratio, ordered by
    frequency (:data:`designs.calibration.IDENTIFIED`), and the cab's gain and two modes
-   (:data:`designs.calibration.CAB_IDENTIFIED`);
-3. the bank: a grid of ``cells_per_axis`` intervals per identified quantity of the
-   operator over the family's ranges (logarithmic in the frequencies, linear in the
+   (:data:`designs.calibration.CAB_IDENTIFIED`), each with an error bound
+   (:class:`Calibrations`);
+3. the design delivered (:data:`DESIGN_RULE`, :func:`damped_cancellation`), made at each
+   operator's calibration from the record alone: the model-based cancellation of the
+   identified human's hand motion (:func:`designs.cancellation.cancellation_controller`
+   of that human, masses nominal) plus a damper of the identified cab's less damped mode
+   (a band-pass from the accelerometer to the reference, :func:`cab_damper`), its phase and
+   gain the candidates' (:data:`DAMPER_PHASES` x :data:`DAMPER_GAINS`, or none) with the
+   smallest largest utilisation on the identified member; the candidates' closed loops are
+   evaluated together in numpy (16 ms per design, checked against
+   :func:`designs.spec.check_specification` in the tests);
+4. the bank beside it: a grid of ``cells_per_axis`` intervals per identified quantity of
+   the operator over the family's ranges (logarithmic in the frequencies, linear in the
    damping ratios; a cell whose lower mode's frequency interval lies wholly above the
-   upper mode's is dropped), one compensator per cell: the model-based cancellation of the
-   hand's motion (:func:`designs.cancellation.cancellation_controller`) built from the cell
-   centre's human; selection rule (:meth:`ScheduledBank.select`): the cell that contains
-   the estimate, clipped to the grid first;
-4. the continuous schedule, the limit of ever finer cells: the cancellation built from
-   each operator's own estimate (:func:`continuous_coverage`), and with it a damper of the
-   identified cab's less damped mode (:func:`damped_cancellation`: a band-pass from the
-   accelerometer to the reference, its phase and gain picked from a small set on the
-   identified member), designed at the calibration from the record alone;
-5. coverage (:func:`bank_coverage`, :func:`continuous_coverage`): on fresh Monte Carlo
+   upper mode's is dropped), one compensator per cell: the cancellation built from the
+   cell centre's human; selection rule (:meth:`ScheduledBank.select`): the cell that
+   contains the estimate, clipped to the grid first; the design of step 3 is the limit of
+   ever finer cells, each operator's cell the box its calibration bounds;
+5. coverage (:func:`continuous_coverage`, :func:`bank_coverage`): on fresh Monte Carlo
    members (seed + 2, never used to build anything), each member's own simulated
-   calibration record, identification, selection or design, and the whole specification
+   calibration record, identification, design or selection, and the whole specification
    checked on the true member; Clopper-Pearson bound as for every design
-   (:mod:`uncertainty.randomized`); beside it how often the selected cell is the cell of
-   the member's true modes, whether a wrong choice keeps the loop stable, and the
-   coverage against the number of cells.
+   (:mod:`uncertainty.randomized`); beside it how often the true operator lies within the
+   calibration's bound (the design's "right cell") or the selected cell is the cell of
+   the member's true modes, whether a wrong choice keeps the loop stable
+   (:func:`border_check` for the design: estimates wrong by the bound's half-width), and
+   the coverage against the number of cells.
 
 What it does not do (measured, see the tests, ``benchmarks/bench_calibration.py`` and
-``bdft design scheduled``): a cancellation needs the operator's modes to within a few
-percent, so coarse cells cover almost nobody; a cancellation alone leaves the cab's own
-first mode where it is (``struct.zeta1`` in 0.063-0.1, about a fifth of the family fails
-the damping); no cell or design has a certified margin over a box (the per-member checks
-are the evidence); and the limit map's own controllers, which do damp that mode, sit on the
-region's edge and lose the specification at 0.3 % of parameter error.
+``bdft design scheduled``): a cancellation needs the operator's modes to within about a
+percent, and the masses the record does not tell, so coarse cells cover almost nobody and
+an estimate wrong by the calibration's bound destabilises the loop in about one design in
+ten (only about 9 % of the family's uncompensated loops are stable); no cell or design
+has a certified margin over a box (the per-member checks are the evidence); the damper
+acts on one cab mode, and most members it still fails are members where the identified
+member meets the specification and the true one does not (the cancellation's mismatch).
 """
 
 from __future__ import annotations
@@ -52,9 +60,11 @@ from joblib import Parallel, delayed
 
 from designs.calibration import (
     CAB_IDENTIFIED,
+    CAB_LOG_AXES,
     IDENTIFIED,
     LOG_AXES,
     CalibrationProtocol,
+    cab_truth,
     identified_ranges,
     identify_cab,
     identify_operator,
@@ -65,9 +75,10 @@ from designs.calibration import (
 from designs.cancellation import cancellation_controller
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
-from designs.spec import Specification, check_specification
+from designs.spec import N_FEEDTHROUGH_FREQS, N_TRACKING_FREQS, Specification
+from robust.analysis.stability import stability_bound
 from robust.checks import check_int
-from robust.errors import ParameterError
+from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import structure
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
@@ -90,12 +101,21 @@ __all__ = [
     "damped_cancellation",
     "DAMPER_PHASES",
     "DAMPER_GAINS",
+    "DESIGN_RULE",
+    "Calibrations",
+    "border_check",
 ]
 
 #: The limit map's set the bank acts and measures with.
 LIMIT_SET = "reference/handle+cab"
 #: Default cells per identified quantity.
 CELLS_PER_AXIS = 5
+#: What ``bdft design scheduled`` delivers, in one sentence (its JSON ``design``).
+DESIGN_RULE = (
+    "at each operator's calibration: the cancellation of the identified human (masses "
+    "nominal) plus a damper of the identified cab's less damped mode, its phase and gain "
+    "picked from damper_candidates on the identified member (damped_cancellation)"
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -249,20 +269,77 @@ def build_bank(family, cells_per_axis: int = CELLS_PER_AXIS) -> ScheduledBank:
     return ScheduledBank(edges, tuple(cells), np.array(centres), ctrls)
 
 
+@dataclasses.dataclass(frozen=True)
+class Calibrations:
+    """Members' simulated calibrations and what they identified (:func:`calibrate_members`).
+
+    Parameters
+    ----------
+    estimates, truth : numpy.ndarray, shape (n, 4)
+        The operators' estimates and true values of :data:`designs.calibration.IDENTIFIED`.
+    bounds : numpy.ndarray, shape (n, 4, 2)
+        Each estimate's error bound (low, high).
+    cabs, cab_truth : numpy.ndarray, shape (n, 5)
+        The cabs' estimates and true values of :data:`designs.calibration.CAB_IDENTIFIED`.
+    cab_bounds : numpy.ndarray, shape (n, 5, 2)
+        Their error bounds.
+    """
+
+    estimates: np.ndarray
+    truth: np.ndarray
+    bounds: np.ndarray
+    cabs: np.ndarray
+    cab_truth: np.ndarray
+    cab_bounds: np.ndarray
+
+    @property
+    def operator_inside(self) -> np.ndarray:
+        """Per member: every quantity of the operator within its bound."""
+        return _within(self.truth, self.bounds)
+
+    @property
+    def cab_inside(self) -> np.ndarray:
+        """Per member: every quantity of the cab within its bound."""
+        return _within(self.cab_truth, self.cab_bounds)
+
+    def __getitem__(self, index) -> Calibrations:
+        return Calibrations(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
+
+    def __len__(self) -> int:
+        return len(self.estimates)
+
+
+def _run(jobs, n_jobs: int) -> list:
+    """joblib ``delayed`` tasks in ``n_jobs`` processes (in this one for 1), in order."""
+    return Parallel(n_jobs=n_jobs)(jobs) if n_jobs > 1 else [f(*a, **k) for f, a, k in jobs]
+
+
+def _within(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    return np.all((bounds[..., 0] <= values) & (values <= bounds[..., 1]), axis=1)
+
+
 def _calibrate_chunk(family, rows, seeds, protocol):
     with deterministic_solvers():
-        est, truth, inside, cab = [], [], [], []
+        out = [[] for _ in dataclasses.fields(Calibrations)]
         for row, s in zip(rows, seeds):
             loop = family.member(row)
             rec = simulate_calibration(loop, protocol, seed=int(s))
             e = identify_operator(rec, family, loop.handle_gain, protocol)
             t = operator_truth(family, row)
-            est.append([e.values[k] for k in IDENTIFIED])
-            truth.append([t[k] for k in IDENTIFIED])
-            inside.append(all(e.contains(t).values()))
             c = identify_cab(rec, loop, protocol, family)
-            cab.append([c.values[k] for k in CAB_IDENTIFIED])
-        return np.array(est), np.array(truth), np.array(inside), np.array(cab)
+            ct_ = cab_truth(family, row)
+            for j, v in enumerate(
+                (
+                    [e.values[k] for k in IDENTIFIED],
+                    [t[k] for k in IDENTIFIED],
+                    [e.bounds[k] for k in IDENTIFIED],
+                    [c.values[k] for k in CAB_IDENTIFIED],
+                    [ct_[k] for k in CAB_IDENTIFIED],
+                    [c.bounds[k] for k in CAB_IDENTIFIED],
+                )
+            ):
+                out[j].append(v)
+        return Calibrations(*(np.array(v, float) for v in out))
 
 
 def calibrate_members(
@@ -273,9 +350,11 @@ def calibrate_members(
     protocol: CalibrationProtocol | None = None,
     n_jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
-    cab: bool = False,
-):
+) -> Calibrations:
     """Each member's simulated calibration and identification (record ``i`` seeded ``seed + i``).
+
+    The operator (:func:`designs.calibration.identify_operator`) and the cab
+    (:func:`designs.calibration.identify_cab`) are identified from the same record.
 
     Parameters
     ----------
@@ -289,15 +368,10 @@ def calibrate_members(
         Parallel processes (the same numbers in any count).
     progress : callable, optional
         ``progress(done, total)``.
-    cab : bool
-        Also return the cabs' estimates (:func:`designs.calibration.identify_cab`).
 
     Returns
     -------
-    (estimates, truth, inside) or (estimates, truth, inside, cabs)
-        Arrays ``(n, 4)``, ``(n, 4)`` of :data:`designs.calibration.IDENTIFIED`, ``(n,)``
-        bool (every quantity within its bound) and ``(n, 5)`` of
-        :data:`designs.calibration.CAB_IDENTIFIED`.
+    Calibrations
     """
     rows = np.atleast_2d(np.asarray(values, float))
     n_jobs = check_int("n_jobs", n_jobs, low=1, owner="calibrate_members")
@@ -311,11 +385,15 @@ def calibrate_members(
     done = 0
     for part in it:
         parts.append(part)
-        done += len(part[2])
+        done += len(part)
         if progress:
             progress(done, len(rows))
-    out = tuple(np.concatenate([p[j] for p in parts]) for j in range(4))
-    return out if cab else out[:3]
+    return Calibrations(
+        *(
+            np.concatenate([getattr(p, f.name) for p in parts])
+            for f in dataclasses.fields(Calibrations)
+        )
+    )
 
 
 #: Candidates of the cab damper: phase shifts at the cab's mode (rad) and loop gains there
@@ -365,6 +443,141 @@ def _identified_row(family, human: dict, cab: dict) -> np.ndarray:
     return row
 
 
+@dataclasses.dataclass(frozen=True)
+class _OpenLoop:
+    """One member's loop opened at the cylinder-reference correction (numpy)."""
+
+    A: np.ndarray  # loop states
+    Br: np.ndarray  # r_corr -> states
+    Cc: np.ndarray  # states -> c (the cab acceleration)
+    G: np.ndarray  # (n_freq, 2, 2): [y, c] / [u, r_corr] at the grid
+    y_ref: np.ndarray  # y / u without BDFT at the grid
+    n_track: int  # the first n_track frequencies are the tracking grid
+    peak0: float  # largest |Y/Y_ref - 1| of the uncompensated loop, feedthrough grid
+
+
+def _spec_grid(spec: Specification) -> tuple[np.ndarray, int]:
+    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
+    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+    return 2j * math.pi * np.concatenate([ft, fb]), len(ft)
+
+
+def _freq_resp(A, B, C, D, s) -> np.ndarray:
+    n = A.shape[0]
+    X = np.linalg.solve(s[:, None, None] * np.eye(n) - A, np.broadcast_to(B, (len(s),) + B.shape))
+    return C @ X + D
+
+
+def _open_loop(loop, spec: Specification) -> _OpenLoop:
+    """:class:`_OpenLoop` of ``loop`` on the specification's tracking and feedthrough grids."""
+    P = connect(
+        loop.blocks(bdft=True, reference_correction=True),
+        inputs=["u", "r_corr"],
+        outputs=["y", "c"],
+        name="open_at_r_corr",
+        ignore_inputs=["human.f"] if loop.human.has_force_port else (),
+    )
+    A, B, C, D = (np.asarray(m, float) for m in (P.A, P.B, P.C, P.D))
+    if np.any(D[1, 1] != 0):  # pragma: no cover - the loop has no direct r_corr -> c path
+        raise ModelStructureError("damped_cancellation: the loop has a direct r_corr -> c path")
+    R = loop.system(bdft=False, outputs=["y"])
+    s, nt = _spec_grid(spec)
+    G = _freq_resp(A, B, C, D, s)
+    y_ref = _freq_resp(*(np.asarray(m, float) for m in (R.A, R.B, R.C, R.D)), s)[:, 0, 0]
+    peak0 = float(np.max(np.abs(G[nt:, 0, 0] / y_ref[nt:] - 1.0)))
+    return _OpenLoop(A, B[:, [1]], C[[1]], G, y_ref, nt, peak0)
+
+
+def _damper_states(w: float, gain, phase) -> tuple:
+    """Batched :func:`cab_damper` realisations (3 states each; ``phase`` never 0)."""
+    gain, phase = np.asarray(gain, float), np.asarray(phase, float)
+    n = gain.size
+    a = w / np.tan(np.abs(phase) / 2)
+    sign = np.where(phase > 0, -1.0, 1.0)
+    A = np.zeros((n, 3, 3))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 0] = -w * w
+    A[:, 1, 1] = -w
+    A[:, 2, 1] = gain * w  # the band-pass output drives the all-pass
+    A[:, 2, 2] = -a
+    B = np.zeros((n, 3, 1))
+    B[:, 1, 0] = 1.0
+    C = np.zeros((n, 1, 3))
+    C[:, 0, 1] = -sign * gain * w
+    C[:, 0, 2] = sign * 2 * a
+    return A, B, C
+
+
+def _damper_response(w: float, gain, phase, s) -> np.ndarray:
+    """:func:`cab_damper` at ``s``, shape ``(n_candidates, n_freq)``."""
+    gain, phase = np.asarray(gain, float)[:, None], np.asarray(phase, float)[:, None]
+    a = w / np.tan(np.abs(phase) / 2)
+    sign = np.where(phase > 0, -1.0, 1.0)
+    return sign * gain * w * s / (s * s + w * s + w * w) * (a - s) / (a + s)
+
+
+def _closed_loop_poles(ol: _OpenLoop, Kc, w: float, gain, phase) -> np.ndarray:
+    """Poles of ``ol`` closed by ``Kc`` plus :func:`cab_damper` ``(w, gain, phase)``, per candidate.
+
+    Every candidate's realisation is minimal up to the cancellation's own modes, which are
+    the same in each; without a damper (every gain 0) one candidate, without its states.
+    """
+    Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kc.A, Kc.B, Kc.C, Kc.D))
+    Ad, Bd, Cd = _damper_states(w, gain, phase)
+    n_c, n, nk = Ad.shape[0], ol.A.shape[0], Ak.shape[0]
+    if not np.any(gain):  # the cancellation alone: no damper states
+        Ad, Bd, Cd = Ad[:, :0, :0], Bd[:, :0], Cd[:, :, :0]
+    N = n + nk + Ad.shape[1]
+    A = np.zeros((n_c, N, N))
+    A[:, :n, :n] = ol.A + ol.Br @ Dk @ ol.Cc
+    A[:, :n, n : n + nk] = ol.Br @ Ck
+    A[:, :n, n + nk :] = ol.Br @ Cd
+    A[:, n : n + nk, :n] = Bk @ ol.Cc
+    A[:, n : n + nk, n : n + nk] = Ak
+    A[:, n + nk :, :n] = Bd @ ol.Cc
+    A[:, n + nk :, n + nk :] = Ad
+    return np.linalg.eigvals(A)
+
+
+def _utilisations(ol: _OpenLoop, spec: Specification, Kc, w: float, gain, phase) -> np.ndarray:
+    """Utilisations of decay rate, damping, tracking and feedthrough per damper candidate.
+
+    The closed loop of ``ol`` with ``Kc`` plus :func:`cab_damper` ``(w, gain, phase)`` per
+    candidate, evaluated as :func:`designs.spec.check_specification` defines the four
+    constraints, batched in numpy (:func:`_closed_loop_poles`).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_candidates, 4)
+    """
+    Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kc.A, Kc.B, Kc.C, Kc.D))
+    p = _closed_loop_poles(ol, Kc, w, gain, phase)
+    n_c = p.shape[0]
+    s, nt = _spec_grid(spec)
+    Kf = _freq_resp(Ak, Bk, Ck, Dk, s)[:, 0, 0] + _damper_response(w, gain, phase, s)
+    if not np.any(gain):
+        Kf = Kf[:1]
+    G = ol.G
+    y = G[:, 0, 0] + G[:, 0, 1] * Kf * G[:, 1, 0] / (1.0 - G[:, 1, 1] * Kf)
+    ratio = y / ol.y_ref
+    out = np.full((n_c, 4), math.inf)
+    max_real = p.real.max(axis=1)
+    stable = max_real < stability_bound(0.0)
+    out[stable, 0] = spec.decay_rate / -max_real[stable]
+    f = np.abs(p.imag) / (2 * math.pi)
+    inband = (f >= spec.damping_band_hz[0]) & (f <= spec.damping_band_hz[1])
+    zeta = np.where(inband, -p.real / np.abs(p), math.inf).min(axis=1)
+    out[:, 1] = np.where(zeta > 0, spec.min_damping / np.where(zeta > 0, zeta, 1.0), math.inf)
+    out[:, 1] = np.where(np.isinf(zeta), 0.0, out[:, 1])
+    trk = np.abs(ratio[:, :nt] - 1.0).max(axis=1) / spec.tracking_error
+    feed = (
+        np.abs(ratio[:, nt:] - 1.0).max(axis=1) / ol.peak0 / 10 ** (spec.max_amplification_db / 20)
+    )
+    out[stable, 2] = trk[stable]
+    out[stable, 3] = feed[stable]
+    return out
+
+
 def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSpace:
     """The cancellation of the identified human plus a damper of the identified cab's mode.
 
@@ -372,8 +585,9 @@ def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSp
     damper acts at the cab's less damped mode (:func:`cab_damper`); its phase and gain are
     the candidates (:data:`DAMPER_PHASES` x :data:`DAMPER_GAINS`, and no damper) with the
     smallest largest utilisation of decay rate, damping, tracking and feedthrough on that
-    identified member (:func:`designs.spec.check_specification`): a design made at the
-    calibration, from the record alone.
+    identified member (as :func:`designs.spec.check_specification` defines them, evaluated
+    for every candidate at once on the loop opened at the reference correction): a design
+    made at the calibration, from the record alone.
 
     Parameters
     ----------
@@ -385,28 +599,43 @@ def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSp
     spec : Specification, optional
     """
     spec = spec or Specification()
+    c = _damper_candidates(family, human, cab, spec)
+    util = _utilisations(c.open_loop, spec, c.cancellation, c.w, c.gain, c.phase).max(axis=1)
+    plain = _utilisations(c.open_loop, spec, c.cancellation, c.w, [0.0], [1.0]).max(axis=1)[0]
+    k = int(np.argmin(util))
+    Kc = c.cancellation
+    if not util[k] < plain:
+        return Kc
+    K = ct.parallel(
+        ct.ss(Kc.A, Kc.B, Kc.C, Kc.D),
+        cab_damper(c.w / (2 * math.pi), float(c.gain[k]), float(c.phase[k])),
+    )
+    return ct.ss(K.A, K.B, K.C, K.D, inputs="c", outputs="r_corr", name="damped_cancellation")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Candidates:
+    open_loop: _OpenLoop  # the identified member, opened at r_corr
+    cancellation: ct.StateSpace  # the identified human's cancellation
+    w: float  # the damper's frequency, rad/s
+    gain: np.ndarray  # per candidate, reference units per cab acceleration unit
+    phase: np.ndarray  # per candidate, rad
+
+
+def _damper_candidates(family, human: dict, cab: dict, spec: Specification) -> _Candidates:
+    """The identified member's open loop, its cancellation and the damper candidates."""
     hat = family.member(_identified_row(family, human, cab), check_bounds=False)
     Kc = _cancellations(family, np.array([[human[k] for k in IDENTIFIED]]))[0]
-    f_d = hat.struct.f1_hz
+    w = 2 * math.pi * hat.struct.f1_hz
     P = connect(
         hat.blocks(bdft=False, reference_correction=True) + [structure(hat.struct)],
         inputs=["u", "r_corr"],
         outputs=["c"],
         name="cab",
     )
-    scale = 1.0 / abs(complex(P(2j * math.pi * f_d)[0, 1]))
-    keys = ("decay rate", "damping", "tracking", "feedthrough")
-    best = None
-    for phase, gain in [(0.0, 0.0)] + [(p, g) for p in DAMPER_PHASES for g in DAMPER_GAINS]:
-        K = Kc
-        if gain:
-            K = ct.parallel(ct.ss(Kc.A, Kc.B, Kc.C, Kc.D), cab_damper(f_d, gain * scale, phase))
-            K = ct.ss(K.A, K.B, K.C, K.D, inputs="c", outputs="r_corr", name="damped_cancellation")
-        r = check_specification([hat], K, spec, simulate_peak=0)
-        u = max(c.utilisation for c in r.constraints if c.name in keys)
-        if best is None or u < best[0]:
-            best = (u, K)
-    return best[1]
+    scale = 1.0 / abs(complex(P(1j * w)[0, 1]))
+    phase, gain = (np.array(x, float) for x in zip(*itertools.product(DAMPER_PHASES, DAMPER_GAINS)))
+    return _Candidates(_open_loop(hat, spec), Kc, w, gain * scale, phase)
 
 
 def _continuous_chunk(family, rows, est, spec, cabs=None):
@@ -466,7 +695,7 @@ def continuous_coverage(
         )
         for a, b in chunks
     ]
-    parts = Parallel(n_jobs=n_jobs)(jobs) if n_jobs > 1 else [f(*a, **k) for f, a, k in jobs]
+    parts = _run(jobs, n_jobs)
     holds = np.concatenate([p[0] for p in parts])
     if binding:
         return holds, [b for p in parts for b in p[1]]
@@ -502,7 +731,8 @@ def cancellation_gap(family, values, *, seed: int = 0, protocol=None, spec=None)
     """
     spec = spec or Specification()
     rows = np.atleast_2d(np.asarray(values, float))
-    est, _, inside = calibrate_members(family, rows, seed=seed, protocol=protocol)
+    cal = calibrate_members(family, rows, seed=seed, protocol=protocol)
+    est, inside = cal.estimates, cal.operator_inside
     out = {"nominal": None, "identified": None, "exact": None, "inside": inside}
     nominal = member_verdicts(
         family, rows, cancellation_controller(family.member(family.nominal_values())), spec
@@ -517,6 +747,96 @@ def cancellation_gap(family, values, *, seed: int = 0, protocol=None, spec=None)
     out["exact"] = exact
     out.update(binding_nominal=bind_nom, binding_identified=bind_id, binding_exact=bind_ex)
     return out
+
+
+def _displaced(values: np.ndarray, bounds: np.ndarray, log_axes, j: int, sign: int) -> np.ndarray:
+    """``values`` with quantity ``j`` moved by its bound's half-width (a factor for logs)."""
+    out = np.array(values, float)
+    lo, hi = bounds[j]
+    if log_axes[j]:
+        out[j] *= math.sqrt(hi / lo) ** sign
+    else:
+        out[j] = max(out[j] + sign * 0.5 * (hi - lo), 0.01)  # a damping ratio stays physical
+    return out
+
+
+def _border_cases(cal: Calibrations, i: int) -> list:
+    """``(label, operator, cab)``: the 16 wrong estimates of member ``i`` (:func:`border_check`)."""
+    t, tc = cal.truth[i], cal.cab_truth[i]
+    out = []
+    for j, g in itertools.product(range(len(IDENTIFIED)), (-1, 1)):
+        out.append(
+            (f"{IDENTIFIED[j]}{'-+'[g > 0]}", _displaced(t, cal.bounds[i], LOG_AXES, j, g), tc)
+        )
+    for j, g in itertools.product(range(1, len(CAB_IDENTIFIED)), (-1, 1)):
+        d = _displaced(tc, cal.cab_bounds[i], CAB_LOG_AXES, j, g)
+        out.append((f"{CAB_IDENTIFIED[j]}{'-+'[g > 0]}", t, d))
+    return out
+
+
+def _border_chunk(family, rows, cal: Calibrations, spec):
+    with deterministic_solvers():
+        labels, stable, holds = [], [], []
+        for i, row in enumerate(rows):
+            for label, h, c in _border_cases(cal, i):
+                K = damped_cancellation(
+                    family, dict(zip(IDENTIFIED, h)), dict(zip(CAB_IDENTIFIED, c)), spec
+                )
+                labels.append(label)
+                stable.append(bool(member_metrics(family, row[None, :], controller=K)[0][0] < 0))
+                holds.append(bool(member_verdicts(family, row[None, :], K, spec).holds[0]))
+        return labels, np.array(stable), np.array(holds)
+
+
+def border_check(family, values, cal: Calibrations, *, spec=None, n_jobs: int = 1) -> dict:
+    """Designs from a wrong estimate within the error bound, checked on the true member.
+
+    Per member, the compensator (:func:`damped_cancellation`) is designed from the member's
+    true operator and cab with one identified quantity moved to the edge of the member's
+    error bound (each of the operator's four and the cab's two modes' four, each way: 16
+    designs per member; the half-width of the bound, a factor for the frequencies): the
+    estimates a calibration may return while the truth lies within its bound. On the true
+    member: is the loop stable (every pole in the open left half-plane), does the whole
+    specification hold?
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+    values : array_like, shape (n, d)
+        The members.
+    cal : Calibrations
+        Their calibrations (the bounds' widths are taken from them).
+    spec : Specification, optional
+    n_jobs : int
+        Parallel processes.
+
+    Returns
+    -------
+    dict
+        ``members``, ``designs``, ``stable`` (fraction of the designs), ``specification``
+        (fraction meeting the whole specification), ``unstable_by_case`` (per moved quantity
+        and direction, e.g. ``"f_low_hz-"``, the members whose loop it destabilised).
+    """
+    spec = spec or Specification()
+    rows = np.atleast_2d(np.asarray(values, float))
+    n_jobs = check_int("n_jobs", n_jobs, low=1, owner="border_check")
+    size = 10
+    chunks = [(i, min(i + size, len(rows))) for i in range(0, len(rows), size)]
+    jobs = [delayed(_border_chunk)(family, rows[a:b], cal[a:b], spec) for a, b in chunks]
+    parts = _run(jobs, n_jobs)
+    labels = [lab for p in parts for lab in p[0]]
+    stable = np.concatenate([p[1] for p in parts])
+    holds = np.concatenate([p[2] for p in parts])
+    unstable: dict = {}
+    for lab, ok in zip(labels, stable):
+        unstable[lab] = unstable.get(lab, 0) + int(not ok)
+    return {
+        "members": len(rows),
+        "designs": int(stable.size),
+        "stable": float(stable.mean()),
+        "specification": float(holds.mean()),
+        "unstable_by_case": unstable,
+    }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -634,37 +954,37 @@ def scheduled_design(
     seed: int = 0,
     cells_sweep=(1, 2, 3, 5),
     sweep_samples: int = 400,
-    damped_samples: int = 200,
+    border_samples: int = 50,
     limit_samples: int = 64,
     protocol: CalibrationProtocol | None = None,
     n_jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[ScheduledBank, dict]:
-    """The bank, its coverage on ``samples`` fresh members, and coverage against cells.
+    """The design made at each operator's calibration, its coverage, and the banks beside it.
 
     Parameters
     ----------
     family : uncertainty.Family
     cells_per_axis : int
-        Cells per identified quantity of the bank.
+        Cells per identified quantity of the bank written with the result.
     samples : int
-        Fresh Monte Carlo members of the coverage certificate (seed ``seed + 2``).
+        Fresh Monte Carlo members of the coverage certificate (seed ``seed + 2``), each
+        with its own simulated calibration.
     seed : int
         Design seed; the members are drawn with ``seed + 2``, their records ``seed + 2 +
         1000 + i``.
     cells_sweep : sequence of int
         Cells per axis of the banks compared (on the first ``sweep_samples`` members),
-        followed by the continuous schedule (:func:`continuous_coverage`).
+        followed by the cancellation built from each operator's estimate without and with
+        the cab's damper.
     sweep_samples : int
         Members of the comparison.
-    damped_samples : int
-        Members on which the compensator designed from each calibration with the cab's
-        damper (:func:`damped_cancellation`, about 2.2 core-seconds each) is checked (0 skips
-        it).
+    border_samples : int
+        Members (the first of the coverage members) of :func:`border_check` (0 skips it).
     limit_samples : int
         Latin-hypercube members of the limit map computed for the default sets at the
         Omni's force (:func:`designs.limit.limit_map`, seed ``seed``): which set covers
-        most, and the bank's coverage as a fraction of its own set's (0 skips it).
+        most, and the design's coverage as a fraction of its own set's (0 skips it).
     protocol : CalibrationProtocol, optional
     n_jobs : int
         Parallel processes.
@@ -674,60 +994,69 @@ def scheduled_design(
     Returns
     -------
     (ScheduledBank, dict)
-        The bank and the JSON-ready result (``coverage``, ``coverage_by_cells``, ...).
+        The bank and the JSON-ready result (``coverage``, ``bank``, ``coverage_by_cells``,
+        ``wrong_within_bound``, ``limit``...).
     """
     samples = check_int("samples", samples, low=1, owner="scheduled_design")
+    border_samples = check_int("border_samples", border_samples, low=0, owner="scheduled_design")
+    spec = Specification()
     mseed = seed + COVERAGE_SEED_OFFSET
     rows = sample(family.parameters, samples, method="mc", seed=mseed).values
-    est, truth, inside, cabs = calibrate_members(
-        family,
-        rows,
-        seed=mseed + 1000,
-        protocol=protocol,
-        n_jobs=n_jobs,
-        progress=progress,
-        cab=True,
+    cal = calibrate_members(
+        family, rows, seed=mseed + 1000, protocol=protocol, n_jobs=n_jobs, progress=progress
     )
-    bank = build_bank(family, cells_per_axis)
-    cov = bank_coverage(bank, family, rows, est, truth, inside, seed=mseed, n_jobs=n_jobs)
+    est, truth, inside = cal.estimates, cal.truth, cal.operator_inside
+    holds, binding = continuous_coverage(
+        family, rows, est, cabs=cal.cabs, spec=spec, n_jobs=n_jobs, binding=True
+    )
+    bound = CoverageBound(samples=len(rows), failures=int((~holds).sum()), seed=mseed)
+    failures: dict = {}
+    for ok, b in zip(holds, binding):
+        if not ok:
+            failures[b] = failures.get(b, 0) + 1
+    coverage = dict(
+        bound.to_json(),
+        failures_by_constraint=dict(sorted(failures.items())),
+        operator_within_error_bound=float(np.mean(inside)),
+        cab_within_error_bound=float(np.mean(cal.cab_inside)),
+    )
     m = min(sweep_samples, samples)
+    bank = build_bank(family, cells_per_axis)
     sweep = []
-    for n in cells_sweep:
+    bank_cov = None
+    for n in sorted(set(cells_sweep) | {cells_per_axis}):
         b = bank if n == cells_per_axis else build_bank(family, n)
         c = bank_coverage(
             b, family, rows[:m], est[:m], truth[:m], inside[:m], seed=mseed, n_jobs=n_jobs
         )
-        sweep.append(
-            {
-                "cells_per_axis": n,
-                "cells": len(b.cells),
-                "samples": m,
-                "fraction": c.bound.fraction,
-                "right_cell": c.right_cell,
-            }
-        )
-    cont = continuous_coverage(family, rows[:m], est[:m], n_jobs=n_jobs)
-    sweep.append(
-        {
-            "cells_per_axis": None,
-            "cells": "continuous",
-            "samples": m,
-            "fraction": float(np.mean(cont)),
-            "right_cell": None,
-        }
-    )
-    md = min(damped_samples, samples)
-    if md:
-        damped = continuous_coverage(family, rows[:md], est[:md], cabs=cabs[:md], n_jobs=n_jobs)
+        if n == cells_per_axis:
+            bank_cov = c
+        if n in cells_sweep:
+            sweep.append(
+                {
+                    "cells_per_axis": n,
+                    "cells": len(b.cells),
+                    "samples": m,
+                    "fraction": c.bound.fraction,
+                    "right_cell": c.right_cell,
+                }
+            )
+    plain = continuous_coverage(family, rows[:m], est[:m], spec=spec, n_jobs=n_jobs)
+    for label, frac in (
+        ("continuous", float(np.mean(plain))),
+        ("continuous with the cab damper", float(np.mean(holds[:m]))),
+    ):
         sweep.append(
             {
                 "cells_per_axis": None,
-                "cells": "continuous with the cab damper",
-                "samples": md,
-                "fraction": float(np.mean(damped)),
+                "cells": label,
+                "samples": m,
+                "fraction": frac,
                 "right_cell": None,
             }
         )
+    nb = min(border_samples, samples)
+    border = border_check(family, rows[:nb], cal[:nb], spec=spec, n_jobs=n_jobs) if nb else None
     pr = protocol or CalibrationProtocol()
     limit = None
     if limit_samples:
@@ -740,18 +1069,20 @@ def scheduled_design(
             "coverage_by_set": by_set,
             "best_sets": [k for k, v in by_set.items() if v == top],
             "coverage": by_set[LIMIT_SET],
-            "fraction_of_limit": cov.bound.fraction / by_set[LIMIT_SET]
+            "fraction_of_limit": bound.fraction / by_set[LIMIT_SET]
             if by_set[LIMIT_SET] > 0
             else None,
         }
     return bank, {
         "name": "scheduled",
+        "design": DESIGN_RULE,
         "limit_set": LIMIT_SET,
         "force_scale": 1.0,
         "limit": limit,
-        "cells_per_axis": cells_per_axis,
-        "cells": len(bank.cells),
-        "coverage": cov.to_json(),
+        "coverage": coverage,
+        "wrong_within_bound": border,
+        "bank": dict(bank_cov.to_json(), cells_per_axis=cells_per_axis),
         "coverage_by_cells": sweep,
+        "damper_candidates": {"phases_rad": list(DAMPER_PHASES), "gains": list(DAMPER_GAINS)},
         "calibration": dataclasses.asdict(pr),
     }

@@ -2,22 +2,29 @@
 
 import json
 
+import control as ct
 import numpy as np
 import pytest
 
 from bdft import main
-from designs.calibration import IDENTIFIED, operator_row
+from designs.calibration import CAB_IDENTIFIED, IDENTIFIED, operator_row
 from designs.cancellation import cancellation_controller
 from designs.scheduled import (
     LIMIT_SET,
+    _damper_candidates,
+    _identified_row,
+    _utilisations,
     bank_coverage,
+    border_check,
     build_bank,
     cab_damper,
     calibrate_members,
     continuous_coverage,
+    damped_cancellation,
 )
+from designs.spec import Specification, check_specification
 from robust.errors import ParameterError
-from uncertainty import default_family, sample
+from uncertainty import default_family, member_metrics, sample
 
 FAM = default_family()
 
@@ -25,8 +32,7 @@ FAM = default_family()
 @pytest.fixture(scope="module")
 def calibrated():
     rows = sample(FAM.parameters, 24, method="mc", seed=2).values
-    est, truth, inside = calibrate_members(FAM, rows, seed=1002)
-    return rows, est, truth, inside
+    return rows, calibrate_members(FAM, rows, seed=1002)
 
 
 def test_bank_cells_and_selection_rule():
@@ -56,7 +62,8 @@ def test_bank_cells_and_selection_rule():
 
 
 def test_bank_coverage_against_the_continuous_schedule(calibrated):
-    rows, est, truth, inside = calibrated
+    rows, cal = calibrated
+    est, truth, inside = cal.estimates, cal.truth, cal.operator_inside
     bank = build_bank(FAM, 2)
     cov = bank_coverage(bank, FAM, rows, est, truth, inside, seed=2)
     # the selection agrees with the rule applied by hand
@@ -75,7 +82,7 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
 def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     out = tmp_path / "designs"
     argv = ["design", "scheduled", "--coverage-samples", "8", "--cells", "1"]
-    argv += ["--limit-samples", "1", "--damped-samples", "1", "--jobs", "1"]
+    argv += ["--limit-samples", "1", "--border-samples", "1", "--jobs", "1"]
     argv += ["--out", str(out), "--json"]
     assert main(argv) == 0
     obj = json.loads(capsys.readouterr().out)
@@ -86,13 +93,19 @@ def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     assert obj["limit"]["samples"] == 1 and LIMIT_SET in obj["limit"]["coverage_by_set"]
     cells = [r["cells"] for r in obj["coverage_by_cells"]]
     assert cells[-2:] == ["continuous", "continuous with the cab damper"]
-    assert obj["coverage_by_cells"][-1]["samples"] == 1
+    assert obj["coverage_by_cells"][-1]["samples"] == 8
+    # the coverage is the damped design's, the last entry of the comparison on all 8
+    assert obj["coverage_by_cells"][-1]["fraction"] == cov["fraction"]
+    assert obj["bank"]["cells"] == 1 and obj["bank"]["samples"] == 8
+    assert obj["wrong_within_bound"]["members"] == 1
+    assert obj["wrong_within_bound"]["designs"] == 16
+    assert "damped_cancellation" in obj["design"]
     art = json.loads((out / "scheduled.json").read_text())
     assert art["kind"] == "bdft-controller-bank" and len(art["cells"]) == 1
     # a second run (without the limit map) replaces its own artifact
     argv[argv.index("--limit-samples") + 1] = "0"
     argv[argv.index("--coverage-samples") + 1] = "2"
-    argv[argv.index("--damped-samples") + 1] = "0"
+    argv[argv.index("--border-samples") + 1] = "0"
     assert main(argv) == 0
     assert json.loads(capsys.readouterr().out)["limit"] is None
     assert "scheduled" in [*map(str.strip, _listed(capsys))]
@@ -121,7 +134,8 @@ def test_the_cab_damper_designed_at_calibration_rescues_lightly_damped_cabs():
     # identified member) the whole specification holds on the true member (measured: 3 of 3)
     rows = sample(FAM.parameters, 300, method="mc", seed=5).values
     rows = rows[rows[:, FAM.names.index("struct.zeta1")] < 0.09][:3]
-    est, _, _, cabs = calibrate_members(FAM, rows, seed=77, cab=True)
+    cal = calibrate_members(FAM, rows, seed=77)
+    est, cabs = cal.estimates, cal.cabs
     plain = continuous_coverage(FAM, rows, est)
     damped, binding = continuous_coverage(FAM, rows, est, cabs=cabs, binding=True)
     assert not plain.any()
@@ -132,3 +146,76 @@ def test_the_cab_damper_designed_at_calibration_rescues_lightly_damped_cabs():
     assert abs(g - 1.0) < 1e-12
     g = complex(cab_damper(4.0, 1.0, -1.0)(2j * np.pi * 4.0))
     assert abs(abs(g) - 1.0) < 1e-12 and abs(np.angle(g) + 1.0) < 1e-12
+
+
+def test_damper_candidates_evaluated_as_the_specification_defines_them(calibrated):
+    # the batched closed loops that pick the damper agree with check_specification (the
+    # python-control loop, minimal realisation, its own frequency responses) on every
+    # fourth candidate of two identified members, and the damper adds its three states
+    rows, cal = calibrated
+    spec = Specification()
+    keys = ("decay rate", "damping", "tracking", "feedthrough")
+    for i in (0, 5):
+        h, c = dict(zip(IDENTIFIED, cal.estimates[i])), dict(zip(CAB_IDENTIFIED, cal.cabs[i]))
+        cand = _damper_candidates(FAM, h, c, spec)
+        U = _utilisations(cand.open_loop, spec, cand.cancellation, cand.w, cand.gain, cand.phase)
+        hat = FAM.member(_identified_row(FAM, h, c), check_bounds=False)
+        Kc = cand.cancellation
+        finite = 0
+        for k in range(0, len(cand.gain), 4):
+            D = cab_damper(cand.w / (2 * np.pi), cand.gain[k], cand.phase[k])
+            K = ct.parallel(ct.ss(Kc.A, Kc.B, Kc.C, Kc.D), D)
+            K = ct.ss(K.A, K.B, K.C, K.D, inputs="c", outputs="r_corr")
+            ref = check_specification([hat], K, spec, simulate_peak=0)
+            ref = np.array([r.utilisation for r in ref.constraints if r.name in keys])
+            np.testing.assert_array_equal(np.isinf(U[k]), np.isinf(ref))
+            ok = np.isfinite(ref)
+            np.testing.assert_allclose(U[k][ok], ref[ok], rtol=1e-6, atol=1e-9)
+            finite += int(ok.all())
+        assert finite >= 3  # stable candidates were compared, not only unstable ones
+        K = damped_cancellation(FAM, h, c, spec)
+        assert K.nstates in (Kc.nstates, Kc.nstates + 3)
+
+
+def test_calibration_places_the_operator_within_its_bound_for_95_percent(calibrated):
+    # the design's "cell" is the box the calibration bounds: the operator's true modes lie
+    # in it for 97.7 % of the 2000 seeded operators of `bdft design scheduled` (97.8 % of
+    # 400 in benchmarks/bench_calibration.py); of these 24, 22 (an arm mode near 1 Hz is
+    # the usual miss); the cab's for 91.8 % of the 2000 (its bound is two bins of the
+    # frequency resolution)
+    rows, cal = calibrated
+    assert cal.operator_inside.sum() >= 21
+    assert cal.cab_inside.sum() >= 20
+    # the bounds bracket their estimates
+    assert np.all(cal.bounds[..., 0] <= cal.estimates) and np.all(
+        cal.estimates <= cal.bounds[..., 1]
+    )
+    sub = cal[3:5]
+    assert len(sub) == 2 and np.array_equal(sub.cab_bounds, cal.cab_bounds[3:5])
+
+
+def test_border_check_counts_what_a_hand_built_design_shows(calibrated):
+    # four of the seeded operators: a wrong estimate at the bound's edge leaves the first
+    # stable in all 16 designs and destabilises the others in 8, 1 and 15 (measured): the
+    # cancellation needs the operator's modes (and its masses, which the record does not
+    # tell: the last fails with its true modes and only the cab's estimate moved)
+    rows, cal = calibrated
+    idx = [0, 3, 5, 13]
+    out = border_check(FAM, rows[idx], cal[idx])
+    assert out["members"] == 4 and out["designs"] == 64
+    assert len(out["unstable_by_case"]) == 16
+    assert sum(out["unstable_by_case"].values()) == round(64 * (1 - out["stable"]))
+    assert out["specification"] <= out["stable"] < 1.0
+    # the count of two cases by hand: the arm's frequency low by the bound's half-width (a
+    # factor), the trunk's damping low by it, the cab as it is
+    for label, j in (("f_low_hz-", 0), ("zeta_high-", 3)):
+        unstable = 0
+        for i in idx:
+            t = cal.truth[i].copy()
+            lo, hi = cal.bounds[i, j]
+            t[j] = t[j] / np.sqrt(hi / lo) if j == 0 else max(t[j] - 0.5 * (hi - lo), 0.01)
+            h, c = dict(zip(IDENTIFIED, t)), dict(zip(CAB_IDENTIFIED, cal.cab_truth[i]))
+            K = damped_cancellation(FAM, h, c)
+            unstable += int(not member_metrics(FAM, rows[i : i + 1], controller=K)[0][0] < 0)
+        assert out["unstable_by_case"][label] == unstable
+    assert out["unstable_by_case"]["f_low_hz-"] >= 1
