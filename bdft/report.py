@@ -21,12 +21,15 @@ from bdft.common import (
     member_progress,
     print_json,
 )
+from bdft.design import SCHEDULED
 from designs.limit import limit_map
 from designs.registry import design_names
 from designs.robust_lmi import force_tradeoff
+from designs.scheduled import scheduled_design
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from reports.limit import limit_conclusions
+from robust.jsonio import atomic_write_json
 from uncertainty import default_family
 
 __all__ = ["register", "run"]
@@ -76,6 +79,14 @@ def register(sub) -> None:
         "about a second per member per core)",
     )
     p.add_argument(
+        "--scheduled-samples",
+        type=integer("--scheduled-samples", low=0, high=100_000),
+        default=2000,
+        help="fresh members, each with its own simulated calibration, of the per-operator "
+        "design's coverage (bdft design scheduled; 0: not computed; default: %(default)s, "
+        "about half a core-second per member)",
+    )
+    p.add_argument(
         "--tradeoff",
         type=factor_list("--tradeoff"),
         default=(0.5, 1.0, 2.0, 4.0),
@@ -106,7 +117,8 @@ def run(args) -> int:
         0 skips it), ``tradeoff`` (force-limit multiples of the Pareto sweep, empty skips
         it), ``coverage_samples`` and ``jobs`` (each design's coverage certificate),
         ``limit_samples`` (members of the achievable-limit map shown beside the designs'
-        coverage, 0 skips it) and ``json``.
+        coverage, 0 skips it), ``scheduled_samples`` (members of the per-operator design's
+        coverage, :func:`designs.scheduled.scheduled_design`, 0 skips it) and ``json``.
 
     Returns
     -------
@@ -121,7 +133,7 @@ def run(args) -> int:
 
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
-    check_artifact_targets("--out", art_dir, design_names())
+    check_artifact_targets("--out", art_dir, [*design_names(), SCHEDULED])
     runs = run_all_designs(
         samples=args.samples,
         seed=args.seed,
@@ -151,6 +163,19 @@ def run(args) -> int:
             progress=member_progress("limit map"),
         )
         limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
+    scheduled = None
+    if args.scheduled_samples:
+        print("[bdft report] per-operator design ...", file=sys.stderr, flush=True)
+        bank, scheduled = scheduled_design(
+            default_family(),
+            samples=args.scheduled_samples,
+            seed=args.seed,
+            limit_samples=0,
+            n_jobs=args.jobs,
+            progress=member_progress("calibrations"),
+        )
+        art = dict(bank.to_json(), kind="bdft-controller-bank", name=SCHEDULED, result=scheduled)
+        scheduled["artifact"] = str(atomic_write_json(art_dir / f"{SCHEDULED}.json", art))
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)
     path = write_design_report(
         runs,
@@ -160,6 +185,7 @@ def run(args) -> int:
         coverage=coverage,
         tradeoff=tradeoff,
         limit=limit,
+        scheduled=scheduled,
     )
     print(f"[bdft report] written to {path}", file=sys.stderr)
     if args.json:
@@ -168,6 +194,7 @@ def run(args) -> int:
                 "report": str(path),
                 "family": coverage.to_json(),
                 "limit": limit,
+                "scheduled": scheduled,
                 "tradeoff": [dataclasses.asdict(p) for p in tradeoff or []],
                 "designs": {
                     k: (str(r) if isinstance(r, Exception) else r.to_json())

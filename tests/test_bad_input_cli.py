@@ -110,6 +110,8 @@ OPTION_CASES = [
     (["report", "--samples", "0"], "report", "--samples", "got 0"),
     (["report", "--samples", BIG], "report", "--samples", "memory budget"),
     (["report", "--seed", "-3"], "report", "--seed", "got -3"),
+    (["report", "--scheduled-samples", "-1"], "report", "--scheduled-samples", "got -1"),
+    (["design", "scheduled", "--border-samples", "x"], "design", "--border-samples", "got 'x'"),
     (["design", "cancellation", "--samples", "0"], "design", "--samples", "got 0"),
     (["design", "cancellation", "--samples", BIG], "design", "--samples", "memory budget"),
     (["design"], "design", "NAME", "expected a design name or --list"),

@@ -56,3 +56,27 @@ def test_comparison_page_with_verdict(tmp_path):
     assert any("hinf-nominal" in line and "leave members unstable" in line for line in lines)
     why = [line for line in lines if line.startswith("Why:")]
     assert len(why) == 1 and "handle-arm mode" in why[0]
+
+
+def test_per_operator_design_beside_its_limit(tmp_path):
+    # the scheduled design's result (a few members) on the page beside its set's limit
+    # coverage, with the consistency verdict computed from both sampling errors
+    from designs.scheduled import LIMIT_SET, scheduled_design
+
+    fam = default_family()
+    _, sched = scheduled_design(
+        fam, samples=6, cells_sweep=(1,), cells_per_axis=1, border_samples=1, limit_samples=0
+    )
+    lm = limit_map(fam, samples=4, seed=0, sets=(LIMIT_SET,), critical=False)
+    limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
+    runs = run_all_designs(samples=50, seed=0, names=["workspace"])
+    index = write_design_report(
+        runs, tmp_path / "d", samples=50, seed=0, limit=limit, scheduled=sched
+    )
+    html = index.read_text()
+    assert "The per-operator design (bdft design scheduled)" in html
+    _, entry = limit_coverage_of(limit["sets"], LIMIT_SET, 1.0)
+    ok = coverage_consistent(sched["coverage"]["fraction"], 6, entry["coverage"], entry["samples"])
+    assert ("within the limit" in html) and (">yes<" in html) == ok
+    assert f"{100 * sched['coverage']['fraction']:.1f} % of the population" in html
+    assert "continuous with the cab damper" in html

@@ -195,16 +195,16 @@ def test_calibration_places_the_operator_within_its_bound_for_95_percent(calibra
 
 
 def test_border_check_counts_what_a_hand_built_design_shows(calibrated):
-    # four of the seeded operators: a wrong estimate at the bound's edge leaves the first
-    # stable in all 16 designs and destabilises the others in 8, 1 and 15 (measured): the
-    # cancellation needs the operator's modes (and its masses, which the record does not
-    # tell: the last fails with its true modes and only the cab's estimate moved)
+    # two of the seeded operators: a wrong estimate at the bound's edge destabilises the
+    # loop in 8 and 1 of their 16 designs (measured; the first in each of the operator's
+    # eight, the second only with the trunk's damping low): the cancellation needs the
+    # operator's modes to within about a percent
     rows, cal = calibrated
-    idx = [0, 3, 5, 13]
+    idx = [3, 5]
     out = border_check(FAM, rows[idx], cal[idx])
-    assert out["members"] == 4 and out["designs"] == 64
+    assert out["members"] == 2 and out["designs"] == 32
     assert len(out["unstable_by_case"]) == 16
-    assert sum(out["unstable_by_case"].values()) == round(64 * (1 - out["stable"]))
+    assert sum(out["unstable_by_case"].values()) == round(32 * (1 - out["stable"]))
     assert out["specification"] <= out["stable"] < 1.0
     # the count of two cases by hand: the arm's frequency low by the bound's half-width (a
     # factor), the trunk's damping low by it, the cab as it is
