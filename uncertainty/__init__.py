@@ -14,6 +14,7 @@ Public API (import from here; module layout may change):
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`BDFT_BAND_HZ`;
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
+* structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
@@ -39,6 +40,7 @@ from uncertainty.family import (
     default_family,
 )
 from uncertainty.files import family_nominals, load_component_fit, load_controller
+from uncertainty.mu import MuBounds, mussv
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
 from uncertainty.sampling import MAX_SAMPLE_BYTES, METHODS, SampleSet, max_members, sample
 from uncertainty.sweeps import (
@@ -50,6 +52,8 @@ from uncertainty.sweeps import (
 )
 
 __all__ = [
+    "MuBounds",
+    "mussv",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "HUMAN_VARIANTS",
