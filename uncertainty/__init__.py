@@ -14,6 +14,8 @@ Public API (import from here; module layout may change):
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`BDFT_BAND_HZ`;
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
+* uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
+  :func:`evaluate_matrix`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
@@ -50,8 +52,13 @@ from uncertainty.sweeps import (
     structure_frequency_sweep,
     workspace_sweep,
 )
+from uncertainty.ureal import UExpr, evaluate_matrix, umatrix, ureal
 
 __all__ = [
+    "UExpr",
+    "ureal",
+    "umatrix",
+    "evaluate_matrix",
     "MuBounds",
     "mussv",
     "DISTRIBUTIONS",
