@@ -15,7 +15,7 @@ Public API (import from here; module layout may change):
   :data:`BDFT_BAND_HZ`;
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
-  :func:`evaluate_matrix`;
+  :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
@@ -53,12 +53,15 @@ from uncertainty.sweeps import (
     workspace_sweep,
 )
 from uncertainty.ureal import UExpr, evaluate_matrix, umatrix, ureal
+from uncertainty.uss import USS, uss
 
 __all__ = [
     "UExpr",
     "ureal",
     "umatrix",
     "evaluate_matrix",
+    "USS",
+    "uss",
     "MuBounds",
     "mussv",
     "DISTRIBUTIONS",

@@ -75,19 +75,30 @@ class UExpr:
 
     @staticmethod
     def _merge(a: UExpr, b: UExpr) -> dict:
-        out = dict(a.parameters)
-        for name, p in b.parameters.items():
-            if name in out and out[name] != p:
-                raise ParameterError(
-                    f"uncertain reals: two different parameters are named {name!r} "
-                    f"({out[name]} and {p})"
-                )
-            out[name] = p
-        return out
+        return merge_parameters(a.parameters, b.parameters)
+
+    def _const(self):
+        return self._args[0] if self._op == "const" else None
 
     def _binary(self, op: str, other, reflected: bool = False) -> UExpr:
         o = self._wrap(other, f"uncertain expression {op}")
         a, b = (o, self) if reflected else (self, o)
+        ca, cb = a._const(), b._const()
+        if op == "/" and cb == 0.0:
+            raise ParameterError("uncertain expression /: division by the constant 0")
+        # constants folded and the identities of 0 and 1 applied, so that matrix products
+        # of sparse uncertain matrices stay small expressions
+        if ca is not None and cb is not None:
+            fold = {"+": float.__add__, "-": float.__sub__, "*": float.__mul__}
+            return UExpr._wrap(fold[op](ca, cb) if op in fold else ca / cb, op)
+        if op == "*" and (ca == 0.0 or cb == 0.0):
+            return UExpr("const", (0.0,), {})
+        if (op == "*" and ca == 1.0) or (op == "+" and ca == 0.0):
+            return b
+        if (op in ("*", "/") and cb == 1.0) or (op in ("+", "-") and cb == 0.0):
+            return a
+        if op == "/" and ca == 0.0:
+            return UExpr("const", (0.0,), {})
         return UExpr(op, (a, b), self._merge(a, b))
 
     def __add__(self, other):
@@ -115,7 +126,10 @@ class UExpr:
         return self._binary("/", other, reflected=True)
 
     def __neg__(self):
-        return UExpr("neg", (self,), self.parameters)
+        c = self._const()
+        return (
+            UExpr("const", (-c,), {}) if c is not None else UExpr("neg", (self,), self.parameters)
+        )
 
     def __pos__(self):
         return self
@@ -237,6 +251,20 @@ class UExpr:
         if not isinstance(out, Interval):  # an expression without parameters
             return float(out), float(out)
         return float(out.lo), float(out.hi)
+
+
+def merge_parameters(*dicts) -> dict:
+    """The union of name -> parameter dicts; the same name must mean the same parameter."""
+    out: dict = {}
+    for d in dicts:
+        for name, p in d.items():
+            if name in out and out[name] != p:
+                raise ParameterError(
+                    f"uncertain reals: two different parameters are named {name!r} "
+                    f"({out[name]} and {p})"
+                )
+            out[name] = p
+    return out
 
 
 def _power(x, k: int):
