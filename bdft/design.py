@@ -85,6 +85,14 @@ def register(sub) -> None:
         "core-second per member (0: not computed; default: %(default)s)",
     )
     p.add_argument(
+        "--certify-samples",
+        type=integer("--certify-samples", low=0, high=10_000),
+        default=10,
+        help="scheduled only: members (the first of the coverage members) whose design's "
+        "robust margin over the box its calibration bounds is certified, about 6 "
+        "core-seconds each (0: not computed; default: %(default)s)",
+    )
+    p.add_argument(
         "--limit-samples",
         type=integer("--limit-samples", low=0, high=4096),
         default=64,
@@ -127,6 +135,7 @@ def _run_scheduled(args) -> int:
         seed=args.seed,
         limit_samples=args.limit_samples,
         border_samples=args.border_samples,
+        certify_samples=args.certify_samples,
         n_jobs=args.jobs,
         progress=member_progress("calibrations"),
     )
@@ -147,6 +156,13 @@ def _run_scheduled(args) -> int:
             print(
                 f"{'wrong by the bound':20s} stable {wb['stable']:.4f}, specification "
                 f"{wb['specification']:.4f} ({wb['designs']} designs)"
+            )
+        if obj["certified_over_bound"]:
+            cb = obj["certified_over_bound"]
+            print(
+                f"{'certified on bound':20s} median margin {cb['median_lower']:.3g} (upper "
+                f"{cb['median_upper']:.3g}); {cb['certified_whole_bound']} of {cb['members']} "
+                "certified on the whole bound"
             )
         if obj["limit"]:
             lim = obj["limit"]

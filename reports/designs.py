@@ -299,6 +299,15 @@ def _scheduled_section(page: HtmlPage, sched: dict, limit: dict | None) -> None:
             f"{100 * wb['stable']:.1f} % and meets the specification in "
             f"{100 * wb['specification']:.1f} %."
         )
+    cb = sched.get("certified_over_bound")
+    if cb:
+        text += (
+            f" Certified (the specification's pole region, interval certificate) for every "
+            f"operator and cab within a scale of the calibration's bound, on "
+            f"{cb['members']} members: median {cb['median_lower']:.3g} (a member breaking it "
+            f"found at a median {cb['median_upper']:.3g}); {cb['certified_whole_bound']} "
+            "certified on the whole bound."
+        )
     page.p(text, cls="note")
     page.table(
         ["cells", "members", "coverage", "right cell"],

@@ -65,7 +65,13 @@ def test_per_operator_design_beside_its_limit(tmp_path):
 
     fam = default_family()
     _, sched = scheduled_design(
-        fam, samples=6, cells_sweep=(1,), cells_per_axis=1, border_samples=1, limit_samples=0
+        fam,
+        samples=6,
+        cells_sweep=(1,),
+        cells_per_axis=1,
+        border_samples=1,
+        certify_samples=1,
+        limit_samples=0,
     )
     lm = limit_map(fam, samples=4, seed=0, sets=(LIMIT_SET,), critical=False)
     limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
@@ -80,3 +86,4 @@ def test_per_operator_design_beside_its_limit(tmp_path):
     assert ("within the limit" in html) and (">yes<" in html) == ok
     assert f"{100 * sched['coverage']['fraction']:.1f} % of the population" in html
     assert "continuous with the cab damper" in html
+    assert "certified on the whole bound" in html

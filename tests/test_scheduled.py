@@ -21,6 +21,7 @@ from designs.scheduled import (
     calibrate_members,
     continuous_coverage,
     damped_cancellation,
+    operator_family,
 )
 from designs.spec import Specification, check_specification
 from robust.errors import ParameterError
@@ -86,7 +87,8 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
 def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     out = tmp_path / "designs"
     argv = ["design", "scheduled", "--coverage-samples", "8", "--cells", "1"]
-    argv += ["--limit-samples", "1", "--border-samples", "1", "--jobs", "1"]
+    argv += ["--limit-samples", "1", "--border-samples", "1", "--certify-samples", "1"]
+    argv += ["--jobs", "1"]
     argv += ["--out", str(out), "--json"]
     assert main(argv) == 0
     obj = json.loads(capsys.readouterr().out)
@@ -104,12 +106,15 @@ def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     assert obj["wrong_within_bound"]["members"] == 1
     assert obj["wrong_within_bound"]["designs"] == 16
     assert "damped_cancellation" in obj["design"]
+    cert = obj["certified_over_bound"]
+    assert cert["members"] == 1 and 0.0 <= cert["lower"][0] <= cert["upper"][0]
     art = json.loads((out / "scheduled.json").read_text())
     assert art["kind"] == "bdft-controller-bank" and len(art["cells"]) == 1
     # a second run (without the limit map) replaces its own artifact
     argv[argv.index("--limit-samples") + 1] = "0"
     argv[argv.index("--coverage-samples") + 1] = "2"
     argv[argv.index("--border-samples") + 1] = "0"
+    argv[argv.index("--certify-samples") + 1] = "0"
     assert main(argv) == 0
     assert json.loads(capsys.readouterr().out)["limit"] is None
     assert "scheduled" in [*map(str.strip, _listed(capsys))]
@@ -223,3 +228,17 @@ def test_border_check_counts_what_a_hand_built_design_shows(calibrated):
             unstable += int(not member_metrics(FAM, rows[i : i + 1], controller=K)[0][0] < 0)
         assert out["unstable_by_case"][label] == unstable
     assert out["unstable_by_case"]["f_low_hz-"] >= 1
+
+
+def test_operator_family_is_the_calibrations_box(calibrated):
+    rows, cal = calibrated
+    fam, h, c = operator_family(FAM, cal, 4)
+    p = {q.name: q for q in fam.parameters}
+    # the operator's estimate is the nominal, its bound the range; the masses keep the
+    # family's whole ranges (the record does not tell them)
+    assert p["human.f_arm_hz"].nominal == pytest.approx(h["f_low_hz"])
+    assert (p["human.f_arm_hz"].low, p["human.f_arm_hz"].high) == tuple(cal.bounds[4, 0])
+    assert p["human.zeta_trunk"].high == cal.bounds[4, 3, 1]
+    assert p["struct.k_s"].nominal == pytest.approx(c["k_s"])
+    ref = {q.name: q for q in FAM.parameters}
+    assert p["human.m_arm"] == ref["human.m_arm"]
