@@ -404,6 +404,8 @@ def calibrate_members(
 #: (as fractions of 1 / |c / r_corr| at that frequency); gain 0 is the plain cancellation.
 DAMPER_PHASES = tuple(float(x) for x in np.linspace(-0.95 * math.pi, 0.95 * math.pi, 12))
 DAMPER_GAINS = (0.05, 0.1, 0.2, 0.4)
+#: Relative difference of utilisation below which two candidates count as equally good.
+TIE_RTOL = 1e-6
 
 
 def cab_damper(f_hz: float, gain: float, phase: float) -> ct.StateSpace:
@@ -606,10 +608,14 @@ def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSp
     c = _damper_candidates(family, human, cab, spec)
     util = _utilisations(c.open_loop, spec, c.cancellation, c.w, c.gain, c.phase).max(axis=1)
     plain = _utilisations(c.open_loop, spec, c.cancellation, c.w, [0.0], [1.0]).max(axis=1)[0]
-    k = int(np.argmin(util))
+    # candidates within TIE_RTOL of each other are equally good on the identified member
+    # (the damper leaves the binding constraint where it is): the plain cancellation is
+    # kept unless a damper lowers the utilisation by more, else the first of the best,
+    # so that rounding at 1e-8 does not pick the design
     Kc = c.cancellation
-    if not util[k] < plain:
+    if not util.min() < plain * (1.0 - TIE_RTOL):
         return Kc
+    k = int(np.flatnonzero(util <= util.min() * (1.0 + TIE_RTOL))[0])
     K = ct.parallel(
         ct.ss(Kc.A, Kc.B, Kc.C, Kc.D),
         cab_damper(c.w / (2 * math.pi), float(c.gain[k]), float(c.phase[k])),
@@ -852,6 +858,15 @@ def operator_family(family, cal: Calibrations, i: int):
     builds its member) range over their error bounds with the estimate as nominal; the
     masses, which the record does not tell, over the family's whole ranges.
 
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The family the member was drawn from.
+    cal : Calibrations
+        Calibrations (:func:`calibrate_members`).
+    i : int
+        Which of them.
+
     Returns
     -------
     (uncertainty.Family, dict, dict)
@@ -915,6 +930,19 @@ def operator_certificates(
     within ``lower`` times the calibration's bounds (masses: that scale of their whole
     ranges); ``upper`` is the scale at which a member breaking it was found. A margin of
     at least 1 would prove the design for every operator the calibration's bound admits.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        The family the members were drawn from.
+    cal : Calibrations
+        Their calibrations (:func:`calibrate_members`).
+    spec : Specification, optional
+        Gives the pole region and the design's checks.
+    max_boxes : int
+        Sub-boxes of the certificate per scale.
+    n_jobs : int
+        Parallel processes.
 
     Returns
     -------

@@ -42,6 +42,16 @@ def _reciprocal(x):
 class UExpr:
     """An expression of named uncertain reals (build with :func:`ureal` and arithmetic).
 
+    Parameters
+    ----------
+    op : str
+        The operation: ``"param"``, ``"const"``, ``"+"``, ``"-"``, ``"*"``, ``"/"``,
+        ``"neg"`` or ``"pow"``.
+    args : tuple
+        Its operands (expressions; the parameter, the constant or the exponent).
+    parameters : dict
+        Name -> parameter of every uncertain real below it.
+
     Attributes
     ----------
     parameters : dict

@@ -61,6 +61,11 @@ def _eye(n) -> np.ndarray:
 class USS:
     """An uncertain state-space system (build with :func:`uss`).
 
+    Parameters
+    ----------
+    A, B, C, D : numpy.ndarray of UExpr
+        Conformal uncertain matrices (:func:`uss` checks and converts them).
+
     Attributes
     ----------
     A, B, C, D : numpy.ndarray of UExpr
@@ -76,14 +81,17 @@ class USS:
 
     @property
     def nstates(self) -> int:
+        """Number of states."""
         return self.A.shape[0]
 
     @property
     def ninputs(self) -> int:
+        """Number of inputs."""
         return self.B.shape[1]
 
     @property
     def noutputs(self) -> int:
+        """Number of outputs."""
         return self.C.shape[0]
 
     def __repr__(self) -> str:
