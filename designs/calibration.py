@@ -84,6 +84,7 @@ __all__ = [
     "operator_truth",
     "human_response",
     "operator_row",
+    "OPERATOR_NAMES",
     "LOG_AXES",
     "identified_ranges",
     "CAB_IDENTIFIED",
@@ -560,6 +561,16 @@ def _fit(resid_rows, starts, zlo, zhi, n_freq):
     return best, J, JtJ_inv, sd
 
 
+#: The family's parameter carrying each identified quantity of the operator (the lower pair
+#: as the arm's: the pairs' labels do not change the hand's response).
+OPERATOR_NAMES = {
+    "human.f_arm_hz": "f_low_hz",
+    "human.zeta_arm": "zeta_low",
+    "human.f_trunk_hz": "f_high_hz",
+    "human.zeta_trunk": "zeta_high",
+}
+
+
 def operator_row(family, values: dict, row=None) -> np.ndarray:
     """A member row carrying the identified human: the lower pair as the arm's.
 
@@ -577,15 +588,9 @@ def operator_row(family, values: dict, row=None) -> np.ndarray:
         The member row whose other parameters are kept (default: the nominal).
     """
     out = np.array(family.nominal_values() if row is None else row, float)
-    v = values
-    for name, key in (
-        ("human.f_arm_hz", "f_low_hz"),
-        ("human.zeta_arm", "zeta_low"),
-        ("human.f_trunk_hz", "f_high_hz"),
-        ("human.zeta_trunk", "zeta_high"),
-    ):
+    for name, key in OPERATOR_NAMES.items():
         if name in family.names:
-            out[family.names.index(name)] = v[key]
+            out[family.names.index(name)] = values[key]
     return out
 
 

@@ -59,6 +59,7 @@ from designs.spec import (
     Specification,
     peak_time_grid,
 )
+from robust.analysis.loops import resolvent_times
 from robust.checks import check_int
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.model.wiring import connect
@@ -603,7 +604,7 @@ def _member_limit_body(
         k2 = amp**2 / (2.0 * float(output_gram(Af, Bf, Cf)[0, 0]))
         poles = np.concatenate([np.linalg.eigvals(basis[0]), np.linalg.eigvals(Af)] + extra)
         wq, wts = quadrature_grid(poles)
-        Fq = np.einsum("ij,fjk->f", Cf, _stack(Af, wq, Bf))
+        Fq = np.einsum("ij,fjk->f", Cf, resolvent_times(Af, wq, Bf))
         resp = force_responses(plant, K0, basis, wq, meas=meas, L=L)
         W = quadrature_gram(
             resp, wts, intent=k2 * np.abs(Fq) ** 2, noise=None if meas is None else meas.noise
@@ -685,12 +686,6 @@ def _member_limit_body(
         name=f"limit_{actuators}_{sensors}",
     )
     return res, K
-
-
-def _stack(A, omega, B):
-    n = A.shape[0]
-    M = 1j * omega[:, None, None] * np.eye(n)[None] - A[None]
-    return np.linalg.solve(M, np.broadcast_to(B, (omega.size,) + B.shape))
 
 
 def _verify(

@@ -64,6 +64,7 @@ from designs.calibration import (
     CAB_LOG_AXES,
     IDENTIFIED,
     LOG_AXES,
+    OPERATOR_NAMES,
     CalibrationProtocol,
     cab_truth,
     identified_ranges,
@@ -77,6 +78,7 @@ from designs.cancellation import cancellation_controller
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
 from designs.spec import N_FEEDTHROUGH_FREQS, N_TRACKING_FREQS, Specification
+from robust.analysis.loops import resolvent_times
 from robust.analysis.stability import stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
@@ -433,19 +435,24 @@ def cab_damper(f_hz: float, gain: float, phase: float) -> ct.StateSpace:
     return ct.ss(K)
 
 
+def _cab_names(cab: dict) -> dict:
+    """The family's parameter carrying each identified cab quantity: the less damped mode
+    as the structure's first (where :func:`damped_cancellation` puts its damper)."""
+    d, o = ("low", "high") if cab["zeta_cab_low"] <= cab["zeta_cab_high"] else ("high", "low")
+    return {
+        "struct.k_s": "k_s",
+        "struct.f1_hz": f"f_cab_{d}_hz",
+        "struct.zeta1": f"zeta_cab_{d}",
+        "struct.f2_hz": f"f_cab_{o}_hz",
+        "struct.zeta2": f"zeta_cab_{o}",
+    }
+
+
 def _identified_row(family, human: dict, cab: dict) -> np.ndarray:
     row = operator_row(family, human)
-    low_first = cab["zeta_cab_low"] <= cab["zeta_cab_high"]
-    d, o = ("low", "high") if low_first else ("high", "low")
-    for name, val in (
-        ("struct.k_s", cab["k_s"]),
-        ("struct.f1_hz", cab[f"f_cab_{d}_hz"]),
-        ("struct.zeta1", cab[f"zeta_cab_{d}"]),
-        ("struct.f2_hz", cab[f"f_cab_{o}_hz"]),
-        ("struct.zeta2", cab[f"zeta_cab_{o}"]),
-    ):
+    for name, key in _cab_names(cab).items():
         if name in family.names:
-            row[family.names.index(name)] = val
+            row[family.names.index(name)] = cab[key]
     return row
 
 
@@ -469,9 +476,7 @@ def _spec_grid(spec: Specification) -> tuple[np.ndarray, int]:
 
 
 def _freq_resp(A, B, C, D, s) -> np.ndarray:
-    n = A.shape[0]
-    X = np.linalg.solve(s[:, None, None] * np.eye(n) - A, np.broadcast_to(B, (len(s),) + B.shape))
-    return C @ X + D
+    return C @ resolvent_times(A, s.imag, B) + D
 
 
 def _open_loop(loop, spec: Specification) -> _OpenLoop:
@@ -874,18 +879,8 @@ def operator_family(family, cal: Calibrations, i: int):
     """
     h, c = dict(zip(IDENTIFIED, cal.estimates[i])), dict(zip(CAB_IDENTIFIED, cal.cabs[i]))
     hb, cb = dict(zip(IDENTIFIED, cal.bounds[i])), dict(zip(CAB_IDENTIFIED, cal.cab_bounds[i]))
-    d, o = ("low", "high") if c["zeta_cab_low"] <= c["zeta_cab_high"] else ("high", "low")
-    where = {
-        "human.f_arm_hz": ("f_low_hz", h, hb),
-        "human.zeta_arm": ("zeta_low", h, hb),
-        "human.f_trunk_hz": ("f_high_hz", h, hb),
-        "human.zeta_trunk": ("zeta_high", h, hb),
-        "struct.k_s": ("k_s", c, cb),
-        "struct.f1_hz": (f"f_cab_{d}_hz", c, cb),
-        "struct.zeta1": (f"zeta_cab_{d}", c, cb),
-        "struct.f2_hz": (f"f_cab_{o}_hz", c, cb),
-        "struct.zeta2": (f"zeta_cab_{o}", c, cb),
-    }
+    where = {name: (key, h, hb) for name, key in OPERATOR_NAMES.items()}
+    where.update({name: (key, c, cb) for name, key in _cab_names(c).items()})
     params = []
     for p in family.parameters:
         if p.name not in where:

@@ -36,6 +36,7 @@ __all__ = [
     "loop_poles",
     "bdft_ratio",
     "frequency_response",
+    "resolvent_times",
     "critical_k_psf",
     "bdft_loop_gain",
     "reduce_controller",
@@ -143,6 +144,27 @@ def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet
     """
     _check_loop("loop_poles", loop)
     return closed_loop_poles(loop.system(bdft=bdft, controller=controller))
+
+
+def resolvent_times(A, omega, B) -> np.ndarray:
+    """``(j omega_k I - A)^-1 B`` at every frequency ``omega_k``, one stacked solve.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        State matrix.
+    omega : numpy.ndarray, shape (f,)
+        Angular frequencies, rad/s.
+    B : numpy.ndarray, shape (n, k)
+        Right-hand side.
+
+    Returns
+    -------
+    numpy.ndarray of complex, shape (f, n, k)
+    """
+    n = A.shape[0]
+    M = 1j * omega[:, None, None] * np.eye(n)[None] - A[None]
+    return np.linalg.solve(M, np.broadcast_to(B, (omega.size,) + B.shape))
 
 
 def frequency_response(

@@ -47,6 +47,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
+from robust.analysis.loops import resolvent_times
 from robust.errors import InfeasibleError, ModelStructureError, ParameterError, SolverError
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import solve_problem
@@ -142,13 +143,6 @@ class YoulaPlant:
     def m(self) -> int:
         """Number of actuators."""
         return self.Bu.shape[1]
-
-
-def _stack_solve(A, omega, B):
-    """``(j omega_k I - A)^-1 B`` for every frequency: shape (f, n, k)."""
-    n = A.shape[0]
-    M = 1j * omega[:, None, None] * np.eye(n)[None] - A[None]
-    return np.linalg.solve(M, np.broadcast_to(B, (omega.size,) + B.shape))
 
 
 def lag_basis(poles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -362,8 +356,8 @@ def affine_maps(plant: YoulaPlant, K0, basis, omega) -> dict:
     AK = plant.A + plant.Bu @ K0
     CyK = (plant.Cy + plant.Dyu @ K0)[0]
     omega = np.asarray(omega, float)
-    X = _stack_solve(AK, omega, np.hstack([plant.Bw, plant.Bu]))  # (f, n, 1 + m)
-    phi = np.einsum("ij,fjk->fi", C_phi, _stack_solve(A_phi, omega, b_phi))  # (f, nb)
+    X = resolvent_times(AK, omega, np.hstack([plant.Bw, plant.Bu]))  # (f, n, 1 + m)
+    phi = np.einsum("ij,fjk->fi", C_phi, resolvent_times(A_phi, omega, b_phi))  # (f, nb)
     ty = np.einsum("j,fjk->fk", CyK, X)
     y0 = ty[:, 0] + plant.Dyw
     tyv = ty[:, 1:] + plant.Dyu[0][None]
@@ -693,13 +687,13 @@ def of_affine_maps(plant: YoulaPlant, meas: Measurements, K0, L, basis, omega) -
     A_phi, b_phi, C_phi = basis
     AK, AL, CyK = _of_blocks(plant, meas, K0, L)
     omega = np.asarray(omega, float)
-    Ew = _stack_solve(AL, omega, plant.Bw - L @ meas.Dmw)[:, :, 0]  # (f, n)
-    Xv = _stack_solve(AK, omega, plant.Bu)  # (f, n, m)
-    Xw = _stack_solve(AK, omega, plant.Bw)[:, :, 0] - np.einsum("fij,fj->fi", Xv, Ew @ K0.T)
+    Ew = resolvent_times(AL, omega, plant.Bw - L @ meas.Dmw)[:, :, 0]  # (f, n)
+    Xv = resolvent_times(AK, omega, plant.Bu)  # (f, n, m)
+    Xw = resolvent_times(AK, omega, plant.Bw)[:, :, 0] - np.einsum("fij,fj->fi", Xv, Ew @ K0.T)
     y0 = Xw @ CyK[0] - Ew @ (plant.Dyu @ K0)[0] + plant.Dyw
     yv = np.einsum("j,fjm->fm", CyK[0], Xv) + plant.Dyu[0][None]
     ew = Ew @ meas.Cm.T + meas.Dmw[:, 0][None]
-    phi = np.einsum("ij,fjk->fi", C_phi, _stack_solve(A_phi, omega, b_phi))
+    phi = np.einsum("ij,fjk->fi", C_phi, resolvent_times(A_phi, omega, b_phi))
     y = np.einsum("fa,fi,fk->faik", yv, ew, phi).reshape(omega.size, -1)
     return {"y0": y0, "y": y}
 
@@ -838,20 +832,20 @@ def force_responses(plant: YoulaPlant, K0, basis, omega, meas=None, L=None) -> d
     omega = np.asarray(omega, float)
     AK = plant.A + plant.Bu @ K0
     kf = K0[plant.force]
-    phi = np.einsum("ij,fjk->fi", C_phi, _stack_solve(A_phi, omega, b_phi))  # (f, nb)
-    Xv = _stack_solve(AK, omega, plant.Bu)  # (f, n, m)
+    phi = np.einsum("ij,fjk->fi", C_phi, resolvent_times(A_phi, omega, b_phi))  # (f, nb)
+    Xv = resolvent_times(AK, omega, plant.Bu)  # (f, n, m)
     fv = np.einsum("j,fjm->fm", kf, Xv)
     fv[:, plant.force] += 1.0
     if meas is None:
-        Xw = _stack_solve(AK, omega, plant.Bw)[:, :, 0]
+        Xw = resolvent_times(AK, omega, plant.Bw)[:, :, 0]
         f0 = Xw @ kf
         lin = (fv[:, :, None] * phi[:, None, :]).reshape(omega.size, -1)
         return {"w": plant.force_gain * np.hstack([f0[:, None], lin])}
     p = meas.p
     AL = plant.A - L @ meas.Cm
-    Ew = _stack_solve(AL, omega, plant.Bw - L @ meas.Dmw)[:, :, 0]  # (f, n)
-    En = _stack_solve(AL, omega, -L)  # (f, n, p)
-    Xw = _stack_solve(AK, omega, plant.Bw)[:, :, 0] - np.einsum("fij,fj->fi", Xv, Ew @ K0.T)
+    Ew = resolvent_times(AL, omega, plant.Bw - L @ meas.Dmw)[:, :, 0]  # (f, n)
+    En = resolvent_times(AL, omega, -L)  # (f, n, p)
+    Xw = resolvent_times(AK, omega, plant.Bw)[:, :, 0] - np.einsum("fij,fj->fi", Xv, Ew @ K0.T)
     f0w = Xw @ kf - Ew @ kf
     ew = np.einsum("ij,fj->fi", meas.Cm, Ew) + meas.Dmw[:, 0][None]
     Xn = -np.einsum("fim,fmj->fij", Xv, np.einsum("mk,fkj->fmj", K0, En))
