@@ -89,6 +89,24 @@ def add_jobs_argument(p) -> None:
     )
 
 
+def add_scheduler_argument(p) -> None:
+    """Add ``--scheduler ADDRESS``: run the work's tasks on a Dask distributed cluster.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    """
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="address of a Dask scheduler (tcp://host:8786) whose workers run the tasks "
+        "(default: $DASK_SCHEDULER_ADDRESS if set, else local processes, --jobs); the same "
+        'results as a local run; needs pip install ".[distributed]"',
+    )
+
+
 def member_progress(desc: str):
     """A ``progress(done, total)`` callback drawing a tqdm bar on standard error.
 

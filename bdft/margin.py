@@ -8,7 +8,7 @@ from tqdm import tqdm
 
 from bdft.args import check_json_file, integer, real, seed
 from bdft.common import print_json
-from bdft.validate import add_family_arguments, build_family
+from bdft.validate import add_family_arguments, add_system_argument, build_family, read_system
 from uncertainty.files import load_controller
 from uncertainty.margins import DEFAULT_BOXES, LOWER_METHODS, Region, robust_margin
 
@@ -34,6 +34,7 @@ def register(sub) -> None:
         "sub-box). A margin >= 1 means the whole family meets the region.",
     )
     add_family_arguments(p, samples=1000)
+    add_system_argument(p)
     p.add_argument(
         "--controller",
         default=None,
@@ -83,6 +84,19 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _parameters_json(system) -> list:
+    return [
+        {
+            "name": n,
+            "nominal": p.nominal,
+            "low": p.low,
+            "high": p.high,
+            "distribution": p.distribution,
+        }
+        for n, p in system.parameters.items()
+    ]
+
+
 def run(args) -> int:
     """Compute both bounds of the robust margin and print them.
 
@@ -90,7 +104,8 @@ def run(args) -> int:
     ----------
     args : argparse.Namespace
         Parsed options: the family options of :func:`bdft.validate.add_family_arguments`
-        (``--samples`` is the upper bound's search size per scale), ``controller``,
+        (``--samples`` is the upper bound's search size per scale), ``system`` (a
+        Python file defining a ``uss``, instead of the family), ``controller``,
         ``region``, ``workspace_factor``, ``time_limit``, ``max_boxes``, ``method``,
         ``search_seed`` and ``json``.
 
@@ -101,10 +116,13 @@ def run(args) -> int:
         progress goes to standard error.
     """
     region = Region.parse(args.region)
-    if args.controller is not None:
-        check_json_file("--controller", args.controller)
-    family = build_family(args).with_workspace_factor(args.workspace_factor)
-    controller = load_controller(args.controller) if args.controller else None
+    if args.system is not None:
+        family, controller = read_system(args)
+    else:
+        if args.controller is not None:
+            check_json_file("--controller", args.controller)
+        family = build_family(args).with_workspace_factor(args.workspace_factor)
+        controller = load_controller(args.controller) if args.controller else None
     search_seed = args.seed if args.search_seed is None else args.search_seed
     with tqdm(desc="margin", unit="step", file=sys.stderr, disable=None) as bar:
 
@@ -127,17 +145,27 @@ def run(args) -> int:
         print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)
     obj = res.to_json()
     obj.pop("timings_s")
-    obj.update(
-        family=family.name,
-        ranges=family.ranges,
-        workspace_factor=args.workspace_factor,
-        controller=args.controller,
-    )
+    if args.system is not None:
+        obj.update(
+            system=args.system,
+            parameters=_parameters_json(family),
+            controller="defined in the file" if controller is not None else None,
+        )
+    else:
+        obj.update(
+            family=family.name,
+            ranges=family.ranges,
+            workspace_factor=args.workspace_factor,
+            controller=args.controller,
+        )
     if args.json:
         print_json(obj)
         return 0
-    label = " (STRESS VARIANT)" if family.ranges == "stress" else ""
-    print(f"family {family.name}{label}, controller {args.controller or 'none'}")
+    if args.system is not None:
+        print(f"system {args.system}, controller {obj['controller'] or 'none'}")
+    else:
+        label = " (STRESS VARIANT)" if family.ranges == "stress" else ""
+        print(f"family {family.name}{label}, controller {args.controller or 'none'}")
     print(f"region: {region.describe()}")
     print(f"  certified lower bound  {res.lower:.4g}")
     print(f"  upper bound            {res.upper:.4g}")

@@ -8,22 +8,33 @@ import time
 from tqdm import tqdm
 
 from bdft.args import (
+    UsageError,
     batch,
     batch_help,
+    check_input_file,
     check_json_file,
     members,
     members_help,
     real,
     seed,
 )
-from bdft.common import print_json
+from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from robust.model.literature import DEFAULT_POSTURE, POSTURES
 from robust.model.physical import nominal_params
-from uncertainty import DEFAULT_CHUNK, RANGES, default_family, sample, validate_family
-from uncertainty.files import family_nominals, load_component_fit, load_controller
+from uncertainty import (
+    BDFT_BAND_HZ,
+    DEFAULT_CHUNK,
+    RANGES,
+    default_family,
+    sample,
+    validate_family,
+)
+from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
 
 __all__ = [
     "add_family_arguments",
+    "add_system_argument",
+    "read_system",
     "build_family",
     "check_family_arguments",
     "progress_bar",
@@ -114,6 +125,16 @@ def register(sub) -> None:
         "minimum damping ratio in the BDFT band and the worst member.",
     )
     add_family_arguments(p, samples=10_000)
+    add_system_argument(p)
+    add_jobs_argument(p)
+    add_scheduler_argument(p)
+    p.add_argument(
+        "--band",
+        default=None,
+        metavar="LO-HI",
+        help="frequency band of the reported minimum damping ratio, Hz (default: the BDFT "
+        "band, 2-12 Hz)",
+    )
     p.add_argument(
         "--method", choices=_METHODS, default="lhs", help="sampling method (default: %(default)s)"
     )
@@ -132,6 +153,52 @@ def register(sub) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object with the metrics")
     p.set_defaults(func=run)
+
+
+def add_system_argument(p) -> None:
+    """Add ``--system FILE.py``: a user's uncertain system instead of the BDFT family.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    """
+    p.add_argument(
+        "--system",
+        metavar="FILE.py",
+        default=None,
+        help="a Python file that defines `system` (an uncertainty.uss) and optionally "
+        "`controller` (a python-control system in its feedback path): analyse it instead "
+        "of the BDFT family (the family options do not apply; the file is run as code)",
+    )
+
+
+def read_system(args):
+    """The user's uncertain system and controller of ``--system`` (checked).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options with ``system`` (the file) and ``controller`` (must be unset: the
+        file defines its own).
+
+    Returns
+    -------
+    (uncertainty.USS, control.StateSpace or None)
+
+    Raises
+    ------
+    bdft.args.UsageError
+        If the file is not a readable ``.py`` file or ``--controller`` is also given.
+    """
+    if getattr(args, "controller", None) is not None:
+        raise UsageError(
+            "--controller: applies to the BDFT family; with --system the file defines `controller`"
+        )
+    check_input_file(
+        "--system", args.system, what="a Python file", max_bytes=1 << 20, suffixes=(".py",)
+    )
+    return load_system(args.system)
 
 
 def check_family_arguments(args) -> None:
@@ -204,6 +271,70 @@ def progress_bar(total: int, desc: str):
     )
 
 
+def _band(text):
+    if text is None:
+        return BDFT_BAND_HZ
+    lo, sep, hi = str(text).partition("-")
+    try:
+        band = (float(lo), float(hi))
+    except ValueError:
+        band = None
+    if not sep or band is None or not (0 <= band[0] < band[1] < float("inf")):
+        raise UsageError(
+            f"--band: expected LO-HI in Hz with 0 <= LO < HI (e.g. 2-12); got {text!r}"
+        )
+    return band
+
+
+def _run_system(args, band) -> int:
+    """``bdft validate --system FILE.py``: members of a user's uncertain system."""
+    system, controller = read_system(args)
+    t0 = time.perf_counter()
+    samples = sample(
+        list(system.parameters.values()), args.samples, method=args.method, seed=args.seed
+    )
+    with progress_bar(len(samples), "validate") as bar:
+        res = validate_family(
+            system,
+            samples,
+            controller=controller,
+            chunk=args.chunk or DEFAULT_CHUNK,
+            band_hz=band,
+            progress=bar.update,
+        )
+    elapsed = time.perf_counter() - t0
+    print(f"[bdft validate] {res.samples} members in {elapsed:.2f} s", file=sys.stderr)
+    obj = res.to_json()
+    for key in ("human", "k_psf"):
+        obj.pop(key)
+    obj.update(
+        requested_samples=samples.requested,
+        system=args.system,
+        controller="defined in the file" if controller is not None else None,
+    )
+    if args.json:
+        print_json(obj)
+        return 0
+    print(
+        f"system {args.system}, controller {obj['controller'] or 'none'}: {res.samples} "
+        f"members ({res.method}, seed {res.seed})"
+    )
+    _print_metrics(res)
+    return 0
+
+
+def _print_metrics(res) -> None:
+    print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")
+    print(f"  max real pole     {res.max_real_pole:.6g} 1/s")
+    print(
+        f"  min damping       {res.min_damping:.6g}  "
+        f"(poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
+    )
+    print("  worst member:")
+    for k, v in res.worst.items():
+        print(f"    {k:18s} {v:.6g}")
+
+
 def run(args) -> int:
     """Validate a sample of the family (optionally with a controller) and print the metrics.
 
@@ -214,7 +345,10 @@ def run(args) -> int:
         :func:`add_family_arguments` (``samples``, ``seed``, ``human``, ``plant_file``,
         ``chunk``), ``method`` (``"mc"``, ``"lhs"``, ``"grid"`` or ``"vertices"``),
         ``controller`` (controller JSON path or ``None``), ``workspace_factor``
-        (``K_PSF = 0.1097 / factor``) and ``json``.
+        (``K_PSF = 0.1097 / factor``), ``system`` (a Python file defining a ``uss``,
+        validated instead of the family), ``band`` (``LO-HI`` Hz of the minimum damping),
+        ``jobs`` (local processes), ``scheduler`` (a Dask scheduler's address) and
+        ``json``.
 
     Returns
     -------
@@ -224,6 +358,9 @@ def run(args) -> int:
         object (``--json``) or as text; it depends only on the options and the seed.
         The elapsed time goes to standard error.
     """
+    band = _band(args.band)
+    if args.system is not None:
+        return _run_system(args, band)
     check_family_arguments(args)
     if args.controller is not None:
         check_json_file("--controller", args.controller)
@@ -237,7 +374,10 @@ def run(args) -> int:
             samples,
             controller=controller,
             chunk=args.chunk or DEFAULT_CHUNK,
+            band_hz=band,
             progress=bar.update,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
         )
     elapsed = time.perf_counter() - t0
     print(
@@ -266,13 +406,5 @@ def run(args) -> int:
         + f", {res.samples} members ({res.method}, seed {res.seed}), "
         f"K_PSF {res.k_psf:.5g}"
     )
-    print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")
-    print(f"  max real pole     {res.max_real_pole:.6g} 1/s")
-    print(
-        f"  min damping       {res.min_damping:.6g}  "
-        f"(poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
-    )
-    print("  worst member:")
-    for k, v in res.worst.items():
-        print(f"    {k:18s} {v:.6g}")
+    _print_metrics(res)
     return 0

@@ -13,10 +13,14 @@ Public API (import from here; module layout may change):
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`BDFT_BAND_HZ`;
-* files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`;
+* files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`,
+  :func:`load_system` (a user's uncertain system from a Python file);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
+* robust margins of a family or an uncertain system: :func:`robust_margin`,
+  :class:`Region`, :class:`MarginResult`, :func:`margin_lower_bound`,
+  :func:`margin_upper_bound`, :func:`worst_member`, :func:`scaled_bounds`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
@@ -41,7 +45,16 @@ from uncertainty.family import (
     Family,
     default_family,
 )
-from uncertainty.files import family_nominals, load_component_fit, load_controller
+from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
+from uncertainty.margins import (
+    MarginResult,
+    Region,
+    margin_lower_bound,
+    margin_upper_bound,
+    robust_margin,
+    scaled_bounds,
+    worst_member,
+)
 from uncertainty.mu import MuBounds, mussv
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
 from uncertainty.sampling import MAX_SAMPLE_BYTES, METHODS, SampleSet, max_members, sample
@@ -64,6 +77,13 @@ __all__ = [
     "uss",
     "MuBounds",
     "mussv",
+    "Region",
+    "MarginResult",
+    "robust_margin",
+    "margin_lower_bound",
+    "margin_upper_bound",
+    "worst_member",
+    "scaled_bounds",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "HUMAN_VARIANTS",
@@ -88,6 +108,7 @@ __all__ = [
     "validate_family",
     "member_metrics",
     "load_controller",
+    "load_system",
     "load_component_fit",
     "family_nominals",
     "SWEEPS",

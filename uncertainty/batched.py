@@ -50,6 +50,7 @@ which do not affect poles), from the junction table of
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 
@@ -58,13 +59,15 @@ import numpy as np
 
 from robust.analysis.stability import stability_bound
 from robust.checks import FINITE, check_callable, check_int, check_scalar
+from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
-from uncertainty.family import Family
+from uncertainty.family import BOUNDS_RTOL, Family
 from uncertainty.sampling import SampleSet
+from uncertainty.uss import USS
 
 __all__ = [
     "BDFT_BAND_HZ",
@@ -536,10 +539,10 @@ class ValidationResult:
         Seed of the sample set.
     method : str
         Sampling method.
-    human : str
-        Human variant.
-    k_psf : float
-        Position scale factor.
+    human : str or None
+        Human variant (None for a user's uncertain system).
+    k_psf : float or None
+        Position scale factor (None for a user's uncertain system).
     fraction_stable : float
         Fraction of members whose poles all have real part below ``stability_threshold``.
     n_unstable : int
@@ -570,8 +573,8 @@ class ValidationResult:
     samples: int
     seed: int
     method: str
-    human: str
-    k_psf: float
+    human: str | None
+    k_psf: float | None
     fraction_stable: float
     n_unstable: int
     max_real_pole: float
@@ -712,8 +715,37 @@ def _metrics(family, values, controller, chunk, band_hz, progress):
     return max_real, min_damp, int(nstates)
 
 
+#: Members per task when validation runs in several processes or on a Dask cluster.
+TASK_MEMBERS = 50_000
+
+
+def _metrics_task(family, controller, chunk, band_hz, values):
+    """One task of a parallel validation: the metrics of a slice of checked members."""
+    return _metrics(family, values, controller, chunk, band_hz, None)
+
+
+def _distributed_metrics(family, values, controller, chunk, band_hz, progress, jobs, scheduler):
+    """:func:`_metrics` in tasks of :data:`TASK_MEMBERS` members on the chosen engine."""
+    jobs = check_int("validate_family: jobs", jobs, low=1)
+    N = values.shape[0]
+    starts = list(range(0, N, TASK_MEMBERS))
+    slices = [values[a : a + TASK_MEMBERS] for a in starts]
+    sizes = [len(v) for v in slices]
+    done = (lambda i: progress(sizes[i])) if progress is not None else None
+    parts = map_tasks(
+        functools.partial(_metrics_task, family, controller, chunk, band_hz),
+        slices,
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=done,
+    )
+    max_real = np.concatenate([p[0] for p in parts])
+    min_damp = np.concatenate([p[1] for p in parts])
+    return max_real, min_damp, parts[0][2]
+
+
 def validate_family(
-    family: Family,
+    family: Family | USS,
     samples: SampleSet,
     *,
     controller: ct.StateSpace | None = None,
@@ -722,6 +754,8 @@ def validate_family(
     stability_threshold: float = STABILITY_THRESHOLD,
     progress: Callable[[int], None] | None = None,
     check_bounds: bool = True,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> ValidationResult:
     """Closed-loop poles of every member of ``samples``, and the family metrics.
 
@@ -731,12 +765,15 @@ def validate_family(
 
     Parameters
     ----------
-    family : Family
-        The family the members belong to.
+    family : Family or USS
+        The family the members belong to, or an uncertain system
+        (:func:`uncertainty.uss`; its members are the values of its uncertain reals).
     samples : SampleSet
-        Members; its names must equal ``family.names``.
+        Members; its names must equal ``family.names`` (a system's: the names of
+        ``system.parameters``, in order).
     controller : control.StateSpace, optional
-        Compensator (inputs among ``x, c, y``; outputs among ``f, r_corr``).
+        Compensator (a family: inputs among ``x, c, y``, outputs among ``f, r_corr``; a
+        system: in its feedback path, ``system.feedback(controller)``).
     chunk : int
         Members per batch (bounds memory: about ``chunk * n^2 * 40`` bytes; reduced to
         keep within :data:`MAX_CHUNK_BYTES`, which changes no result).
@@ -751,6 +788,13 @@ def validate_family(
         validate members beyond them (a scaled box for robust margins); non-finite and
         non-physical values (a negative mass, frequency or damping ratio) are refused
         either way.
+    jobs : int
+        Local worker processes (joblib); 1 (default) validates in this process.
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the members are
+        validated on its workers in tasks of :data:`TASK_MEMBERS` (see
+        :func:`robust.engine.map_tasks`). Every engine gives the same result, bit for
+        bit: each member's poles are computed alone and the metrics are combined in order.
 
     Returns
     -------
@@ -767,6 +811,10 @@ def validate_family(
     ModelStructureError
         For an invalid controller, an ill-posed loop or non-finite poles.
     """
+    if isinstance(family, USS):
+        return _validate_system(
+            family, samples, controller, chunk, band_hz, stability_threshold, progress, check_bounds
+        )  # (small systems: in this process)
     _check_family(family, "validate_family")
     if not isinstance(samples, SampleSet):
         raise ParameterError(
@@ -786,12 +834,89 @@ def validate_family(
     if N == 0:
         raise ParameterError("validate_family: samples holds no members; got 0 rows")
     values = _check_all(family, samples.values, check_bounds, "validate_family")
-    max_real, min_damp, nstates = _metrics(family, values, controller, chunk, (lo, hi), progress)
+    if jobs == 1 and scheduler_address(scheduler) is None:
+        max_real, min_damp, nstates = _metrics(
+            family, values, controller, chunk, (lo, hi), progress
+        )
+    else:
+        max_real, min_damp, nstates = _distributed_metrics(
+            family, values, controller, chunk, (lo, hi), progress, jobs, scheduler
+        )
     if not np.all(np.isfinite(max_real)):
         raise ModelStructureError(
             "non-finite closed-loop poles for some members; check parameter ranges"
         )
-    stable = max_real < stability_threshold
+    return _result(
+        samples,
+        max_real,
+        min_damp,
+        stability_threshold,
+        (lo, hi),
+        nstates,
+        0 if controller is None else int(controller.nstates),
+        family.human,
+        family.k_psf,
+    )
+
+
+def _validate_system(
+    system, samples, controller, chunk, band_hz, threshold, progress, check_bounds
+):
+    """:func:`validate_family` of an uncertain system (closed with ``controller``)."""
+    where = "validate_family"
+    if not isinstance(samples, SampleSet):
+        raise ParameterError(
+            f"{where}: samples must be an uncertainty.SampleSet; got {type(samples).__name__}"
+        )
+    names = tuple(system.parameters)
+    if tuple(samples.names) != names:
+        raise ParameterError(
+            f"{where}: sample names {list(samples.names)} do not match the system's "
+            f"parameters {list(names)}"
+        )
+    chunk, (lo, hi) = _check_options(where, chunk, band_hz, progress)
+    threshold = check_scalar(f"{where}: stability_threshold", threshold, FINITE)
+    values = np.asarray(samples.values, float)
+    N = values.shape[0]
+    if N == 0:
+        raise ParameterError(f"{where}: samples holds no members; got 0 rows")
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ParameterError(f"{where}: member {i}: {names[j]} must be finite; got {values[i, j]}")
+    if check_bounds:
+        low = np.array([p.low for p in system.parameters.values()])
+        high = np.array([p.high for p in system.parameters.values()])
+        tol = BOUNDS_RTOL * np.maximum(np.abs(low), np.abs(high))
+        out = (values < low - tol) | (values > high + tol)
+        if out.any():
+            i, j = np.argwhere(out)[0]
+            raise ParameterError(
+                f"{where}: member {i}: {names[j]} must lie in [{low[j]:g}, {high[j]:g}]; "
+                f"got {values[i, j]!r}"
+            )
+    closed = system if controller is None else system.feedback(controller, sign=-1)
+    if closed.nstates == 0:
+        raise ModelStructureError(f"{where}: the system has no state (a static gain)")
+    n = closed.nstates
+    chunk = max(1, min(chunk, MAX_CHUNK_BYTES // (40 * n * n)))
+    max_real, min_damp = np.empty(N), np.empty(N)
+    for start in range(0, N, chunk):
+        stop = min(N, start + chunk)
+        poles = np.linalg.eigvals(closed.state_matrices(values[start:stop]))
+        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, (lo, hi))
+        if progress is not None:
+            progress(stop - start)
+    if not np.all(np.isfinite(max_real)):
+        raise ModelStructureError(f"{where}: non-finite closed-loop poles for some members")
+    ctrl_states = 0 if controller is None else int(ct.ss(controller).nstates)
+    return _result(samples, max_real, min_damp, threshold, (lo, hi), n, ctrl_states, None, None)
+
+
+def _result(samples, max_real, min_damp, threshold, band, nstates, ctrl_states, human, k_psf):
+    """The :class:`ValidationResult` of per-member metrics."""
+    N = len(max_real)
+    stable = max_real < threshold
     worst = int(np.argmax(max_real))
     for arr in (max_real, min_damp):
         arr.setflags(write=False)
@@ -799,18 +924,18 @@ def validate_family(
         samples=N,
         seed=samples.seed,
         method=samples.method,
-        human=family.human,
-        k_psf=family.k_psf,
+        human=human,
+        k_psf=k_psf,
         fraction_stable=float(np.mean(stable)),
         n_unstable=int(N - np.count_nonzero(stable)),
         max_real_pole=float(max_real[worst]),
         min_damping=float(np.min(min_damp)),
         worst=samples.row(worst),
         worst_index=worst,
-        stability_threshold=float(stability_threshold),
-        band_hz=(lo, hi),
+        stability_threshold=float(threshold),
+        band_hz=band,
         nstates=int(nstates),
-        controller_states=0 if controller is None else int(controller.nstates),
+        controller_states=ctrl_states,
         max_real=max_real,
         member_min_damping=min_damp,
     )

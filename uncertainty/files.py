@@ -17,12 +17,17 @@ Two formats are read here:
 
 Malformed files raise :class:`robust.errors.ArtifactError` naming the file and
 the field.
+
+A user's own uncertain system comes from a Python file, :func:`load_system`: the file is
+run and must define ``system`` (an :func:`uncertainty.uss`) and may define
+``controller`` (a python-control system in the loop's feedback path).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import runpy
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -35,8 +40,15 @@ from robust.model.components import StructureParams, ValveCylinderParams
 from robust.model.human import LiteralHumanParams
 from robust.sysid import read_component_fit
 from uncertainty.family import HUMAN_VARIANTS
+from uncertainty.uss import USS
 
-__all__ = ["load_controller", "load_component_fit", "family_nominals", "COMPONENT_FIT_KIND"]
+__all__ = [
+    "load_controller",
+    "load_component_fit",
+    "family_nominals",
+    "load_system",
+    "COMPONENT_FIT_KIND",
+]
 
 COMPONENT_FIT_KIND = "bdft-component-fit"
 
@@ -256,3 +268,71 @@ def family_nominals(fits: Sequence, *, human: str) -> dict:
             )
         out[key] = fit.params
     return out
+
+
+def load_system(path) -> tuple[USS, ct.StateSpace | None]:
+    """A user's uncertain system (and controller) from a Python file.
+
+    The file is run as a script (it is code: run only files you trust) and must define
+    ``system``, an uncertain system built with :func:`uncertainty.uss` and
+    :func:`uncertainty.ureal`; it may define ``controller``, a continuous python-control
+    system (state space or transfer function) or a number, closed around ``system`` by
+    negative feedback (``system.feedback(controller)``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.py`` file.
+
+    Returns
+    -------
+    system : USS
+    controller : control.StateSpace or None
+
+    Raises
+    ------
+    ParameterError
+        If the file cannot be run (the message carries the file's own error), defines no
+        ``system`` or one that is not a ``uss``, or a ``controller`` of another kind.
+    """
+    where = f"system file {os.fspath(path)}"
+    try:
+        ns = runpy.run_path(os.fspath(path), run_name="bdft_system")
+    except Exception as exc:  # the user's code: report what it raised
+        raise ParameterError(f"{where}: running it failed: {type(exc).__name__}: {exc}") from exc
+    if "system" not in ns:
+        raise ParameterError(f"{where}: must define `system` (an uncertainty.uss); it does not")
+    system = ns["system"]
+    if not isinstance(system, USS):
+        raise ParameterError(
+            f"{where}: `system` must be an uncertain system (uncertainty.uss); "
+            f"got {type(system).__name__}"
+        )
+    if not system.parameters:
+        raise ParameterError(
+            f"{where}: `system` has no uncertain real (build its matrices with uncertainty.ureal)"
+        )
+    controller = ns.get("controller")
+    if controller is None:
+        return system, None
+    if isinstance(controller, ct.TransferFunction):
+        controller = ct.ss(controller)
+    elif isinstance(controller, (int, float, np.integer, np.floating)) and not isinstance(
+        controller, bool
+    ):
+        controller = ct.ss([], [], [], [[float(controller)]])
+    if not isinstance(controller, ct.StateSpace):
+        raise ParameterError(
+            f"{where}: `controller` must be a python-control system or a number; "
+            f"got {type(controller).__name__}"
+        )
+    if not controller.isctime():
+        raise ParameterError(
+            f"{where}: `controller` must be continuous-time; got dt={controller.dt}"
+        )
+    if (controller.ninputs, controller.noutputs) != (system.noutputs, system.ninputs):
+        raise ParameterError(
+            f"{where}: `controller` must map the system's {system.noutputs} outputs to its "
+            f"{system.ninputs} inputs; got {controller.ninputs} -> {controller.noutputs}"
+        )
+    return system, controller

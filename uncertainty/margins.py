@@ -11,7 +11,8 @@ closed loop (with or without a controller) is the largest ``k`` for which every
 member's poles lie in the required region :class:`Region` (a decay rate, optionally a
 minimum damping ratio over a frequency band). ``k_m >= 1`` means the whole family
 meets the region. Scaled linear ranges are kept physical: a lower end that would
-fall below 1e-6 of the upper end is clipped there.
+fall below 1e-6 of the upper end is clipped there (for parameters whose own range is
+non-negative; one that may be negative is scaled as it is).
 
 Upper bound (:func:`margin_upper_bound`)
     A worst-case search for the member with the largest region violation at a given
@@ -69,10 +70,11 @@ from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinat
 from robust.analysis.intervals import Gradient, Interval, iblockdiag, imatrix, ivstack, norm2_bound
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import STABILITY_TOL
-from robust.errors import BDFTError, ParameterError
+from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
 from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
 from uncertainty.family import Family
+from uncertainty.uss import USS
 
 __all__ = [
     "Region",
@@ -282,7 +284,7 @@ class MarginResult:
 
 
 # -- the scaled box ---------------------------------------------------------------------------
-def _coords(family: Family):
+def _coords(family):
     logs = np.array([p.distribution == "loguniform" for p in family.parameters])
     nom = np.array([p.nominal for p in family.parameters], float)
     lo = np.array([p.low for p in family.parameters], float)
@@ -291,53 +293,63 @@ def _coords(family: Family):
     return logs, t[0], t[1], t[2], hi
 
 
-def _to_values(family: Family, t: np.ndarray) -> np.ndarray:
+def _to_values(family, t: np.ndarray) -> np.ndarray:
     logs = np.array([p.distribution == "loguniform" for p in family.parameters])
     return np.where(logs, np.exp(np.where(logs, t, 0.0)), t)
 
 
-def _scaled_t(family: Family, k: float):
+def _scaled_t(family, k: float):
     logs, tn, tl, th, hi = _coords(family)
     lo_t = tn + k * (tl - tn)
     hi_t = tn + k * (th - tn)
     hi_v = np.where(logs, np.exp(np.where(logs, hi_t, 0.0)), hi_t)
     floor = PHYSICAL_FLOOR * np.abs(hi_v)
-    lo_t = np.where(logs, lo_t, np.maximum(lo_t, floor))
+    # only a parameter whose own range is non-negative is kept positive
+    lo_t = np.where(logs | (tl < 0), lo_t, np.maximum(lo_t, floor))
     return lo_t, hi_t
 
 
-def scaled_bounds(family: Family, k: float) -> tuple[np.ndarray, np.ndarray]:
+def scaled_bounds(family, k: float) -> tuple[np.ndarray, np.ndarray]:
     """Low and high value of every parameter in the box scaled by ``k`` about the nominal.
 
     Parameters
     ----------
-    family : Family
-        The family (its parameters' distributions give the coordinates).
+    family : Family or USS
+        The family or uncertain system (its parameters' distributions give the
+        coordinates; a system's in the order of ``system.parameters``).
     k : float
         Scale, >= 0.
     """
     if not (math.isfinite(k) and k >= 0):
         raise ParameterError(f"scale k must be a finite value >= 0; got {k!r}")
-    lo_t, hi_t = _scaled_t(family, k)
-    return _to_values(family, lo_t), _to_values(family, hi_t)
+    loop = _loop(family, None)
+    lo_t, hi_t = _scaled_t(loop, k)
+    return _to_values(loop, lo_t), _to_values(loop, hi_t)
 
 
 # -- closed-loop poles of arbitrary members --------------------------------------------------
-def _violations(family, rows, controller, region):
-    A = closed_loop_matrices(family, rows, controller=controller, check_bounds=False)
-    return region.violation(np.linalg.eigvals(A)), A
+def _violations(loop, rows, region):
+    A = loop.matrices(rows)
+    # a member whose matrix is not finite (a divisor at 0) is outside every region
+    ok = np.isfinite(A).all(axis=(1, 2))
+    v = np.full(A.shape[0], math.inf)
+    if ok.any():
+        v[ok] = region.violation(np.linalg.eigvals(A[ok]))
+    return v, A
 
 
-def _gradient(family, t, controller, region, h=1e-6):
+def _gradient(loop, t, region, h=1e-6):
     """Violation at ``t`` (scaled coordinates) and its gradient."""
     d = len(t)
     T = np.repeat(t[None], 2 * d + 1, axis=0)
     for j in range(d):
         T[1 + 2 * j, j] += h
         T[2 + 2 * j, j] -= h
-    A = closed_loop_matrices(
-        family, _to_values(family, T), controller=controller, check_bounds=False
-    )
+    A = loop.matrices(_to_values(loop, T))
+    if not np.isfinite(A).all():  # at or next to a pole of the matrix: no gradient
+        if not np.isfinite(A[0]).all():
+            return math.inf, np.zeros(d)
+        return float(region.violation(np.linalg.eigvals(A[0])[None])[0]), np.zeros(d)
     lam, W, V = sla.eig(A[0], left=True, right=True)
     v0 = region.violation(lam[None])[0]
     # the pole that attains the violation
@@ -364,12 +376,12 @@ def _gradient(family, t, controller, region, h=1e-6):
     return v0, g
 
 
-def _worst_in_box(family, k, controller, region, *, samples, seed, starts):
-    lo_t, hi_t = _scaled_t(family, k)
+def _worst_in_box(loop, k, region, *, samples, seed, starts):
+    lo_t, hi_t = _scaled_t(loop, k)
     d = len(lo_t)
     U = qmc.LatinHypercube(d=d, seed=seed).random(samples)
     T = lo_t + U * (hi_t - lo_t)
-    v, _ = _violations(family, _to_values(family, T), controller, region)
+    v, _ = _violations(loop, _to_values(loop, T), region)
     order = np.argsort(v)[::-1][:starts]
     best_v, best_t = float(v[order[0]]), T[order[0]]
     span = np.where(hi_t > lo_t, hi_t - lo_t, 1.0)
@@ -377,7 +389,7 @@ def _worst_in_box(family, k, controller, region, *, samples, seed, starts):
 
         def fun(x):
             t = lo_t + x * span
-            val, g = _gradient(family, t, controller, region)
+            val, g = _gradient(loop, t, region)
             return -val, -g * span
 
         x0 = (T[i] - lo_t) / span
@@ -386,11 +398,11 @@ def _worst_in_box(family, k, controller, region, *, samples, seed, starts):
         res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
         if -res.fun > best_v:
             best_v, best_t = float(-res.fun), lo_t + res.x * span
-    return best_v, _to_values(family, best_t[None])[0]
+    return best_v, _to_values(loop, best_t[None])[0]
 
 
 def worst_member(
-    family: Family,
+    family: Family | USS,
     k: float,
     *,
     controller: ct.StateSpace | None = None,
@@ -407,12 +419,14 @@ def worst_member(
 
     Parameters
     ----------
-    family : Family
-        The family.
+    family : Family or USS
+        The family, or an uncertain system (:func:`uncertainty.uss`; closed with
+        ``controller`` by negative feedback when one is given).
     k : float
         Scale of the box about the nominal (>= 0).
     controller : control.StateSpace, optional
-        Compensator in the loop's convention.
+        Compensator in the loop's convention (a family) or in the feedback path of the
+        system (``system.feedback(controller)``).
     region : Region, optional
         Required region (default: open left half-plane).
     samples, seed, starts : int
@@ -428,12 +442,17 @@ def worst_member(
     if not (math.isfinite(k) and k >= 0):
         raise ParameterError(f"worst_member: k must be a finite scale >= 0; got {k!r}")
     return _worst_in_box(
-        family, float(k), controller, region or Region(), samples=samples, seed=seed, starts=starts
+        _loop(family, controller),
+        float(k),
+        region or Region(),
+        samples=samples,
+        seed=seed,
+        starts=starts,
     )
 
 
 def margin_upper_bound(
-    family: Family,
+    family: Family | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,
@@ -448,10 +467,12 @@ def margin_upper_bound(
 
     Parameters
     ----------
-    family : Family
-        The family.
+    family : Family or USS
+        The family, or an uncertain system (:func:`uncertainty.uss`; closed with
+        ``controller`` by negative feedback when one is given).
     controller : control.StateSpace, optional
-        Compensator in the loop's convention.
+        Compensator in the loop's convention (a family) or in the feedback path of the
+        system (``system.feedback(controller)``).
     region : Region, optional
         Required region (default: open left half-plane).
     samples : int
@@ -477,14 +498,13 @@ def margin_upper_bound(
         Settings and the bisection history.
     """
     region = region or Region()
+    loop = _loop(family, controller)
     step = progress or (lambda msg: None)
     history = []
 
     def probe(k):
         step(f"upper bound: searching the box at scale {k:.4g}")
-        v, row = _worst_in_box(
-            family, k, controller, region, samples=samples, seed=seed, starts=starts
-        )
+        v, row = _worst_in_box(loop, k, region, samples=samples, seed=seed, starts=starts)
         history.append({"scale": float(k), "worst_violation": v})
         return v, row
 
@@ -520,11 +540,7 @@ def margin_upper_bound(
             bad_k, bad = mid, row
         else:
             good_k = mid
-    try:
-        loop = family.member(bad, check_bounds=False)
-    except BDFTError:  # e.g. a scaled structure damping ratio >= 1, outside the loop model
-        loop = None
-    critical = _critical(family, bad, controller, region, bad_k, loop)
+    critical = _critical(loop, bad, region, bad_k)
     return (
         bad_k,
         critical,
@@ -532,24 +548,31 @@ def margin_upper_bound(
     )
 
 
-def _critical(family, row, controller, region, k, loop):
-    """The violating member, re-checked by python-control where it is a family member."""
-    A = closed_loop_matrices(
-        family, np.asarray(row)[None], controller=controller, check_bounds=False
-    )[0]
+def _critical(loop, row, region, k):
+    """The violating member, re-checked by python-control where it can be built."""
+    A = loop.matrices(np.asarray(row)[None])[0]
+    if not np.isfinite(A).all():
+        return {
+            "scale": float(k),
+            "parameters": dict(zip(loop.names, (float(x) for x in row))),
+            "poles": np.zeros(0, complex),
+            "violation": math.inf,
+            "checked_with": "the member's matrix is not finite (a divisor at 0)",
+        }
     poles = np.sort_complex(np.linalg.eigvals(A))
     out = {
         "scale": float(k),
-        "parameters": dict(zip(family.names, (float(x) for x in row))),
+        "parameters": dict(zip(loop.names, (float(x) for x in row))),
         "poles": poles,
         "violation": float(region.violation(poles[None])[0]),
         "checked_with": "batched closed-loop matrix",
     }
-    if loop is not None:
-        ref = loop_poles(loop, controller=controller).poles
+    checked = loop.recheck(row)
+    if checked is not None:
+        ref, how = checked
         out["poles"] = np.sort_complex(ref)
         out["violation"] = float(region.violation(ref[None])[0])
-        out["checked_with"] = "python-control poles of the member's Figure 5 loop"
+        out["checked_with"] = how
     return out
 
 
@@ -741,6 +764,108 @@ class _Assembly:
         return A + (B @ self.M) @ Z
 
 
+class _FamilyLoop:
+    """The BDFT loop of a family with a fixed controller: what the margin needs of it."""
+
+    def __init__(self, family: Family, controller):
+        self.family, self.controller = family, controller
+        self.parameters = tuple(family.parameters)
+        self.names = tuple(family.names)
+        self._asm = None
+
+    def matrices(self, rows) -> np.ndarray:
+        """Closed-loop state matrices of members (rows of values), batched."""
+        return closed_loop_matrices(
+            self.family, rows, controller=self.controller, check_bounds=False
+        )
+
+    def enclosure(self, lo, hi, derivatives: bool):
+        """Interval (or :class:`Gradient`) enclosure of the matrix over a box of values."""
+        if self._asm is None:
+            self._asm = _Assembly(self.family, self.controller)
+        return self._asm.matrix(lo, hi, derivatives)
+
+    def recheck(self, row):
+        """Poles of the member's Figure 5 loop by python-control, or None outside the model."""
+        try:
+            member = self.family.member(row, check_bounds=False)
+        except BDFTError:  # e.g. a scaled structure damping ratio >= 1, outside the loop model
+            return None
+        return (
+            loop_poles(member, controller=self.controller).poles,
+            "python-control poles of the member's Figure 5 loop",
+        )
+
+
+class _Unbounded(ParameterError):
+    """A box holds members whose matrix is unbounded (a divisor's range contains 0)."""
+
+
+class _SystemLoop:
+    """An uncertain system (closed with a controller if one is given) seen by the margin.
+
+    Every evaluation comes from the system's one uncertain state matrix: numbers (batched
+    members), intervals and interval gradients (the certificate's enclosures) run through
+    the same expressions, shared sub-expressions evaluated once.
+    """
+
+    def __init__(self, system: USS, controller):
+        closed = system if controller is None else system.feedback(controller, sign=-1)
+        if not closed.parameters:
+            raise ParameterError(
+                "robust margin: the system has no uncertain real (build it with uncertainty.ureal)"
+            )
+        if closed.nstates == 0:
+            raise ModelStructureError("robust margin: the system has no state (a static gain)")
+        self.system = closed
+        self.parameters = tuple(closed.parameters.values())
+        self.names = tuple(closed.parameters)
+
+    def matrices(self, rows) -> np.ndarray:
+        """State matrices of members (rows of values, columns in :attr:`names` order)."""
+        return self.system.state_matrices(rows)
+
+    def enclosure(self, lo, hi, derivatives: bool):
+        """Interval (or :class:`Gradient`) enclosure of the state matrix over a box."""
+        logs = [p.distribution == "loguniform" for p in self.parameters]
+        d = len(self.names)
+        vals = {}
+        for j, (name, a, b) in enumerate(zip(self.names, lo, hi)):
+            if not derivatives:
+                vals[name] = Interval.hull(a, b)
+            else:
+                dv = Interval.hull(a, b) if logs[j] else None
+                vals[name] = Gradient.variable(a, b, j, d, dvalue=dv)
+        try:
+            return imatrix(self.system.state_matrix(vals))
+        except ParameterError as exc:
+            box = ", ".join(f"{n} in [{a:.6g}, {b:.6g}]" for n, a, b in zip(self.names, lo, hi))
+            raise _Unbounded(
+                "robust margin: an entry of the system's matrix divides by an expression "
+                f"whose range contains 0 on the box {box} "
+                f"(the system is unbounded there): {exc}"
+            ) from None
+
+    def recheck(self, row):
+        """Poles of the member's python-control system."""
+        member = self.system.at(dict(zip(self.names, (float(x) for x in row))))
+        return ct.poles(member), "python-control poles of the member system"
+
+
+def _loop(system, controller):
+    """The loop a margin function analyses: a family's or an uncertain system's."""
+    if isinstance(system, (_FamilyLoop, _SystemLoop)):
+        return system
+    if isinstance(system, Family):
+        return _FamilyLoop(system, controller)
+    if isinstance(system, USS):
+        return _SystemLoop(system, controller)
+    raise ParameterError(
+        f"robust margin: expected a Family or an uncertain system (uncertainty.uss); "
+        f"got {type(system).__name__}"
+    )
+
+
 # -- certificates ------------------------------------------------------------------------------
 def _structured(R: np.ndarray, floor: float, rel: float = 1e-9):
     """Split an entrywise bound into its significant entries and a small remainder.
@@ -930,7 +1055,7 @@ def certify_interval_matrix(
     return out
 
 
-def _split_dimension(family, lo_t, hi_t, controller):
+def _split_dimension(loop, lo_t, hi_t):
     """The parameter whose range alone widens the enclosure most."""
     centre = (lo_t + hi_t) / 2
     best, best_j = -1.0, 0
@@ -939,9 +1064,7 @@ def _split_dimension(family, lo_t, hi_t, controller):
             continue
         a, b = centre.copy(), centre.copy()
         a[j], b[j] = lo_t[j], hi_t[j]
-        enc = closed_loop_enclosure(
-            family, _to_values(family, a), _to_values(family, b), controller=controller
-        )
+        enc = loop.enclosure(_to_values(loop, a), _to_values(loop, b), False)
         r = norm2_bound(enc.rad)
         if r > best:
             best, best_j = r, j
@@ -969,7 +1092,7 @@ def _rectangles_in_region(res: dict, region: Region) -> np.ndarray:
 
 
 def certify_box(
-    family: Family,
+    family: Family | USS,
     lo,
     hi,
     *,
@@ -991,13 +1114,15 @@ def certify_box(
 
     Parameters
     ----------
-    family : Family
-        The family.
+    family : Family or USS
+        The family, or an uncertain system (closed with ``controller`` by negative
+        feedback when one is given).
     lo, hi : array_like, shape (d,)
-        The box: bounds of every uncertain parameter (values, family order; the box is
-        split in the family's coordinates, log for log-uniform parameters).
+        The box: bounds of every uncertain parameter (values, family order or the order
+        of ``system.parameters``; the box is split in the parameters' coordinates, log for
+        log-uniform parameters).
     controller : control.StateSpace, optional
-        Compensator in the loop's convention.
+        Compensator in the loop's convention (a family) or in the feedback path.
     region : Region, optional
         Required region (default: open left half-plane).
     spot_checks : int
@@ -1013,27 +1138,38 @@ def certify_box(
         (the parameter whose range moves the eigenvalues most, relative to their distance
         to the region's boundary), ``reason``.
     """
-    logs = np.array([p.distribution == "loguniform" for p in family.parameters])
+    loop = _loop(family, controller)
+    logs = np.array([p.distribution == "loguniform" for p in loop.parameters])
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     lo_t = np.where(logs, np.log(np.where(logs, lo, 1.0)), lo)
     hi_t = np.where(logs, np.log(np.where(logs, hi, 1.0)), hi)
-    return _certify_box(
-        _Assembly(family, controller), lo_t, hi_t, region or Region(), spot_checks, seed
-    )
+    return _certify_box(loop, lo_t, hi_t, region or Region(), spot_checks, seed)
 
 
-def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
-    family, controller = asm.family, asm.controller
+def _certify_box(loop, lo_t, hi_t, region, spot_checks, seed) -> dict:
     lo_t, hi_t = np.asarray(lo_t, float), np.asarray(hi_t, float)
     ct_ = (lo_t + hi_t) / 2
     # the values of the box's ends and centre as floats; the box is widened by a few ulps
     # so that it covers the exact ends, and the half-widths cover the rounded centre
-    lo_v = _to_values(family, lo_t) * (1 - 8 * _EPS)
-    hi_v = _to_values(family, hi_t) * (1 + 8 * _EPS)
-    c_v = _to_values(family, ct_)
+    # (values of either sign: widened away from zero)
+    lo_v = _to_values(loop, lo_t)
+    hi_v = _to_values(loop, hi_t)
+    lo_v = lo_v - 8 * _EPS * np.abs(lo_v)
+    hi_v = hi_v + 8 * _EPS * np.abs(hi_v)
+    c_v = _to_values(loop, ct_)
     h = (hi_t - lo_t) / 2 * (1 + 1e-12) + 16 * _EPS * (np.abs(ct_) + 1.0)
-    Ac = asm.matrix(c_v, c_v, False)
-    G = asm.matrix(lo_v, hi_v, True)
+    try:
+        Ac = loop.enclosure(c_v, c_v, False)
+        G = loop.enclosure(lo_v, hi_v, True)
+    except _Unbounded as exc:
+        # a member with an unbounded matrix is outside every region: no sub-box helps
+        return {
+            "certified": False,
+            "centre_violates": True,
+            "check": math.inf,
+            "split": 0,
+            "reason": str(exc),
+        }
     E_rad = Ac.rad + np.einsum("p,pab->ab", h, G.der.rad)
     res = enclose_eigenvalues(Ac.mid, G.der.mid, h, E_rad, margin=region.distance_inside)
     if not np.all(np.isfinite(res["eigs"])):
@@ -1048,6 +1184,7 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
             max(region.decay_rate, STABILITY_TOL),
             hi_t > lo_t,
             margins=region.distance_inside(res["eigs"]),
+            remainder=h * np.array([np.linalg.norm(r, 2) for r in G.der.rad]),
         ),
     }
     if out["centre_violates"]:
@@ -1058,7 +1195,7 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
         # (its cheap form, the centre's own Lyapunov matrix) may still certify the box
         why = "overlapping enclosures" if res["verified"].all() else "enclosure not verified"
         if region.min_damping == 0:
-            enc = asm.matrix(lo_v, hi_v, False)
+            enc = loop.enclosure(lo_v, hi_v, False)
             alt = certify_interval_matrix(enc, region.decay_rate, lmi=False)
             if alt["certified"]:
                 return dict(
@@ -1077,9 +1214,7 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
     if spot_checks:
         rng = np.random.default_rng(seed)
         T = lo_t + rng.random((spot_checks, len(lo_t))) * (hi_t - lo_t)
-        A = closed_loop_matrices(
-            family, _to_values(family, T), controller=controller, check_bounds=False
-        )
+        A = loop.matrices(_to_values(loop, T))
         c, rr, ri = res["centre"], res["rad_re"], res["rad_im"]
         for Ak, poles in zip(A, np.linalg.eigvals(A)):
             # numpy's eigenvalues carry their own rounding error (about eps ||A|| cond)
@@ -1095,19 +1230,21 @@ def _certify_box(asm, lo_t, hi_t, region, spot_checks, seed) -> dict:
     return dict(out, certified=True, route="eigenvalues", reason="certified")
 
 
-def _certify_scale(family, k, controller, region, max_boxes, deadline, method):
-    lo_t, hi_t = _scaled_t(family, k)
-    asm = _Assembly(family, controller)
+def _certify_scale(loop, k, region, max_boxes, deadline, method):
+    lo_t, hi_t = _scaled_t(loop, k)
     count = [0]
 
     def certify(a, b):
         count[0] += 1
         if method == "eigenvalues":
-            return _certify_box(asm, a, b, region, 8, count[0])
-        enc = asm.matrix(_to_values(family, a), _to_values(family, b), False)
+            return _certify_box(loop, a, b, region, 8, count[0])
+        try:
+            enc = loop.enclosure(_to_values(loop, a), _to_values(loop, b), False)
+        except _Unbounded:
+            return {"certified": False, "centre_violates": True, "check": math.inf}
         res = certify_interval_matrix(enc, region.decay_rate)
         if not res["certified"] and not res["centre_violates"]:
-            res["split"] = _split_dimension(family, a, b, controller)
+            res["split"] = _split_dimension(loop, a, b)
         return res
 
     ok, stats = subdivide(certify, lo_t, hi_t, max_boxes=max_boxes, deadline=deadline)
@@ -1115,7 +1252,7 @@ def _certify_scale(family, k, controller, region, max_boxes, deadline, method):
 
 
 def margin_lower_bound(
-    family: Family,
+    family: Family | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,
@@ -1131,10 +1268,12 @@ def margin_lower_bound(
 
     Parameters
     ----------
-    family : Family
-        The family.
+    family : Family or USS
+        The family, or an uncertain system (:func:`uncertainty.uss`; closed with
+        ``controller`` by negative feedback when one is given).
     controller : control.StateSpace, optional
-        Compensator in the loop's convention.
+        Compensator in the loop's convention (a family) or in the feedback path of the
+        system (``system.feedback(controller)``).
     region : Region, optional
         Required region (default: open left half-plane). The eigenvalue method certifies
         all of it; the Lyapunov method its decay rate only.
@@ -1170,10 +1309,11 @@ def margin_lower_bound(
         raise ParameterError(f"method: expected one of {LOWER_METHODS}; got {method!r}")
     if method == "lyapunov":
         region = Region(decay_rate=region.decay_rate)
+    loop = _loop(family, controller)
     step = progress or (lambda msg: None)
     start = time.perf_counter()
     history = []
-    ok0, st0 = _certify_scale(family, 0.0, controller, region, 1, start + 1e9, method)
+    ok0, st0 = _certify_scale(loop, 0.0, region, 1, start + 1e9, method)
     history.append({"scale": 0.0, "certified": ok0, **st0})
     if not ok0:
         return 0.0, {"history": history, "certified_scale": None}
@@ -1183,7 +1323,7 @@ def margin_lower_bound(
     def attempt(k):
         step(f"lower bound: certifying the box at scale {k:.4g}")
         deadline = min(time.perf_counter() + per_scale, start + time_limit_s)
-        ok, st = _certify_scale(family, k, controller, region, max_boxes, deadline, method)
+        ok, st = _certify_scale(loop, k, region, max_boxes, deadline, method)
         history.append({"scale": float(k), "certified": ok, **st})
         return ok, st
 
@@ -1226,7 +1366,7 @@ _LOWER_TEXT = {
 
 
 def robust_margin(
-    family: Family,
+    family: Family | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,
@@ -1243,10 +1383,12 @@ def robust_margin(
 
     Parameters
     ----------
-    family : Family
-        The family.
+    family : Family or USS
+        The family, or an uncertain system (:func:`uncertainty.uss`; closed with
+        ``controller`` by negative feedback when one is given).
     controller : control.StateSpace, optional
-        Compensator in the loop's convention.
+        Compensator in the loop's convention (a family) or in the feedback path of the
+        system (``system.feedback(controller)``).
     region : Region, optional
         Required region (default: open left half-plane).
     samples, seed : int
@@ -1263,10 +1405,10 @@ def robust_margin(
         Called with a short message at each step.
     """
     region = region or Region()
+    loop = _loop(family, controller)
     t0 = time.perf_counter()
     upper, critical, search = margin_upper_bound(
-        family,
-        controller=controller,
+        loop,
         region=region,
         samples=samples,
         seed=seed,
@@ -1274,8 +1416,7 @@ def robust_margin(
     )
     t1 = time.perf_counter()
     lower, cert = margin_lower_bound(
-        family,
-        controller=controller,
+        loop,
         region=region,
         k_hint=min(upper, 8.0),
         max_boxes=max_boxes,
@@ -1305,7 +1446,7 @@ def robust_margin(
             else ""
         ),
         "scaling": "each parameter scaled about its nominal in its own coordinates (log for "
-        "log-uniform); linear ranges floored at 1e-6 of their upper end",
+        "log-uniform); non-negative linear ranges floored at 1e-6 of their upper end",
     }
     return MarginResult(
         lower=lower,

@@ -7,8 +7,11 @@ with other uncertain systems as python-control's do: ``G * H`` (series: ``H`` th
 one definition: :meth:`USS.nominal` and :meth:`USS.at` give python-control systems,
 :meth:`USS.matrices` the matrices of many members at once.
 
-Not yet: named-signal interconnection, the interval enclosure of the matrices over a box
-as a system, and the LFT form (what the robust margin and the mu analysis will consume).
+:meth:`USS.state_matrix` evaluates the state matrix on values of any arithmetic type
+(intervals and interval gradients included), from which :func:`uncertainty.robust_margin`
+builds its certified enclosures and :func:`uncertainty.validate_family` its batched members.
+
+Not yet: named-signal interconnection and the LFT form.
 """
 
 from __future__ import annotations
@@ -120,6 +123,60 @@ class USS:
             evaluate_matrix(M, full) if M.size else np.zeros(shape + M.shape)
             for M in (self.A, self.B, self.C, self.D)
         )
+
+    def state_matrix(self, values: Mapping) -> list:
+        """The state matrix with every uncertain real replaced by ``values[name]``.
+
+        One evaluation of the matrix's expressions (shared sub-expressions once) for
+        values of any arithmetic type: numbers, arrays of members, intervals or interval
+        gradients (:mod:`robust.analysis.intervals`), which is how the batched members
+        and the certified enclosures come from the one definition.
+
+        Parameters
+        ----------
+        values : mapping
+            Name -> value for every parameter of the system.
+
+        Returns
+        -------
+        list of lists
+            The entries, row by row (numbers for entries without uncertain reals).
+        """
+        missing = [n for n in self.parameters if n not in values]
+        if missing:
+            raise ParameterError(
+                f"USS.state_matrix: values must give every parameter; missing {missing}"
+            )
+        memo: dict = {}
+        return [[e._eval(values, memo) for e in row] for row in self.A]
+
+    def state_matrices(self, rows) -> np.ndarray:
+        """State matrices of many members at once.
+
+        Parameters
+        ----------
+        rows : array_like, shape (N, d)
+            Parameter values, columns in the order of :attr:`parameters`.
+
+        Returns
+        -------
+        numpy.ndarray, shape (N, n, n)
+        """
+        rows = np.atleast_2d(np.asarray(rows, float))
+        if rows.ndim != 2 or rows.shape[1] != len(self.parameters):
+            raise ParameterError(
+                f"USS.state_matrices: rows must have {len(self.parameters)} columns "
+                f"({list(self.parameters)}); got shape {rows.shape}"
+            )
+        vals = {n: rows[:, j] for j, n in enumerate(self.parameters)}
+        n = self.nstates
+        out = np.empty((rows.shape[0], n, n))
+        with np.errstate(divide="ignore", invalid="ignore"):  # a divisor at 0: inf, reported
+            entries = self.state_matrix(vals)
+        for i, row in enumerate(entries):
+            for j, v in enumerate(row):
+                out[:, i, j] = v
+        return out
 
     def at(self, values: Mapping) -> ct.StateSpace:
         """The member at ``values`` (name -> number; others nominal), a python-control system."""

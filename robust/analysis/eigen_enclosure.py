@@ -315,6 +315,9 @@ def _with_clusters(res: dict, Ac, J, h, E_rad, inflations) -> dict | None:
     if all(len(g) == 1 for g in groups) or max(len(g) for g in groups) > MAX_CLUSTER:
         return None
     out = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in res.items()}
+    # numpy gives real eigenvalues for a matrix whose spectrum is real; a cluster's
+    # centres are complex in general
+    out["centre"] = out["centre"].astype(complex)
     owner = np.empty(res["eigs"].size, int)
     # the cluster operator works on the eigenvalues of the balanced centre, in the order
     # of numpy's eig of that matrix: match them to the result's eigenvalues
@@ -673,10 +676,19 @@ def _inflate(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam):
 
 
 def split_coordinate(
-    res: dict, decay_rate: float, open_: np.ndarray, margins: np.ndarray | None = None
+    res: dict,
+    decay_rate: float,
+    open_: np.ndarray,
+    margins: np.ndarray | None = None,
+    remainder: np.ndarray | None = None,
 ) -> int:
     """The coordinate to halve when a box fails: the one that moves the eigenvalues most
     relative to their distance to the line ``Re s = -decay_rate``.
+
+    A coordinate moves the eigenvalues through the first-order term (``sensitivity``) and
+    through the spread of its derivative over the box (``remainder``): a parameter that
+    enters at second order about the centre (a derivative zero there) has no first-order
+    sensitivity but still widens every enclosure, and halving it shrinks that spread.
 
     Parameters
     ----------
@@ -689,11 +701,17 @@ def split_coordinate(
     margins : ndarray, shape (n,), optional
         Each eigenvalue's distance to the edge of the region (default: to the line
         ``Re s = -decay_rate``).
+    remainder : ndarray, shape (d,), optional
+        Each coordinate's share of the remainder bound, ``h_p ||rad(dA/dt_p)||_2`` (added
+        to every eigenvalue's sensitivity to it).
     """
     if margins is None:
         margins = -(res["eigs"].real + decay_rate)
     margins = np.maximum(np.asarray(margins, float), 1e-9)
-    score = (res["sensitivity"] / margins[:, None]).sum(axis=0)
+    sens = res["sensitivity"]
+    if remainder is not None:
+        sens = sens + np.asarray(remainder, float)[None, :]
+    score = (sens / margins[:, None]).sum(axis=0)
     score = np.where(open_, np.nan_to_num(score, nan=0.0, posinf=1e300), -1.0)
     return int(np.argmax(score))
 

@@ -1,0 +1,82 @@
+"""Where the work runs does not change what it computes: serial, local processes, Dask."""
+
+from __future__ import annotations
+
+import functools
+import json
+
+import numpy as np
+import pytest
+
+from bdft import main
+from robust import engine
+from robust.engine import SCHEDULER_ENV, map_tasks, scheduler_address
+from robust.errors import BDFTError, ParameterError
+from uncertainty import default_family, sample, validate_family
+from uncertainty.batched import TASK_MEMBERS
+
+distributed = pytest.importorskip("distributed")
+
+
+def _power(k, x):
+    return float(np.sum(np.linspace(0.0, 1.0, 7) ** k) * x)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as c:
+        yield c
+
+
+def test_map_tasks_keeps_the_order_on_every_engine(cluster):
+    fn = functools.partial(_power, 3)
+    args = [0.5 * i for i in range(9)]
+    want = [fn(a) for a in args]
+    seen = []
+    assert map_tasks(fn, args, progress=seen.append) == want
+    assert seen == list(range(9))
+    assert map_tasks(fn, args, jobs=2) == want
+    seen = []
+    assert map_tasks(fn, args, scheduler=cluster.scheduler_address, progress=seen.append) == want
+    assert sorted(seen) == list(range(9))
+    with pytest.raises(ParameterError, match="jobs must be a positive integer"):
+        map_tasks(fn, args, jobs=0)
+
+
+def test_the_scheduler_comes_from_the_option_or_the_environment(monkeypatch):
+    monkeypatch.delenv(SCHEDULER_ENV, raising=False)
+    assert scheduler_address(None) is None
+    monkeypatch.setenv(SCHEDULER_ENV, "tcp://10.0.0.1:8786")
+    assert scheduler_address(None) == "tcp://10.0.0.1:8786"
+    assert scheduler_address("tcp://h:1") == "tcp://h:1"
+
+
+def test_an_unreachable_scheduler_is_named(monkeypatch):
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 1.0)
+    with pytest.raises(BDFTError, match="cannot connect to the Dask scheduler"):
+        map_tasks(abs, [1, 2], scheduler="tcp://127.0.0.1:9")
+
+
+def test_validation_is_the_same_bits_on_every_engine(cluster):
+    fam = default_family("physical")
+    members = sample(fam.parameters, 2 * TASK_MEMBERS + 1234, method="mc", seed=7)
+    serial = validate_family(fam, members)
+    local = validate_family(fam, members, jobs=2)
+    dask = validate_family(fam, members, scheduler=cluster.scheduler_address)
+    for res in (local, dask):
+        assert res.to_json() == serial.to_json()
+        assert np.array_equal(res.max_real, serial.max_real)
+        assert np.array_equal(res.member_min_damping, serial.member_min_damping)
+    # a real answer: the open loop is unstable for most of the family
+    assert 0.02 < serial.fraction_stable < 0.5
+
+
+def test_validate_command_prints_the_same_json_with_a_scheduler(cluster, capsys):
+    args = ["validate", "--samples", str(TASK_MEMBERS + 10), "--seed", "3", "--json"]
+    assert main(args + ["--jobs", "1"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert main(args + ["--scheduler", cluster.scheduler_address]) == 0
+    assert json.loads(capsys.readouterr().out) == plain
+    assert plain["samples"] == TASK_MEMBERS + 10

@@ -1,0 +1,151 @@
+"""Robust margins of uncertain systems (``uncertainty.robust_margin`` on a ``uss``) against
+margins derived by hand.
+
+Each case is a small system whose margin follows from a closed-form condition (Routh-Hurwitz,
+the real part or damping ratio of a second-order pair) worked out below; the certified
+lower bound must hold at most the exact margin and at least 0.9 of it, the upper bound at
+least the exact margin and at most 1.01 of it, and the critical member must break the
+region. The scale ``k`` moves each parameter from its nominal towards its range's ends:
+``low(k) = nominal - k (nominal - low)``, ``high(k) = nominal + k (high - nominal)`` (in
+log coordinates for log-uniform parameters).
+"""
+
+from __future__ import annotations
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from robust.errors import ModelStructureError, ParameterError
+from uncertainty import (
+    Region,
+    robust_margin,
+    sample,
+    scaled_bounds,
+    ureal,
+    uss,
+    validate_family,
+    worst_member,
+)
+from uncertainty.margins import certify_box
+
+
+def _check(res, exact):
+    assert res.lower <= exact <= res.upper
+    assert res.lower >= 0.9 * exact, (res.lower, exact)
+    assert res.upper <= 1.01 * exact, (res.upper, exact)
+    assert res.critical is not None and res.critical["violation"] > 0
+    assert res.critical["checked_with"] == "python-control poles of the member system"
+
+
+def _second_order(a1, a0):
+    return uss([[0, 1], [-a0, -a1]], [[0], [1]], [[1, 0]], [[0]])
+
+
+def test_face_interior_worst_member():
+    # s^2 + (c - q (2 - q)) s + 4: stable iff c > q (2 - q). Over q in [1 - k, 1 + k] the
+    # product q (2 - q) is largest at q = 1, the nominal, inside the range: the worst member
+    # lies inside a face of the box, not at a vertex. c(k) >= 1.5 - k, so the loop breaks
+    # where 1.5 - k = 1: k_m = 0.5.
+    q = ureal("q", 1.0, 0.0, 2.0)
+    c = ureal("c", 1.5, 0.5, 2.5)
+    res = robust_margin(_second_order(c - q * (2 - q), 4.0))
+    _check(res, 0.5)
+    assert res.critical["parameters"]["q"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_routh_boundary_with_asymmetric_ranges():
+    # s^3 + p s^2 + 3 s + r: stable iff p, r > 0 and 3 p > r (Routh). p(k) >= 2 - 0.5 k,
+    # r(k) <= 2 + 6 k: 3 (2 - 0.5 k) = 2 + 6 k gives k_m = 8 / 15.
+    p = ureal("p", 2.0, 1.5, 4.0)
+    r = ureal("r", 2.0, 1.0, 8.0)
+    A = [[0, 1, 0], [0, 0, 1], [-r, -3.0, -p]]
+    res = robust_margin(uss(A, [[0], [0], [1]], [[1, 0, 0]], [[0]]))
+    _check(res, 8 / 15)
+
+
+def test_rational_entries_in_log_coordinates():
+    # m x'' + c x' + 4 x = 0 with m log-uniform in [0.5, 2] (nominal 1): m(k) <= 2^k; c(k) >=
+    # 1 - 0.5 k. The poles are complex on the box (4 / m > (c / 2m)^2) with real part
+    # -c / (2 m); a decay rate of 0.2 needs c > 0.4 m: 1 - 0.5 k = 0.4 * 2^k.
+    m = ureal("m", 1.0, 0.5, 2.0, distribution="loguniform")
+    c = ureal("c", 1.0, 0.5, 1.5)
+    exact = brentq(lambda k: 1 - 0.5 * k - 0.4 * 2.0**k, 0.0, 2.0)
+    res = robust_margin(_second_order(c / m, 4.0 / m), region=Region(decay_rate=0.2))
+    _check(res, exact)
+
+
+def test_damping_region():
+    # s^2 + 2 z w s + w^2, w in [pi, 4 pi] rad/s (0.5-2 Hz, inside the band), z in
+    # [0.2, 0.8] about 0.5: the damping ratio is z, at least 0.3 while 0.5 - 0.3 k >= 0.3,
+    # k_m = 2 / 3 (the frequency does not matter).
+    w = ureal("w", 2 * math.pi, math.pi, 4 * math.pi)
+    z = ureal("z", 0.5, 0.2, 0.8)
+    region = Region(min_damping=0.3, band_hz=(0.1, 10.0))
+    res = robust_margin(_second_order(2 * z * w, w**2), region=region)
+    _check(res, 2 / 3)
+
+
+def test_uncertain_plant_closed_by_a_python_control_controller():
+    # g / (s (s + 1)) with the lag 1 / (s + 1) in its feedback path: s^3 + 2 s^2 + s + g,
+    # stable iff 0 < g < 2 (Routh); g(k) <= 1 + 2 k gives k_m = 0.5.
+    g = ureal("g", 1.0, 0.5, 3.0)
+    plant = uss([[0, 1], [0, -1]], [[0], [g]], [[1, 0]], [[0]])
+    controller = ct.ss(ct.tf([1.0], [1.0, 1.0]))
+    res = robust_margin(plant, controller=controller)
+    _check(res, 0.5)
+    assert res.critical["parameters"]["g"] == pytest.approx(2.0, rel=0.02)
+    # the member the margin reports is the python-control loop's
+    member = ct.feedback(plant.at({"g": res.critical["parameters"]["g"]}), controller)
+    assert np.sort_complex(ct.poles(member)) == pytest.approx(
+        np.array([p["re"] + 1j * p["im"] for p in res.to_json()["critical"]["poles"]]), abs=1e-9
+    )
+
+
+def test_scaled_bounds_and_worst_member_of_a_system():
+    m = ureal("m", 1.0, 0.5, 2.0, distribution="loguniform")
+    c = ureal("c", 1.0, 0.5, 1.5)
+    G = _second_order(c / m, 4.0 / m)
+    lo, hi = scaled_bounds(G, 0.5)
+    assert list(G.parameters) == ["m", "c"]  # in the order they first appear
+    assert lo == pytest.approx([2**-0.5, 0.75]) and hi == pytest.approx([2**0.5, 1.25])
+    v, row = worst_member(G, 1.0, region=Region(decay_rate=0.2))
+    # the worst member has c low and m high: real part -0.5 / 4 = -0.125, violation 0.075
+    assert v == pytest.approx(0.075, abs=1e-6)
+    assert row == pytest.approx([2.0, 0.5])
+
+
+def test_validation_of_a_system_counts_the_unstable_members():
+    # s^2 + c s + 1 with c uniform in [-1, 3]: unstable exactly when c <= 0, a quarter
+    c = ureal("c", 1.0, -1.0, 3.0)
+    G = _second_order(c, 1.0)
+    members = sample(list(G.parameters.values()), 20_000, method="mc", seed=3)
+    res = validate_family(G, members)
+    expected = float(np.mean(members.values[:, 0] >= 0))
+    assert res.fraction_stable == pytest.approx(expected, abs=1e-12)
+    assert 0.24 < 1 - res.fraction_stable < 0.26
+    assert res.worst["c"] == pytest.approx(-1.0, abs=1e-3)
+    with pytest.raises(ParameterError, match="sample names"):
+        validate_family(_second_order(ureal("d", 1, 0, 2), 1.0), members)
+
+
+def test_bad_systems_are_refused_with_the_reason():
+    with pytest.raises(ParameterError, match="no uncertain real"):
+        robust_margin(uss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
+    with pytest.raises(ParameterError, match="expected a Family or an uncertain system"):
+        robust_margin(ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
+    g = ureal("g", 1.0, 0.5, 2.0)
+    with pytest.raises(ModelStructureError, match="no state"):
+        robust_margin(uss([], [], [], [[g]]))
+    # a divisor whose range reaches 0 on the box
+    d = ureal("d", 1.0, -1.0, 2.0)
+    res = certify_box(_second_order(1.0 / d, 1.0), [-1.0], [2.0])
+    assert not res["certified"] and res["centre_violates"]
+    assert "contains 0 on the box d in [-1, 2]" in res["reason"]
+    # ... which the margin never meets: members with d < 0 are unstable, and the margin
+    # stops short of the box where the range of d reaches 0 (k = 0.5)
+    res = robust_margin(_second_order(1.0 / d, 1.0))
+    assert res.lower <= 0.5 <= res.upper <= 0.505 and res.lower > 0.45
