@@ -89,6 +89,23 @@ def add_jobs_argument(p) -> None:
     )
 
 
+def add_cache_argument(p) -> None:
+    """Add ``--no-cache``: compute everything, neither reading nor writing the result cache.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The sub-command's parser.
+    """
+    p.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="compute every result afresh and store nothing (default: results are kept in "
+        "$BDFT_CACHE_DIR or ~/.cache/bdft under a hash of their inputs and of the code, so a "
+        "rerun with nothing changed is fast)",
+    )
+
+
 def add_scheduler_argument(p) -> None:
     """Add ``--scheduler ADDRESS``: run the work's tasks on a Dask distributed cluster.
 

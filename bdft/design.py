@@ -13,6 +13,7 @@ from bdft.args import (
     seed,
 )
 from bdft.common import (
+    add_cache_argument,
     add_coverage_arguments,
     add_margin_boxes_argument,
     member_progress,
@@ -99,6 +100,7 @@ def register(sub) -> None:
         help="scheduled only: Latin-hypercube members of the limit map the bank's coverage is "
         "compared with (0: not computed; default: %(default)s)",
     )
+    add_cache_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -189,7 +191,7 @@ def run(args) -> int:
         ``method`` (sampling method), ``out`` (artifact folder), ``margin_boxes``
         (sub-boxes per scale of the certified robust margin, 0 skips it),
         ``coverage_samples`` (members of the coverage certificate, 0 skips it), ``jobs``
-        (parallel processes) and ``json``.
+        (parallel processes), ``no_cache`` (compute afresh, store nothing) and ``json``.
 
     Returns
     -------
@@ -228,6 +230,7 @@ def run(args) -> int:
         coverage_samples=args.coverage_samples,
         n_jobs=args.jobs,
         progress=member_progress("coverage"),
+        cache=not args.no_cache,
     )
     obj = res.to_json()
     if args.json:

@@ -16,6 +16,7 @@ from bdft.args import (
     seed,
 )
 from bdft.common import (
+    add_cache_argument,
     add_coverage_arguments,
     add_margin_boxes_argument,
     member_progress,
@@ -29,6 +30,7 @@ from designs.scheduled import scheduled_design
 from reports.coverage import family_coverage
 from reports.designs import run_all_designs, write_design_report
 from reports.limit import limit_conclusions
+from robust.cache import cached
 from robust.jsonio import atomic_write_json
 from uncertainty import default_family
 
@@ -94,6 +96,7 @@ def register(sub) -> None:
         "is rerun for the force-budget trade-off (Pareto curve), comma-separated, or 'none' "
         "(default: 0.5,1,2,4; about a minute each)",
     )
+    add_cache_argument(p)
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with every design's summary"
     )
@@ -131,6 +134,7 @@ def run(args) -> int:
     def progress(name):
         print(f"[bdft report] design {name} ...", file=sys.stderr, flush=True)
 
+    use_cache = not args.no_cache
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
     check_artifact_targets("--out", art_dir, [*design_names(), SCHEDULED])
@@ -143,37 +147,58 @@ def run(args) -> int:
         coverage_samples=args.coverage_samples,
         n_jobs=args.jobs,
         member_progress=member_progress("coverage"),
+        cache=use_cache,
     )
     tradeoff = None
     if args.tradeoff:
         print("[bdft report] force-budget trade-off ...", file=sys.stderr, flush=True)
-        tradeoff = force_tradeoff(
-            default_family(),
-            args.tradeoff,
-            progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
+        tradeoff, _ = cached(
+            "force-tradeoff",
+            {"factors": list(args.tradeoff)},
+            lambda: force_tradeoff(
+                default_family(),
+                args.tradeoff,
+                progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
+            ),
+            enabled=use_cache,
         )
     limit = None
     if args.limit_samples:
         print("[bdft report] achievable-limit map ...", file=sys.stderr, flush=True)
-        lm = limit_map(
-            default_family(),
-            samples=args.limit_samples,
-            seed=args.seed,
-            n_jobs=args.jobs,
-            progress=member_progress("limit map"),
+
+        def _limit():
+            lm = limit_map(
+                default_family(),
+                samples=args.limit_samples,
+                seed=args.seed,
+                n_jobs=args.jobs,
+                progress=member_progress("limit map"),
+            )
+            return dict(lm.to_json(), conclusions=limit_conclusions(lm))
+
+        limit, _ = cached(
+            "limit-map",
+            {"samples": args.limit_samples, "seed": args.seed},
+            _limit,
+            enabled=use_cache,
         )
-        limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
     scheduled = None
     if args.scheduled_samples:
         print("[bdft report] per-operator design ...", file=sys.stderr, flush=True)
-        bank, scheduled = scheduled_design(
-            default_family(),
-            samples=args.scheduled_samples,
-            seed=args.seed,
-            limit_samples=0,
-            n_jobs=args.jobs,
-            progress=member_progress("calibrations"),
+        (bank, scheduled), _ = cached(
+            "scheduled-design",
+            {"samples": args.scheduled_samples, "seed": args.seed},
+            lambda: scheduled_design(
+                default_family(),
+                samples=args.scheduled_samples,
+                seed=args.seed,
+                limit_samples=0,
+                n_jobs=args.jobs,
+                progress=member_progress("calibrations"),
+            ),
+            enabled=use_cache,
         )
+        scheduled = dict(scheduled)
         art = dict(bank.to_json(), kind="bdft-controller-bank", name=SCHEDULED, result=scheduled)
         scheduled["artifact"] = str(atomic_write_json(art_dir / f"{SCHEDULED}.json", art))
     coverage = family_coverage(default_family(), samples=args.samples, seed=args.seed)

@@ -10,6 +10,7 @@ continuous and the 1 kHz sampled-data loops, and writes the artifact (JSON +
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
+from robust.cache import cached
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
 from robust.model.device import DeviceLimits
@@ -170,6 +172,7 @@ def run_design(
     coverage_samples: int = COVERAGE_SAMPLES,
     n_jobs: int = 1,
     progress=None,
+    cache: bool = False,
 ) -> DesignResult:
     """Build, validate, discretise and export the design ``name`` on the default family.
 
@@ -207,14 +210,54 @@ def run_design(
         Parallel processes of the coverage check.
     progress : callable, optional
         ``progress(done, total)`` during the coverage check.
+    cache : bool
+        Take the result from the content-addressed cache (:mod:`robust.cache`) when the
+        same design was run with the same inputs and code, and store it there otherwise
+        (the artifact is written either way).
 
     Returns
     -------
     DesignResult
         With ``evaluation`` and (when written) ``artifact`` filled in.
     """
-    design = get_design(name)
     lim = limits or DeviceLimits()
+    inputs = {
+        "name": name,
+        "samples": samples,
+        "seed": seed,
+        "method": method,
+        "limits": dataclasses.asdict(lim),
+        "held_out": held_out,
+        "margin_boxes": margin_boxes,
+        "coverage_samples": coverage_samples,
+    }
+
+    def compute():
+        return _build_design(
+            name,
+            samples,
+            seed,
+            method,
+            lim,
+            held_out,
+            margin_boxes,
+            coverage_samples,
+            n_jobs,
+            progress,
+        )
+
+    (result, art), _ = cached("design", inputs, compute, enabled=cache)
+    if art is not None and out_dir is not None:
+        path = write_artifact(art, Path(out_dir) / f"{name}.json")["json"]
+        result = result.replace(artifact=str(path))
+    return result
+
+
+def _build_design(
+    name, samples, seed, method, lim, held_out, margin_boxes, coverage_samples, n_jobs, progress
+):
+    """:func:`run_design`'s work: the result (no artifact path) and the artifact to write."""
+    design = get_design(name)
     family = default_family()
     members = sample(family.parameters, samples, method=method, seed=seed)
     res = design.build(family, members, lim)
@@ -247,7 +290,7 @@ def run_design(
             n_jobs=n_jobs,
             progress=progress,
         )
-    artifact = None
+    art = None
     if K is not None:
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
         Kd = discretize(K, lim.sample_time_s, prewarp_hz=prewarp)
@@ -256,23 +299,21 @@ def run_design(
             details["saturation_check"] = _saturation_checks(
                 fam, ev.worst, details, K, Kd, lim, seed
             )
-        if out_dir is not None:
-            art = ControllerArtifact(
-                name=name,
-                continuous=K,
-                discrete=Kd,
-                prewarp_hz=prewarp,
-                weights={k: v for k, v in details.items() if k not in res.artifact_exclude},
-                family={
-                    "name": fam.name,
-                    "seed": members.seed,
-                    "method": members.method,
-                    "samples": len(members),
-                    "k_psf": fam.k_psf,
-                },
-                validation=dict(
-                    ev.to_json(), coverage=None if coverage is None else coverage.to_json()
-                ),
-            )
-            artifact = str(write_artifact(art, Path(out_dir) / f"{name}.json")["json"])
-    return res.replace(evaluation=ev, details=details, artifact=artifact, coverage=coverage)
+        art = ControllerArtifact(
+            name=name,
+            continuous=K,
+            discrete=Kd,
+            prewarp_hz=prewarp,
+            weights={k: v for k, v in details.items() if k not in res.artifact_exclude},
+            family={
+                "name": fam.name,
+                "seed": members.seed,
+                "method": members.method,
+                "samples": len(members),
+                "k_psf": fam.k_psf,
+            },
+            validation=dict(
+                ev.to_json(), coverage=None if coverage is None else coverage.to_json()
+            ),
+        )
+    return res.replace(evaluation=ev, details=details, artifact=None, coverage=coverage), art

@@ -36,6 +36,7 @@ def run_all_designs(
     coverage_samples: int = 0,
     n_jobs: int = 1,
     member_progress=None,
+    cache: bool = False,
 ):
     """Run every design (or ``names``); a design that fails is kept with its error, not dropped.
 
@@ -61,6 +62,8 @@ def run_all_designs(
         Parallel processes of the coverage checks.
     member_progress : callable, optional
         ``member_progress(done, total)`` during each coverage check.
+    cache : bool
+        Use the result cache (see :func:`designs.run_design`).
 
     Returns
     -------
@@ -82,6 +85,7 @@ def run_all_designs(
                 coverage_samples=coverage_samples,
                 n_jobs=n_jobs,
                 progress=member_progress,
+                cache=cache,
             )
         except BDFTError as exc:
             runs[name] = exc
