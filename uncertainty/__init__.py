@@ -17,6 +17,7 @@ Public API (import from here; module layout may change):
   :func:`load_system` (a user's uncertain system from a Python file);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`;
+* the family's loop as an uncertain system: :func:`family_uss`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * robust margins of a family or an uncertain system: :func:`robust_margin`,
   :class:`Region`, :class:`MarginResult`, :func:`margin_lower_bound`,
@@ -46,6 +47,7 @@ from uncertainty.family import (
     default_family,
 )
 from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
+from uncertainty.loop import family_uss
 from uncertainty.margins import (
     MarginResult,
     Region,
@@ -75,6 +77,7 @@ __all__ = [
     "evaluate_matrix",
     "USS",
     "uss",
+    "family_uss",
     "MuBounds",
     "mussv",
     "Region",

@@ -67,13 +67,14 @@ from scipy.optimize import minimize
 from scipy.stats import qmc
 
 from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinate, subdivide
-from robust.analysis.intervals import Gradient, Interval, iblockdiag, imatrix, ivstack, norm2_bound
+from robust.analysis.intervals import Gradient, Interval, imatrix, norm2_bound
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
-from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
+from uncertainty.batched import closed_loop_matrices
 from uncertainty.family import Family
+from uncertainty.loop import INTERVALS, LoopAssembly, fixed_parameters
 from uncertainty.uss import USS
 
 __all__ = [
@@ -576,84 +577,7 @@ def _critical(loop, row, region, k):
     return out
 
 
-# -- interval enclosure of the closed-loop matrix --------------------------------------------
-def _section(z, w):
-    w2, zw2 = w.square(), 2.0 * z * w
-    A = imatrix([[0.0, 1.0], [-w2, -zw2]])
-    C = imatrix([[w2, zw2]])
-    return A, C
-
-
-def _structure_enclosure(p):
-    tau = 2 * math.pi
-    z1, w1 = p["struct.zeta1"], tau * p["struct.f1_hz"]
-    z2, w2 = p["struct.zeta2"], tau * p["struct.f2_hz"]
-    A1, _ = _section(z1, w1)
-    A2, C2 = _section(z2, w2)
-    w1s, zw1 = w1.square(), 2.0 * z1 * w1
-    # cascade: section 1 driven by y, section 2 driven by section 1's output C1 x1
-    A = iblockdiag([A1, A2]) + imatrix([[0.0] * 4, [0.0] * 4, [0.0] * 4, [w1s, zw1, 0.0, 0.0]])
-    B = Interval.point(np.array([[0.0], [1.0], [0.0], [0.0]]))
-    Cv = p["struct.k_s"] * imatrix([[0.0, 0.0, C2[0, 0], C2[0, 1]]])
-    CA = Cv @ A
-    C = ivstack([Cv, CA @ A])
-    D = ivstack([Interval.point(np.zeros((1, 1))), CA @ B])
-    return A, B, C, D
-
-
-def _physical_enclosure(p, family):
-    tau = 2 * math.pi
-    m_t = (family.physical.m_trunk / family.body_mass) * p["human.body_mass"]
-    m_a = p["human.m_arm"]
-    r = m_a * m_t.reciprocal()
-    wt, wa = tau * p["human.f_trunk_hz"], tau * p["human.f_arm_hz"]
-    wt2, wa2 = wt.square(), wa.square()
-    st = 2.0 * p["human.zeta_trunk"] * wt
-    sa = 2.0 * p["human.zeta_arm"] * wa
-    one_r = 1.0 + r
-    A = imatrix(
-        [
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [-(one_r * wt2) - r * wa2, r * wa2, -(one_r * st) - r * sa, r * sa],
-            [wa2, -wa2, sa, -sa],
-        ]
-    )
-    cu, g = p["human.c_unit"], p["human.h_gain"]
-    B = imatrix([[0.0, 0.0], [0.0, 0.0], [-cu, 0.0], [-cu, m_a.reciprocal()]])
-    C = imatrix([[0.0, g, 0.0, 0.0]])
-    D = Interval.point(np.zeros((1, 2)))
-    return A, B, C, D
-
-
-def _literal_enclosure(p):
-    k, z1, p1 = p["human.k_h"], p["human.z1"], p["human.p1"]
-    A = imatrix([[0.0, 1.0], [-p1.square(), -2.0 * p1]])
-    B = Interval.point(np.array([[0.0], [1.0]]))
-    C = k * imatrix([[z1.square() - p1.square(), 2.0 * (z1 - p1)]])
-    D = imatrix([[k]])
-    return A, B, C, D
-
-
-def _fixed_parameters(family: Family) -> dict:
-    fixed = {
-        f"struct.{f.name}": getattr(family.struct, f.name)
-        for f in dataclasses.fields(family.struct)
-    }
-    if family.human == "literal":
-        fixed.update(
-            {
-                f"human.{f.name}": getattr(family.literal, f.name)
-                for f in dataclasses.fields(family.literal)
-            }
-        )
-    else:
-        names = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk", "h_gain", "c_unit")
-        fixed.update({f"human.{n}": getattr(family.physical, n) for n in names})
-        fixed["human.body_mass"] = family.body_mass
-    return fixed
-
-
+# -- interval enclosure of the closed-loop matrix ---------------------------------------------
 def _param_intervals(family: Family, lo: np.ndarray, hi: np.ndarray, derivatives: bool) -> dict:
     """Every model parameter over the box: the varied ones as intervals (or as
     :class:`Gradient` variables in the family's coordinates, log for log-uniform), the
@@ -662,7 +586,7 @@ def _param_intervals(family: Family, lo: np.ndarray, hi: np.ndarray, derivatives
     cols = {n: (j, a, b) for j, (n, a, b) in enumerate(zip(family.names, lo, hi))}
     d = len(family.names)
     out = {}
-    for name, val in _fixed_parameters(family).items():
+    for name, val in fixed_parameters(family).items():
         if name not in cols:
             out[name] = Interval.point(val)
             continue
@@ -711,57 +635,16 @@ def closed_loop_enclosure(
     return _Assembly(family, controller).matrix(lo, hi, derivatives)
 
 
-class _Assembly:
-    """The fixed part of the enclosure (fixed blocks, interconnection), built once per
-    family and controller."""
+class _Assembly(LoopAssembly):
+    """The family's loop evaluated on intervals (or interval gradients) over a box."""
 
     def __init__(self, family: Family, controller):
-        self.family, self.controller = family, controller
-        nominal = np.array([p.nominal for p in family.parameters], float)
-        blocks = loop_blocks(family, nominal[None], controller=controller, check_bounds=False)
-        self.names = [b.name for b in blocks]
-        self.fixed = {
-            b.name: tuple(Interval.point(x[0]) for x in (b.A, b.B, b.C, b.D))
-            for b in blocks
-            if b.name not in ("structure", "human")
-        }
-        self.M = interconnection(family, blocks, controller)
+        super().__init__(family, controller, INTERVALS)
 
     def matrix(self, lo, hi, derivatives: bool):
-        family = self.family
+        """The enclosure of the closed-loop state matrix over the box ``lo .. hi``."""
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-        p = _param_intervals(family, lo, hi, derivatives)
-        mats = []
-        for name in self.names:
-            if name == "structure":
-                mats.append(_structure_enclosure(p))
-            elif name == "human":
-                mats.append(
-                    _literal_enclosure(p)
-                    if family.human == "literal"
-                    else _physical_enclosure(p, family)
-                )
-            else:
-                mats.append(self.fixed[name])
-        A, B, C, D = (iblockdiag([m[i] for m in mats]) for i in range(4))
-        DM = D @ self.M
-        Dv = D.val if isinstance(D, Gradient) else D
-        # length of the finite series from the sparsity pattern of D M (nilpotent: no cycle)
-        pattern = ((np.abs(Dv.mid) + Dv.rad > 0).astype(int) @ (self.M != 0).astype(int)) > 0
-        power, terms = pattern.copy(), 0
-        while power.any():
-            terms += 1
-            if terms > pattern.shape[0]:
-                raise ParameterError(
-                    "closed_loop_enclosure: the controller's feedthrough closes an algebraic "
-                    "loop; give a strictly proper controller"
-                )
-            power = (power.astype(int) @ pattern.astype(int)) > 0
-        Z, term = C, C
-        for _ in range(terms):
-            term = DM @ term
-            Z = Z + term
-        return A + (B @ self.M) @ Z
+        return self.state_matrix(_param_intervals(self.family, lo, hi, derivatives))
 
 
 class _FamilyLoop:

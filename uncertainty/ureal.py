@@ -91,6 +91,11 @@ class UExpr:
         return self._args[0] if self._op == "const" else None
 
     def _binary(self, op: str, other, reflected: bool = False) -> UExpr:
+        if isinstance(other, np.ndarray):  # with a matrix: entry by entry, a matrix of them
+            out = np.empty(other.shape, dtype=object)
+            for idx, v in np.ndenumerate(other):
+                out[idx] = self._binary(op, v, reflected)
+            return out
         o = self._wrap(other, f"uncertain expression {op}")
         a, b = (o, self) if reflected else (self, o)
         ca, cb = a._const(), b._const()
