@@ -9,7 +9,7 @@ import sys
 from tqdm import tqdm
 
 from bdft.args import integer
-from robust.jsonio import to_jsonable
+from robust.jsonio import round_significant, to_jsonable
 from uncertainty.margins import DEFAULT_BOXES
 
 __all__ = [
@@ -24,12 +24,17 @@ __all__ = [
 def print_json(obj) -> None:
     """Print one JSON object on stdout (numpy scalars and arrays converted).
 
+    Floats are printed to :data:`robust.jsonio.JSON_DIGITS` significant digits
+    (:func:`robust.jsonio.round_significant`), so the same run prints the same bytes on
+    any CPU and BLAS thread count.
+
     Parameters
     ----------
     obj : object
         A JSON-able object (dicts, lists, numbers, strings, numpy values).
     """
-    sys.stdout.write(json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
+    out = round_significant(to_jsonable(obj))
+    sys.stdout.write(json.dumps(out, indent=2, allow_nan=False) + "\n")
     sys.stdout.flush()
 
 

@@ -75,10 +75,10 @@ class DesignEvaluation:
         Parameters (name -> value) of the member with the largest real part.
     suppression_db : float
         Largest ``|20 log10 |Y/Y_ref||`` over :data:`SUPPRESSION_BAND_HZ` on the nominal
-        member, dB (0: no BDFT left; ``inf`` if the nominal member is unstable).
+        member, dB, to 1e-9 dB (0: no BDFT left; ``inf`` if the nominal member is unstable).
     tracking_error : float
-        Largest ``|Y/Y_ref - 1|`` over :data:`TRACKING_BAND_HZ` on the nominal member
-        (``inf`` if it is unstable).
+        Largest ``|Y/Y_ref - 1|`` over :data:`TRACKING_BAND_HZ` on the nominal member, to
+        1e-10 (``inf`` if it is unstable).
     peak_force_n : float
         Peak handle force over the simulated histories, N (0 for a design without
         handle force, ``inf`` if no member could be simulated).
@@ -289,6 +289,9 @@ def evaluate_design(
     notes = list(notes)
     if loop_poles(nominal, controller=controller).stable:
         sup, trk = frequency_metrics(nominal, controller)
+        # to 1e-9 dB and 1e-10: an exact cancellation leaves only rounding (1e-14 to
+        # 1e-12), whose digits depend on the CPU's BLAS kernel; it is reported as 0
+        sup, trk = round(sup, 9), round(trk, 10)
     else:
         sup = trk = math.inf
         notes.append("the nominal member is unstable: suppression and tracking are undefined (inf)")

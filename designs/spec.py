@@ -75,7 +75,6 @@ from collections.abc import Sequence
 
 import control as ct
 import numpy as np
-import scipy.linalg as sla
 
 from designs.evaluate import (
     INTENT_FRACTION,
@@ -103,6 +102,7 @@ from robust.jsonio import to_jsonable
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
 from robust.synthesis.forcefb import intent_filter
+from robust.synthesis.pk import h2_norm
 from uncertainty.margins import Region
 
 __all__ = [
@@ -322,14 +322,6 @@ class SpecCheck:
         return to_jsonable(self)
 
 
-def _h2_squared(A, B, C) -> float:
-    """Squared H2 norm of a strictly proper, stable ``(A, B, C)``: ``trace(C P C')``."""
-    if A.shape[0] == 0:
-        return 0.0
-    P = sla.solve_continuous_lyapunov(A, -B @ B.T)
-    return float(max(np.trace(C @ P @ C.T), 0.0))
-
-
 def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float) -> float:
     """Exact stationary RMS handle force under the realistic intended motion, N.
 
@@ -380,7 +372,7 @@ def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float)
     C = np.hstack([g.C, g.D @ Cf])
     if not poles_stable(np.linalg.eigvals(A)):
         return math.inf
-    ratio = math.sqrt(_h2_squared(A, B, C) / _h2_squared(Af, Bf, Cf))
+    ratio = h2_norm(A, B, C) / h2_norm(Af, Bf, Cf)
     return amplitude / math.sqrt(2.0) * ratio
 
 

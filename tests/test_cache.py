@@ -63,14 +63,14 @@ def test_the_folder_comes_from_the_environment(monkeypatch, tmp_path):
 
 
 def test_a_design_rerun_comes_from_the_cache_with_its_artifact(store, tmp_path, capsys):
-    args = ["design", "virtual-damping", "--samples", "60", "--coverage-samples", "0"]
+    args = ["design", "cancellation", "--samples", "40", "--coverage-samples", "0"]
     args += ["--margin-boxes", "0", "--json"]
     assert main(args + ["--out", str(tmp_path / "a")]) == 0
     first = json.loads(capsys.readouterr().out)
     assert len(list((store / "design").glob("*.pkl"))) == 1
     assert main(args + ["--out", str(tmp_path / "b")]) == 0
     second = json.loads(capsys.readouterr().out)
-    assert (tmp_path / "b" / "virtual-damping.json").is_file()  # written again from the entry
+    assert (tmp_path / "b" / "cancellation.json").is_file()  # written again from the entry
     assert second.pop("artifact") != first.pop("artifact")
     assert second == first
     assert len(list((store / "design").glob("*.pkl"))) == 1
