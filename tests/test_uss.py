@@ -76,3 +76,48 @@ def test_errors():
         G.feedback(1, sign=2)
     with pytest.raises(ModelStructureError, match="continuous-time"):
         G * ct.ss([[0.5]], [[1]], [[1]], [[0]], 0.01)
+
+
+def test_interconnect_by_names_matches_python_control():
+    from uncertainty import interconnect
+
+    k = ureal("k", 4.0, 2.0, 6.0)
+    c = ureal("c", 0.4, 0.1, 0.8)
+    P = uss([[0, 1], [-k, -c]], [[0], [1]], [[1, 0]], [[0]], inputs="u", outputs="y")
+    K = ct.ss(ct.tf([2.0, 1.0], [0.1, 1.0]))
+    K = ct.ss(K.A, K.B, K.C, K.D, inputs=["e"], outputs=["u"], name="K")
+    S = uss([], [], [], [[1.0, -1.0]], inputs=["r", "y"], outputs="e")
+    T = interconnect([P, K, S], inputs="r", outputs=["y", "u"])
+    assert T.inputs == ["r"] and T.outputs == ["y", "u"] and T.nstates == 3
+    for vals in ({}, {"k": 2.0, "c": 0.1}, {"k": 6.0, "c": 0.8}):
+        Pn = P.at(vals)
+        Pn = ct.ss(Pn.A, Pn.B, Pn.C, Pn.D, inputs=["u"], outputs=["y"], name="P")
+        Sn = ct.summing_junction(inputs=["r", "-y"], output="e", name="S")
+        ref = ct.interconnect([Pn, K, Sn], inplist=["r"], outlist=["y", "u"])
+        got = T.at(vals)
+        w = np.array([0.1, 1.0, 3.0, 20.0])
+        assert np.allclose(
+            ct.frequency_response(got, w).complex, ct.frequency_response(ref, w).complex
+        )
+        assert np.sort_complex(got.poles()) == pytest.approx(np.sort_complex(ref.poles()))
+
+
+def test_interconnect_solves_a_constant_algebraic_loop_and_refuses_bad_wiring():
+    from uncertainty import interconnect
+
+    a = ureal("a", 1.0, 0.5, 2.0)
+    P = uss([[-a]], [[1.0]], [[1.0]], [[0.5]], inputs="u", outputs="y")
+    # u = r - 0.5 y with y = x + 0.5 u: a constant loop through both feed-throughs
+    G = uss([], [], [], [[1.0, -0.5]], inputs=["r", "y"], outputs="u")
+    T = interconnect([P, G], inputs="r", outputs="y")
+    m = T.at({"a": 2.0})
+    # x' = -a x + u, u = r - 0.5 (x + 0.5 u) -> u = (r - 0.5 x) / 1.25
+    assert m.A[0, 0] == pytest.approx(-2.0 - 0.5 / 1.25)
+    assert m.D[0, 0] == pytest.approx(0.5 / 1.25)
+    with pytest.raises(ModelStructureError, match="driven by no output"):
+        interconnect([P], inputs="r", outputs="y")
+    with pytest.raises(ModelStructureError, match="is no block's output"):
+        interconnect([P, G], inputs="r", outputs="z")
+    Pa = uss([[-1.0]], [[1.0]], [[1.0]], [[a]], inputs="u", outputs="y")
+    with pytest.raises(ModelStructureError, match="depends on\\s+uncertain reals"):
+        interconnect([Pa, G], inputs="r", outputs="y")

@@ -16,7 +16,8 @@ Public API (import from here; module layout may change):
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`,
   :func:`load_system` (a user's uncertain system from a Python file);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
-  :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`;
+  :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
+  :func:`interconnect` (by signal names);
 * the family's loop as an uncertain system: :func:`family_uss`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * robust margins of a family or an uncertain system: :func:`robust_margin`,
@@ -68,7 +69,7 @@ from uncertainty.sweeps import (
     workspace_sweep,
 )
 from uncertainty.ureal import UExpr, evaluate_matrix, umatrix, ureal
-from uncertainty.uss import USS, uss
+from uncertainty.uss import USS, interconnect, uss
 
 __all__ = [
     "UExpr",
@@ -77,6 +78,7 @@ __all__ = [
     "evaluate_matrix",
     "USS",
     "uss",
+    "interconnect",
     "family_uss",
     "MuBounds",
     "mussv",

@@ -1286,6 +1286,22 @@ def robust_margin(
         Lower bound: ``"eigenvalues"`` or ``"lyapunov"`` (see :func:`margin_lower_bound`).
     progress : callable, optional
         Called with a short message at each step.
+
+    Returns
+    -------
+    MarginResult
+
+    Examples
+    --------
+    A mass on a spring with an uncertain damper: ``s^2 + c s + 4`` decays faster than
+    0.3 1/s while ``c > 0.6``; the damper's low end reaches 0.6 at the scale 0.5:
+
+    >>> from uncertainty import Region, robust_margin, ureal, uss
+    >>> c = ureal("c", 1.0, 0.2, 3.0)
+    >>> G = uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]])
+    >>> res = robust_margin(G, region=Region(decay_rate=0.3))
+    >>> round(res.lower, 3), res.upper, res.critical["parameters"]
+    (0.488, 0.50390625, {'c': 0.596875})
     """
     region = region or Region()
     loop = _loop(family, controller)

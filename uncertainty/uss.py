@@ -11,7 +11,10 @@ one definition: :meth:`USS.nominal` and :meth:`USS.at` give python-control syste
 (intervals and interval gradients included), from which :func:`uncertainty.robust_margin`
 builds its certified enclosures and :func:`uncertainty.validate_family` its batched members.
 
-Not yet: named-signal interconnection and the LFT form.
+:func:`interconnect` joins systems by signal names, as python-control's
+``interconnect`` does implicitly (an input is driven by the output of the same name).
+
+Not yet: the LFT form.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from robust.errors import ModelStructureError, ParameterError
 from uncertainty.ureal import UExpr, evaluate_matrix, merge_parameters
 
-__all__ = ["USS", "uss"]
+__all__ = ["USS", "uss", "interconnect"]
 
 
 def _obj(M, shape=None, where="uss") -> np.ndarray:
@@ -37,6 +40,15 @@ def _obj(M, shape=None, where="uss") -> np.ndarray:
     for idx, v in np.ndenumerate(src):
         out[idx] = UExpr._wrap(v, f"{where} entry {idx}")
     return out
+
+
+def _labels(names, n: int, prefix: str) -> list:
+    if names is None:
+        return [f"{prefix}[{i}]" for i in range(n)]
+    names = [names] if isinstance(names, str) else [str(x) for x in names]
+    if len(names) != n:
+        raise ParameterError(f"uss: {n} {prefix} signal names expected; got {names}")
+    return names
 
 
 def _params(*mats) -> dict:
@@ -69,6 +81,9 @@ class USS:
     A, B, C, D : numpy.ndarray of UExpr
         Conformal uncertain matrices (:func:`uss` checks and converts them).
 
+    inputs, outputs : list of str, optional
+        Signal names (default ``u[i]``, ``y[i]``), used by :func:`interconnect`.
+
     Attributes
     ----------
     A, B, C, D : numpy.ndarray of UExpr
@@ -76,11 +91,15 @@ class USS:
     parameters : dict
         Name -> :class:`~uncertainty.parameters.UncertainParameter` of every uncertain
         real in them.
+    inputs, outputs : list of str
+        Signal names.
     """
 
-    def __init__(self, A, B, C, D):
+    def __init__(self, A, B, C, D, inputs=None, outputs=None):
         self.A, self.B, self.C, self.D = A, B, C, D
         self.parameters = _params(A, B, C, D)
+        self.inputs = _labels(inputs, B.shape[1] if B.ndim == 2 else D.shape[1], "u")
+        self.outputs = _labels(outputs, D.shape[0], "y")
 
     @property
     def nstates(self) -> int:
@@ -201,7 +220,14 @@ class USS:
                 raise ModelStructureError(
                     f"{where}: only continuous-time systems combine with a uss; got dt={other.dt}"
                 )
-            return uss(other.A, other.B, other.C, other.D)
+            return uss(
+                other.A,
+                other.B,
+                other.C,
+                other.D,
+                inputs=list(other.input_labels),
+                outputs=list(other.output_labels),
+            )
         if isinstance(other, ct.TransferFunction):
             return USS._as_uss(ct.ss(other), where)
         try:
@@ -222,7 +248,7 @@ class USS:
         A = _block([[g.A, _dot(g.B, h.C)], [_zeros(h.nstates, g.nstates), h.A]])
         B = _block([[_dot(g.B, h.D)], [h.B]])
         C = _block([[g.C, _dot(g.D, h.C)]])
-        return USS(_obj(A), _obj(B), _obj(C), _obj(_dot(g.D, h.D)))
+        return USS(_obj(A), _obj(B), _obj(C), _obj(_dot(g.D, h.D)), h.inputs, g.outputs)
 
     def __rmul__(self, other) -> USS:
         return self._as_uss(other, "uss *") * self
@@ -235,12 +261,19 @@ class USS:
                 f"uss +: sizes differ ({g.ninputs} -> {g.noutputs} and {h.ninputs} -> {h.noutputs})"
             )
         A = _block([[g.A, _zeros(g.nstates, h.nstates)], [_zeros(h.nstates, g.nstates), h.A]])
-        return USS(_obj(A), _obj(_block([[g.B], [h.B]])), _obj(_block([[g.C, h.C]])), g.D + h.D)
+        return USS(
+            _obj(A),
+            _obj(_block([[g.B], [h.B]])),
+            _obj(_block([[g.C, h.C]])),
+            g.D + h.D,
+            g.inputs,
+            g.outputs,
+        )
 
     __radd__ = __add__
 
     def __neg__(self) -> USS:
-        return USS(self.A, self.B, -self.C, -self.D)
+        return USS(self.A, self.B, -self.C, -self.D, self.inputs, self.outputs)
 
     def __sub__(self, other) -> USS:
         return self + (-self._as_uss(other, "uss -"))
@@ -294,10 +327,10 @@ class USS:
         A = _block([[g.A, _zeros(g.nstates, h.nstates)], [_zeros(h.nstates, g.nstates), h.A]])
         A = A + _block([[_dot(g.B, Cu)], [_dot(h.B, Cy)]])
         B = _block([[_dot(g.B, Du)], [_dot(h.B, Dy)]])
-        return USS(_obj(A), _obj(B), _obj(Cy), _obj(Dy))
+        return USS(_obj(A), _obj(B), _obj(Cy), _obj(Dy), g.inputs, g.outputs)
 
 
-def uss(A, B, C, D) -> USS:
+def uss(A, B, C, D, *, inputs=None, outputs=None) -> USS:
     """An uncertain state-space system from uncertain (or plain) matrices.
 
     Parameters
@@ -305,6 +338,8 @@ def uss(A, B, C, D) -> USS:
     A, B, C, D : array_like
         Matrices of numbers and uncertain expressions (:func:`uncertainty.ureal`);
         ``A`` square (or empty for a static gain), the shapes conformal.
+    inputs, outputs : str or list of str, optional
+        Signal names (default ``u[i]``, ``y[i]``), for :func:`interconnect`.
 
     Returns
     -------
@@ -332,4 +367,114 @@ def uss(A, B, C, D) -> USS:
         raise ModelStructureError(
             f"uss: matrices not conformal: A {A.shape}, B {B.shape}, C {C.shape}, D {D.shape}"
         )
-    return USS(A, B, C, D)
+    return USS(A, B, C, D, inputs, outputs)
+
+
+def _nonzero(M) -> np.ndarray:
+    return np.vectorize(lambda e: not (e._op == "const" and e._args[0] == 0.0), otypes=[bool])(M)
+
+
+def interconnect(systems, inputs, outputs) -> USS:
+    """Systems joined by signal names: every input is driven by the output of its name.
+
+    As python-control's ``interconnect`` with implicit connections: a system input named
+    ``s`` is driven by the output named ``s`` of another system, or by the external input
+    ``s`` (listed in ``inputs``); the result's outputs are the signals named in
+    ``outputs``. Signs and sums go through the systems themselves (a static gain of -1,
+    a summing system ``uss([], [], [], [[1, -1]], inputs=["r", "y"], outputs=["e"])``).
+
+    Parameters
+    ----------
+    systems : sequence of USS, control.StateSpace or control.TransferFunction
+        The blocks, with signal names (python-control's labels are kept).
+    inputs : str or list of str
+        External inputs: the names of block inputs they drive.
+    outputs : str or list of str
+        Signals to expose: names of block outputs.
+
+    Returns
+    -------
+    USS
+        States in the order of ``systems``.
+
+    Raises
+    ------
+    robust.errors.ModelStructureError
+        If an output name is given twice, a block input is driven by nothing, a listed
+        signal does not exist, or the direct feed-throughs close an algebraic loop that
+        depends on an uncertain real (a constant one is solved).
+
+    Examples
+    --------
+    A unit-feedback loop around an uncertain plant, by names:
+
+    >>> from uncertainty import interconnect, ureal, uss
+    >>> a = ureal("a", 1.0, 0.5, 2.0)
+    >>> P = uss([[-a]], [[1]], [[1]], [[0]], inputs="u", outputs="y")
+    >>> E = uss([], [], [], [[1, -1]], inputs=["r", "y"], outputs="u")
+    >>> T = interconnect([P, E], inputs="r", outputs="y")
+    >>> float(T.at({"a": 2.0}).poles()[0].real)
+    -3.0
+    """
+    syss = [USS._as_uss(s, "interconnect") for s in systems]
+    ext = [inputs] if isinstance(inputs, str) else list(inputs)
+    outs = [outputs] if isinstance(outputs, str) else list(outputs)
+    u_all = [n for s in syss for n in s.inputs]
+    y_all = [n for s in syss for n in s.outputs]
+    dup = sorted({n for n in y_all if y_all.count(n) > 1})
+    if dup:
+        raise ModelStructureError(f"interconnect: output names must be unique; {dup} repeat")
+    for n in u_all:
+        if n not in y_all and n not in ext:
+            raise ModelStructureError(
+                f"interconnect: input {n!r} is driven by no output and is not an external input"
+            )
+    for n in ext:
+        if n not in u_all:
+            raise ModelStructureError(f"interconnect: external input {n!r} drives no block")
+    for n in outs:
+        if n not in y_all:
+            raise ModelStructureError(f"interconnect: output {n!r} is no block's output")
+    nx = [s.nstates for s in syss]
+    n, m, p = sum(nx), len(u_all), len(y_all)
+    A, B, C, D = _zeros(n, n), _zeros(n, m), _zeros(p, n), _zeros(p, m)
+    x = u = y = 0
+    for s in syss:
+        A[x : x + s.nstates, x : x + s.nstates] = s.A
+        B[x : x + s.nstates, u : u + s.ninputs] = s.B
+        C[y : y + s.noutputs, x : x + s.nstates] = s.C
+        D[y : y + s.noutputs, u : u + s.ninputs] = s.D
+        x, u, y = x + s.nstates, u + s.ninputs, y + s.noutputs
+    M = np.array([[1.0 if ui == yk else 0.0 for yk in y_all] for ui in u_all]).reshape(m, p)
+    E = np.array([[1.0 if ui == w else 0.0 for w in ext] for ui in u_all]).reshape(m, len(ext))
+    # y = C x + D (M y + E w): y = (I - D M)^-1 (C x + D E w)
+    DM = _dot(D, _obj(M))
+    rhs_x, rhs_w = C, _dot(D, _obj(E))
+    pattern = _nonzero(DM) if DM.size else np.zeros((p, p), bool)
+    power, terms = pattern.copy(), 0
+    while power.any() and terms <= p:
+        terms += 1
+        power = (power.astype(int) @ pattern.astype(int)) > 0
+    if terms <= p:  # nilpotent: a finite series
+        Yx, Yw, tx, tw = rhs_x, rhs_w, rhs_x, rhs_w
+        for _ in range(terms):
+            tx, tw = _dot(DM, tx), _dot(DM, tw)
+            Yx, Yw = Yx + tx, Yw + tw
+    elif not any(e.parameters for e in DM.flat):
+        num = np.array([[e.nominal() for e in row] for row in DM]).reshape(p, p)
+        try:
+            inv = _obj(np.linalg.inv(np.eye(p) - num))
+        except np.linalg.LinAlgError:
+            raise ModelStructureError("interconnect: the algebraic loop is singular") from None
+        Yx, Yw = _dot(inv, rhs_x), _dot(inv, rhs_w)
+    else:
+        raise ModelStructureError(
+            "interconnect: the direct feed-throughs close an algebraic loop that depends on "
+            "uncertain reals; not supported"
+        )
+    BM = _dot(B, _obj(M))
+    Anew = A + _dot(BM, Yx)
+    Bnew = _dot(B, _obj(E)) + _dot(BM, Yw)
+    S = np.array([[1.0 if yk == o else 0.0 for yk in y_all] for o in outs]).reshape(len(outs), p)
+    Cnew, Dnew = _dot(_obj(S), Yx), _dot(_obj(S), Yw)
+    return USS(_obj(Anew), _obj(Bnew), _obj(Cnew), _obj(Dnew), ext, outs)
