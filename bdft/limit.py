@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from bdft.args import UsageError, check_report_dir, factor_list, integer, seed
-from bdft.common import add_jobs_argument, member_progress, print_json
+from bdft.common import add_jobs_argument, add_scheduler_argument, member_progress, print_json
 from designs.limit import (
     ALL_SETS,
     DEFAULT_SETS,
@@ -83,6 +83,7 @@ def register(sub) -> None:
         "(0: skipped; default: %(default)s)",
     )
     add_jobs_argument(p)
+    add_scheduler_argument(p)
     p.add_argument(
         "--out",
         default="reports/out/limit",
@@ -100,7 +101,8 @@ def run(args) -> int:
     args : argparse.Namespace
         Parsed ``bdft limit`` options: ``samples``, ``seed``, ``sets``, ``force_scales``
         (empty is refused), ``basis_check`` (members of the convergence check, 0 skips
-        it), ``jobs``, ``out`` (report folder, checked before any work) and ``json``.
+        it), ``jobs``, ``scheduler`` (a Dask scheduler's address), ``out`` (report folder,
+        checked before any work) and ``json``.
 
     Returns
     -------
@@ -122,11 +124,14 @@ def run(args) -> int:
         force_scales=args.force_scales,
         n_jobs=args.jobs,
         progress=member_progress("limit map"),
+        scheduler=args.scheduler,
     )
     t1 = time.perf_counter()
     basis = None
     if args.basis_check:
-        basis = basis_check(family, lm, members=args.basis_check, n_jobs=args.jobs)
+        basis = basis_check(
+            family, lm, members=args.basis_check, n_jobs=args.jobs, scheduler=args.scheduler
+        )
     t2 = time.perf_counter()
     index = write_limit_report(lm, out, basis=basis)
     print(

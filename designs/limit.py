@@ -49,7 +49,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 import scipy.signal as sig
-from joblib import Parallel, delayed
+from joblib import delayed
 
 from designs.evaluate import intended_motion, output_ratio
 from designs.spec import (
@@ -61,6 +61,7 @@ from designs.spec import (
 )
 from robust.analysis.loops import resolvent_times
 from robust.checks import check_int
+from robust.engine import map_tasks
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.model.wiring import connect
 from robust.synthesis.forcefb import intent_filter
@@ -850,19 +851,22 @@ def _member_limits(family, row, sets, spec, seed, basis_poles, duration_s):
     return out
 
 
-def _run(tasks, n_jobs: int, progress=None, total: int | None = None) -> list:
-    """Run joblib tasks in order, in this process (``n_jobs`` 1) or in ``n_jobs`` processes."""
-    runner = (
-        (fn(*args, **kw) for fn, args, kw in tasks)
-        if n_jobs == 1
-        else Parallel(n_jobs=n_jobs, return_as="generator", batch_size=2)(tasks)
-    )
-    out = []
-    for res in runner:
-        out.append(tuple(res))
+def _call(task):
+    fn, args, kw = task
+    return tuple(fn(*args, **kw))
+
+
+def _run(tasks, n_jobs: int, progress=None, total: int | None = None, scheduler=None) -> list:
+    """Run joblib-style tasks in order: in this process (``n_jobs`` 1), in ``n_jobs``
+    processes or on a Dask cluster (:func:`robust.engine.map_tasks`)."""
+    done = [0]
+
+    def step(_i):
+        done[0] += 1
         if progress:
-            progress(len(out), total or len(tasks))
-    return out
+            progress(done[0], total or len(tasks))
+
+    return map_tasks(_call, list(tasks), jobs=n_jobs, scheduler=scheduler, progress=step)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1056,6 +1060,7 @@ def limit_map(
     duration_s: float = 20.0,
     n_jobs: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    scheduler: str | None = None,
 ) -> LimitMap:
     """The limit map of ``family`` (module notes): every member's limit for every set.
 
@@ -1084,6 +1089,9 @@ def limit_map(
         Parallel processes.
     progress : callable, optional
         ``progress(done, total)`` members.
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the members run on
+        its workers; the same map.
 
     Returns
     -------
@@ -1116,7 +1124,7 @@ def limit_map(
         delayed(_member_task)(family, values[i], sets, spec, seed + i, poles, duration_s)
         for i in range(len(values))
     ]
-    results = _run(tasks, n_jobs, progress)
+    results = _run(tasks, n_jobs, progress, scheduler=scheduler)
     return LimitMap(
         names=tuple(family.names),
         values=values,
@@ -1140,6 +1148,7 @@ def basis_check(
     sets=None,
     spec: Specification | None = None,
     n_jobs: int = 1,
+    scheduler: str | None = None,
 ) -> dict:
     """How much a richer basis lowers the map's limits: the first members with twice the lags.
 
@@ -1163,6 +1172,8 @@ def basis_check(
         The map's specification.
     n_jobs : int
         Parallel processes.
+    scheduler : str, optional
+        A Dask scheduler's address (see :func:`limit_map`).
 
     Returns
     -------
@@ -1184,7 +1195,7 @@ def basis_check(
         delayed(_member_task)(family, lm.values[i], sets, spec, lm.seed + int(i), rich, 20.0)
         for i in idx
     ]
-    runner = _run(tasks, n_jobs)
+    runner = _run(tasks, n_jobs, scheduler=scheduler)
     out = {}
     for j, name in enumerate(sets):
         k = lm.sets.index(name)

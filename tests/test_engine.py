@@ -80,3 +80,17 @@ def test_validate_command_prints_the_same_json_with_a_scheduler(cluster, capsys)
     assert main(args + ["--scheduler", cluster.scheduler_address]) == 0
     assert json.loads(capsys.readouterr().out) == plain
     assert plain["samples"] == TASK_MEMBERS + 10
+
+
+def test_limit_map_is_the_same_on_a_dask_cluster(cluster, tmp_path, capsys):
+    outs = []
+    for extra in (["--jobs", "1"], ["--scheduler", cluster.scheduler_address]):
+        argv = ["limit", "--samples", "2", "--sets", "force/handle", "--basis-check", "1"]
+        argv += [*extra, "--out", str(tmp_path / f"l{len(outs)}"), "--json"]
+        assert main(argv) == 0
+        obj = json.loads(capsys.readouterr().out)
+        obj.pop("report")
+        outs.append(json.dumps(obj, sort_keys=True))
+    assert outs[0] == outs[1]
+    obj = json.loads(outs[0])
+    assert obj["sets"][0]["samples"] == 2 and len(obj["critical"]) == 2
