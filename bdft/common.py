@@ -123,9 +123,10 @@ def add_scheduler_argument(p) -> None:
         "--scheduler",
         metavar="ADDRESS",
         default=None,
-        help="address of a Dask scheduler (tcp://host:8786) whose workers run the tasks "
-        "(default: $DASK_SCHEDULER_ADDRESS if set, else local processes, --jobs); the same "
-        'results as a local run; needs pip install ".[distributed]"',
+        help="address of a Dask scheduler (tcp://host:8786) whose workers run the tasks, or "
+        "local:N for a local Dask cluster of N workers (default: $DASK_SCHEDULER_ADDRESS if "
+        "set, else local processes, --jobs); the same results as a local run; needs pip "
+        'install ".[distributed]"',
     )
 
 

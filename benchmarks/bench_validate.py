@@ -44,7 +44,7 @@ def main_(argv=None) -> None:
 
     base = ["validate", "--samples", str(a.samples), "--json"]
     with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as cluster:
         ways = {
             "serial (--jobs 1)": base + ["--jobs", "1"],

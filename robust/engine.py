@@ -7,7 +7,8 @@ the results in the arguments' order, whichever engine runs them:
 * in ``jobs`` local worker processes through joblib's loky backend;
 * on a Dask distributed cluster (``scheduler="tcp://host:8786"``, or the address in the
   ``DASK_SCHEDULER_ADDRESS`` environment variable, Dask's own convention), its workers
-  wherever they run.
+  wherever they run; ``scheduler="local:N"`` starts a local Dask cluster of ``N``
+  single-threaded worker processes for the call.
 
 The engine changes where the work runs, never what it computes: each task is a pure
 function of its arguments (seeds included), and the results come back in order, so the
@@ -19,6 +20,7 @@ says so.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Sequence
 
@@ -38,7 +40,8 @@ def scheduler_address(address: str | None = None) -> str | None:
     Parameters
     ----------
     address : str, optional
-        An explicit address (``tcp://host:port``, or a scheduler file path).
+        An explicit address (``tcp://host:port``), or ``local:N`` (a local cluster of
+        ``N`` workers started for the call).
     """
     if address:
         return str(address)
@@ -46,20 +49,40 @@ def scheduler_address(address: str | None = None) -> str | None:
     return env or None
 
 
+@contextlib.contextmanager
 def _client(address: str):
     try:
-        from distributed import Client
+        from distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - depends on the installation
         raise ParameterError(
             f"scheduler {address!r}: Dask distributed is not installed; "
             'pip install ".[distributed]" (or run without a scheduler)'
         ) from None
+    if address.startswith("local:"):
+        try:
+            n = int(address[len("local:") :])
+        except ValueError:
+            n = 0
+        if not 1 <= n <= 256:
+            raise ParameterError(
+                f"scheduler: expected local:N with 1 <= N <= 256 workers; got {address!r}"
+            )
+        with (
+            LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            yield client
+        return
     try:
-        return Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
+        client = Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
     except (OSError, TimeoutError) as exc:
         raise BDFTError(
             f"scheduler {address!r}: cannot connect to the Dask scheduler: {exc}"
         ) from None
+    with client:
+        yield client
 
 
 def map_tasks(

@@ -25,7 +25,7 @@ def _power(k, x):
 @pytest.fixture(scope="module")
 def cluster():
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as c:
         yield c
 
@@ -94,3 +94,10 @@ def test_limit_map_is_the_same_on_a_dask_cluster(cluster, tmp_path, capsys):
     assert outs[0] == outs[1]
     obj = json.loads(outs[0])
     assert obj["sets"][0]["samples"] == 2 and len(obj["critical"]) == 2
+
+
+def test_a_local_dask_cluster_on_request():
+    fn = functools.partial(_power, 2)
+    assert map_tasks(fn, [1.0, 2.0, 3.0], scheduler="local:2") == [fn(x) for x in (1, 2, 3)]
+    with pytest.raises(ParameterError, match="local:N"):
+        map_tasks(fn, [1.0], scheduler="local:zero")
