@@ -18,7 +18,8 @@ Public API (import from here; module layout may change):
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
   :func:`interconnect` (by signal names);
-* the family's loop as an uncertain system: :func:`family_uss`;
+* the family's loop as an uncertain system: :func:`family_uss`; the LFT form of an
+  uncertain system: :func:`lft_form`, :class:`LFTForm`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
 * robust margins of a family or an uncertain system: :func:`robust_margin`,
   :class:`Region`, :class:`MarginResult`, :func:`margin_lower_bound`,
@@ -48,6 +49,7 @@ from uncertainty.family import (
     default_family,
 )
 from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
+from uncertainty.lft import LFTForm, lft_form
 from uncertainty.loop import family_uss
 from uncertainty.margins import (
     MarginResult,
@@ -80,6 +82,8 @@ __all__ = [
     "uss",
     "interconnect",
     "family_uss",
+    "LFTForm",
+    "lft_form",
     "MuBounds",
     "mussv",
     "Region",

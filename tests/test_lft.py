@@ -1,0 +1,85 @@
+"""The LFT form of an uncertain system closes back to the system, member by member."""
+
+from __future__ import annotations
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from robust.errors import ParameterError
+from uncertainty import default_family, family_uss, lft_form, ureal, uss
+
+
+def _members_agree(system, n=5, seed=0, rtol=1e-12):
+    F = lft_form(system)
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        d = {name: rng.uniform(-1, 1) for name in system.parameters}
+        vals = {name: F.centre[name] + F.half_width[name] * d[name] for name in d}
+        got, want = F.close(d), system.at(vals)
+        for X, Y in zip((got.A, got.B, got.C, got.D), (want.A, want.B, want.C, want.D)):
+            if np.size(Y) == 0:
+                assert np.size(X) == 0
+                continue
+            assert np.abs(np.asarray(X) - np.asarray(Y)).max() <= rtol * max(
+                1.0, np.abs(np.asarray(Y)).max()
+            )
+    return F
+
+
+def test_rational_entries_with_a_controller():
+    k = ureal("k", 1.0, 0.5, 2.0)
+    m2 = ureal("m2", 1.0, 0.8, 1.5)
+    c = 0.05
+    A = [[0, 0, 1, 0], [0, 0, 0, 1], [-k, k, -c, c], [k / m2, -k / m2, c / m2, -c / m2]]
+    G = uss(A, [[0], [0], [1], [0]], [[1, 0, 0, 0]], [[0]])
+    F = _members_agree(G.feedback(ct.ss(ct.tf([4.0, 2.0], [0.05, 1.0]))))
+    # k appears in four entries, m2 in four divisions
+    assert F.blocks == [("k", 4), ("m2", 4)] and F.mu_blocks == [(4, "real"), (4, "real")]
+    assert F.M.ninputs == 8 + 1 and F.M.noutputs == 8 + 1 and F.M.nstates == 5
+    # the centre of the box is delta = 0
+    assert F.centre == {"k": 1.25, "m2": 1.15} and F.half_width["k"] == pytest.approx(0.75)
+
+
+def test_powers_products_and_uncertain_input_output_matrices():
+    w = ureal("w", 2 * math.pi, math.pi, 4 * math.pi)
+    z = ureal("z", 0.5, 0.2, 0.8)
+    g = ureal("g", 1.0, 0.5, 3.0)
+    G = uss([[0, 1], [-(w**2), -2 * z * w]], [[0], [g * w**2]], [[1 / g, 0]], [[g - 1]])
+    F = _members_agree(G)
+    assert [b[0] for b in F.blocks] == ["w", "z", "g"]
+
+
+def test_the_bdft_family_in_lft_form():
+    for human in ("literal", "physical"):
+        F = _members_agree(family_uss(default_family(human)), n=3, rtol=1e-12)
+        assert len(F.blocks) == len(default_family(human).names)
+        # no reduction is attempted: the repetitions are the parameters' occurrences
+        assert sum(r for _, r in F.blocks) >= 40
+
+
+def test_a_divisor_at_the_centre_is_refused():
+    d = ureal("d", 1.0, -1.0, 1.0)  # centre 0
+    with pytest.raises(ParameterError, match="divisor is 0 at the centre"):
+        lft_form(uss([[-1.0 / d]], [[1.0]], [[1.0]], [[0.0]]))
+
+
+def test_the_lft_feeds_mussv_with_the_exact_margin():
+    # s^2 + c s + 4, c in [0.2, 3]: centre 1.6, half-width 1.4; the loop loses stability at
+    # c = 0 (poles +-2j), delta = -1.6 / 1.4, so mu of M_zw(j2) is 1.4 / 1.6 and a real
+    # parameter gives mu 0 where M_zw is not real
+    from uncertainty import mussv
+
+    c = ureal("c", 1.0, 0.2, 3.0)
+    F = lft_form(uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]]))
+    A, B, C, D = (np.asarray(x) for x in (F.M.A, F.M.B, F.M.C, F.M.D))
+
+    def mzw(w):
+        return D[:1, :1] + C[:1] @ np.linalg.solve(1j * w * np.eye(2) - A, B[:, :1])
+
+    at2 = mussv(mzw(2.0), F.mu_blocks)
+    assert at2.lower == pytest.approx(1.4 / 1.6, rel=1e-6)
+    assert at2.upper == pytest.approx(1.4 / 1.6, rel=1e-3) and at2.upper >= at2.lower
+    assert mussv(mzw(1.0), F.mu_blocks).upper < 0.05

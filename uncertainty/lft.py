@@ -1,0 +1,234 @@
+"""The linear fractional (LFT) form of an uncertain system.
+
+Every uncertain real ``p`` with range ``[low, high]`` is written ``p = c + h delta`` with
+``c`` the range's centre, ``h`` its half-width and ``|delta| <= 1``. Each entry of the
+system's matrices is a rational expression of the ``p``, so it is an LFT of the
+``delta`` (Zhou, Doyle & Glover, *Robust and Optimal Control*, 1996, ch. 10): built node by
+node from the expression, with the rules
+
+* a parameter: ``c + h delta`` (one channel);
+* a sum: the two LFTs side by side; a product: their series connection;
+* a reciprocal ``1 / e``: the inverse of ``e``'s LFT (its constant part must not be 0);
+* an integer power: repeated products.
+
+The entries are then stacked into ``S(delta) = [[A, B], [C, D]] = S0 + L Delta (I - F
+Delta)^-1 R`` with ``Delta`` block diagonal, each parameter's channels together
+(``delta_i I_{r_i}``), and the system becomes the constant system ``M`` (a python-control
+state space) with ``[w; u] -> [z; y]`` closed by ``w = Delta z``: the form a mu analysis
+takes (:func:`uncertainty.mussv` on ``M(jw)`` with ``(r_i, "real")`` blocks).
+
+The repetitions ``r_i`` are the number of times a parameter appears in the expressions
+(no reduction is attempted): small for small systems, large for the BDFT loop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control as ct
+import numpy as np
+
+from robust.errors import ModelStructureError, ParameterError
+from uncertainty.ureal import UExpr
+
+__all__ = ["LFTForm", "lft_form"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Scalar:
+    """``d + c Delta (I - a Delta)^-1 b`` with ``Delta = diag(delta of names[k])``."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    d: float
+    names: tuple
+
+    @staticmethod
+    def const(v: float) -> _Scalar:
+        return _Scalar(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), float(v), ())
+
+    def __add__(self, o: _Scalar) -> _Scalar:
+        r1, r2 = len(self.names), len(o.names)
+        a = np.block([[self.a, np.zeros((r1, r2))], [np.zeros((r2, r1)), o.a]])
+        return _Scalar(
+            a,
+            np.vstack([self.b, o.b]),
+            np.hstack([self.c, o.c]),
+            self.d + o.d,
+            self.names + o.names,
+        )
+
+    def __neg__(self) -> _Scalar:
+        return _Scalar(self.a, self.b, -self.c, -self.d, self.names)
+
+    def __mul__(self, o: _Scalar) -> _Scalar:
+        # series: o first, then self (scalars commute; the channel order is self's, o's)
+        r1, r2 = len(self.names), len(o.names)
+        a = np.block([[self.a, self.b @ o.c], [np.zeros((r2, r1)), o.a]])
+        b = np.vstack([self.b * o.d, o.b])
+        c = np.hstack([self.c, self.d * o.c])
+        return _Scalar(a, b, c, self.d * o.d, self.names + o.names)
+
+    def reciprocal(self) -> _Scalar:
+        if self.d == 0.0:
+            raise ParameterError(
+                "lft_form: a divisor is 0 at the centre of its parameters' ranges; its "
+                "reciprocal has no LFT about that centre"
+            )
+        di = 1.0 / self.d
+        return _Scalar(self.a - di * (self.b @ self.c), di * self.b, -di * self.c, di, self.names)
+
+
+def _scalar(e: UExpr, centre: dict, half: dict, memo: dict) -> _Scalar:
+    key = id(e)
+    if key in memo:
+        return memo[key]
+    op, args = e._op, e._args
+    if op == "const":
+        out = _Scalar.const(args[0])
+    elif op == "param":
+        name = args[0].name
+        out = _Scalar(
+            np.zeros((1, 1)), np.ones((1, 1)), np.full((1, 1), half[name]), centre[name], (name,)
+        )
+    elif op == "neg":
+        out = -_scalar(args[0], centre, half, memo)
+    elif op == "pow":
+        base, k = _scalar(args[0], centre, half, memo), args[1]
+        out = _Scalar.const(1.0)
+        for _ in range(abs(k)):
+            out = out * base
+        if k < 0:
+            out = out.reciprocal()
+    else:
+        x, y = _scalar(args[0], centre, half, memo), _scalar(args[1], centre, half, memo)
+        if op == "+":
+            out = x + y
+        elif op == "-":
+            out = x + (-y)
+        elif op == "*":
+            out = x * y
+        else:
+            out = x * y.reciprocal()
+    memo[key] = out
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class LFTForm:
+    """An uncertain system as a constant system closed by a structured ``Delta``.
+
+    Parameters
+    ----------
+    M : control.StateSpace
+        Inputs ``w[0..R-1]`` then the system's inputs; outputs ``z[0..R-1]`` then the
+        system's outputs; the system's states.
+    blocks : list of (str, int)
+        Per uncertain real, in the order of the channels: its name and repetition ``r_i``
+        (``Delta = diag(delta_1 I_{r_1}, ...)``, ``|delta_i| <= 1``).
+    centre, half_width : dict
+        Per uncertain real, ``p = centre + half_width * delta``.
+    """
+
+    M: ct.StateSpace
+    blocks: list
+    centre: dict
+    half_width: dict
+
+    @property
+    def mu_blocks(self) -> list:
+        """The block structure as :func:`uncertainty.mussv` takes it."""
+        return [(r, "real") for _, r in self.blocks]
+
+    def close(self, deltas) -> ct.StateSpace:
+        """The member at normalised values ``deltas`` (name -> delta in [-1, 1]).
+
+        Parameters
+        ----------
+        deltas : mapping
+            Name -> delta; parameters not given are at the centre of their range.
+        """
+        d = np.concatenate([np.full(r, float(deltas.get(n, 0.0))) for n, r in self.blocks])
+        R = d.size
+        A, B, C, D = (np.asarray(x, float) for x in (self.M.A, self.M.B, self.M.C, self.M.D))
+        Dl = np.diag(d)
+        F = D[:R, :R]
+        K = np.linalg.solve(np.eye(R) - Dl @ F, Dl)  # w = K z0, z0 = C_z x + D_zu u
+        Ac = A + B[:, :R] @ K @ C[:R]
+        Bc = B[:, R:] + B[:, :R] @ K @ D[:R, R:]
+        Cc = C[R:] + D[R:, :R] @ K @ C[:R]
+        Dc = D[R:, R:] + D[R:, :R] @ K @ D[:R, R:]
+        return ct.ss(Ac, Bc, Cc, Dc)
+
+
+def lft_form(system) -> LFTForm:
+    """The LFT form of an uncertain system (see the module notes).
+
+    Parameters
+    ----------
+    system : USS
+        The uncertain system.
+
+    Returns
+    -------
+    LFTForm
+
+    Raises
+    ------
+    ParameterError
+        If a divisor is 0 at the centre of the box (no LFT about that centre).
+
+    Examples
+    --------
+    >>> from uncertainty import ureal, uss
+    >>> from uncertainty.lft import lft_form
+    >>> k = ureal("k", 4.0, 2.0, 6.0)
+    >>> m = ureal("m", 1.0, 0.5, 1.5)
+    >>> G = uss([[0, 1], [-k / m, -0.1]], [[0], [1]], [[1, 0]], [[0]])
+    >>> F = lft_form(G)
+    >>> F.blocks, F.mu_blocks
+    ([('k', 1), ('m', 1)], [(1, 'real'), (1, 'real')])
+    >>> float(F.close({"k": 1.0, "m": -1.0}).A[1, 0])  # -6 / 0.5
+    -12.0
+    """
+    from uncertainty.uss import USS
+
+    if not isinstance(system, USS):
+        raise ModelStructureError(f"lft_form: expected a uss; got {type(system).__name__}")
+    params = system.parameters
+    centre = {n: 0.5 * (p.low + p.high) for n, p in params.items()}
+    half = {n: 0.5 * (p.high - p.low) for n, p in params.items()}
+    n, m, q = system.nstates, system.ninputs, system.noutputs
+    S = np.block([[system.A, system.B], [system.C, system.D]]) if n else system.D
+    S = np.asarray(S, dtype=object).reshape(n + q, n + m)
+    entries = {}
+    for idx, e in np.ndenumerate(S):
+        entries[idx] = _scalar(e, centre, half, {})
+    # channels: grouped by parameter (in the system's parameter order)
+    chans = [(idx, k, name) for idx, s in entries.items() for k, name in enumerate(s.names)]
+    order = sorted(range(len(chans)), key=lambda i: (list(params).index(chans[i][2]), i))
+    pos = {(chans[i][0], chans[i][1]): j for j, i in enumerate(order)}
+    R = len(chans)
+    F = np.zeros((R, R))
+    L = np.zeros((n + q, R))
+    Rm = np.zeros((R, n + m))
+    S0 = np.zeros((n + q, n + m))
+    for (i, j), s in entries.items():
+        S0[i, j] = s.d
+        cols = [pos[((i, j), k)] for k in range(len(s.names))]
+        if cols:
+            F[np.ix_(cols, cols)] = s.a
+            L[i, cols] = s.c[0]
+            Rm[cols, j] = s.b[:, 0]
+    M = ct.ss(
+        S0[:n, :n],
+        np.hstack([L[:n], S0[:n, n:]]),
+        np.vstack([Rm[:, :n], S0[n:, :n]]),
+        np.block([[F, Rm[:, n:]], [L[n:], S0[n:, n:]]]),
+        inputs=[f"w[{k}]" for k in range(R)] + list(system.inputs),
+        outputs=[f"z[{k}]" for k in range(R)] + list(system.outputs),
+    )
+    counts = [chans[i][2] for i in order]
+    blocks = [(name, counts.count(name)) for name in params if name in counts]
+    return LFTForm(M=M, blocks=blocks, centre=centre, half_width=half)
