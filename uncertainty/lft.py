@@ -30,6 +30,7 @@ import numpy as np
 
 from robust.errors import ModelStructureError, ParameterError
 from uncertainty.ureal import UExpr
+from uncertainty.uss import USS
 
 __all__ = ["LFTForm", "lft_form"]
 
@@ -192,8 +193,6 @@ def lft_form(system) -> LFTForm:
     >>> float(F.close({"k": 1.0, "m": -1.0}).A[1, 0])  # -6 / 0.5
     -12.0
     """
-    from uncertainty.uss import USS
-
     if not isinstance(system, USS):
         raise ModelStructureError(f"lft_form: expected a uss; got {type(system).__name__}")
     params = system.parameters

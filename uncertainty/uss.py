@@ -14,7 +14,7 @@ builds its certified enclosures and :func:`uncertainty.validate_family` its batc
 :func:`interconnect` joins systems by signal names, as python-control's
 ``interconnect`` does implicitly (an input is driven by the output of the same name).
 
-:meth:`USS.lft` gives the LFT form (:mod:`uncertainty.lft`).
+:func:`uncertainty.lft_form` gives the LFT form (:mod:`uncertainty.lft`).
 """
 
 from __future__ import annotations
@@ -196,15 +196,6 @@ class USS:
             for j, v in enumerate(row):
                 out[:, i, j] = v
         return out
-
-    def lft(self):
-        """The LFT form: a constant system closed by the normalised uncertain reals.
-
-        See :func:`uncertainty.lft.lft_form`.
-        """
-        from uncertainty.lft import lft_form
-
-        return lft_form(self)
 
     def at(self, values: Mapping) -> ct.StateSpace:
         """The member at ``values`` (name -> number; others nominal), a python-control system."""
