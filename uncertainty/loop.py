@@ -35,7 +35,7 @@ from robust.errors import ParameterError
 from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
 from uncertainty.ureal import UExpr, umatrix
-from uncertainty.uss import USS
+from uncertainty.uss import USS, nonzero_pattern
 
 __all__ = ["Algebra", "INTERVALS", "UNCERTAIN", "LoopAssembly", "fixed_parameters", "family_uss"]
 
@@ -87,10 +87,6 @@ def _object_blockdiag(mats) -> np.ndarray:
     return out
 
 
-def _object_pattern(X) -> np.ndarray:
-    return np.vectorize(lambda e: not (e._op == "const" and e._args[0] == 0.0), otypes=[bool])(X)
-
-
 #: Intervals and interval gradients: the certified enclosures.
 INTERVALS = Algebra(
     matrix=imatrix,
@@ -110,7 +106,7 @@ UNCERTAIN = Algebra(
     constant=umatrix,
     square=lambda x: x**2 if isinstance(x, UExpr) else x * x,
     reciprocal=lambda x: 1.0 / x,
-    nonzero=_object_pattern,
+    nonzero=nonzero_pattern,
 )
 
 

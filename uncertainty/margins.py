@@ -578,24 +578,26 @@ def _critical(loop, row, region, k):
 
 
 # -- interval enclosure of the closed-loop matrix ---------------------------------------------
-def _param_intervals(family: Family, lo: np.ndarray, hi: np.ndarray, derivatives: bool) -> dict:
-    """Every model parameter over the box: the varied ones as intervals (or as
-    :class:`Gradient` variables in the family's coordinates, log for log-uniform), the
-    others fixed."""
-    logs = [p.distribution == "loguniform" for p in family.parameters]
-    cols = {n: (j, a, b) for j, (n, a, b) in enumerate(zip(family.names, lo, hi))}
-    d = len(family.names)
+def _box_variables(parameters, lo, hi, derivatives: bool) -> dict:
+    """The varied parameters over the box ``lo .. hi``: intervals, or :class:`Gradient`
+    variables in the parameters' coordinates (log for log-uniform: d value / d t is the
+    value itself, 1 for linear)."""
+    d = len(parameters)
     out = {}
-    for name, val in fixed_parameters(family).items():
-        if name not in cols:
-            out[name] = Interval.point(val)
-            continue
-        j, a, b = cols[name]
+    for j, (p, a, b) in enumerate(zip(parameters, lo, hi)):
         if not derivatives:
-            out[name] = Interval.hull(a, b)
-        else:  # d value / d t is 1 (linear) or the value itself (t = log value)
-            dv = Interval.hull(a, b) if logs[j] else None
-            out[name] = Gradient.variable(a, b, j, d, dvalue=dv)
+            out[p.name] = Interval.hull(a, b)
+        else:
+            dv = Interval.hull(a, b) if p.distribution == "loguniform" else None
+            out[p.name] = Gradient.variable(a, b, j, d, dvalue=dv)
+    return out
+
+
+def _param_intervals(family: Family, lo: np.ndarray, hi: np.ndarray, derivatives: bool) -> dict:
+    """Every model parameter over the box: the varied ones as :func:`_box_variables`, the
+    others fixed."""
+    out = {n: Interval.point(v) for n, v in fixed_parameters(family).items()}
+    out.update(_box_variables(family.parameters, lo, hi, derivatives))
     return out
 
 
@@ -710,15 +712,7 @@ class _SystemLoop:
 
     def enclosure(self, lo, hi, derivatives: bool):
         """Interval (or :class:`Gradient`) enclosure of the state matrix over a box."""
-        logs = [p.distribution == "loguniform" for p in self.parameters]
-        d = len(self.names)
-        vals = {}
-        for j, (name, a, b) in enumerate(zip(self.names, lo, hi)):
-            if not derivatives:
-                vals[name] = Interval.hull(a, b)
-            else:
-                dv = Interval.hull(a, b) if logs[j] else None
-                vals[name] = Gradient.variable(a, b, j, d, dvalue=dv)
+        vals = _box_variables(self.parameters, lo, hi, derivatives)
         try:
             return imatrix(self.system.state_matrix(vals))
         except ParameterError as exc:

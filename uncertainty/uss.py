@@ -27,7 +27,7 @@ import numpy as np
 from robust.errors import ModelStructureError, ParameterError
 from uncertainty.ureal import UExpr, evaluate_matrix, merge_parameters
 
-__all__ = ["USS", "uss", "interconnect"]
+__all__ = ["USS", "uss", "interconnect", "nonzero_pattern"]
 
 
 def _obj(M, shape=None, where="uss") -> np.ndarray:
@@ -370,7 +370,14 @@ def uss(A, B, C, D, *, inputs=None, outputs=None) -> USS:
     return USS(A, B, C, D, inputs, outputs)
 
 
-def _nonzero(M) -> np.ndarray:
+def nonzero_pattern(M) -> np.ndarray:
+    """The entries of an uncertain matrix that are not the constant 0 (bool array).
+
+    Parameters
+    ----------
+    M : numpy.ndarray of UExpr
+        The matrix.
+    """
     return np.vectorize(lambda e: not (e._op == "const" and e._args[0] == 0.0), otypes=[bool])(M)
 
 
@@ -450,7 +457,7 @@ def interconnect(systems, inputs, outputs) -> USS:
     # y = C x + D (M y + E w): y = (I - D M)^-1 (C x + D E w)
     DM = _dot(D, _obj(M))
     rhs_x, rhs_w = C, _dot(D, _obj(E))
-    pattern = _nonzero(DM) if DM.size else np.zeros((p, p), bool)
+    pattern = nonzero_pattern(DM) if DM.size else np.zeros((p, p), bool)
     power, terms = pattern.copy(), 0
     while power.any() and terms <= p:
         terms += 1
