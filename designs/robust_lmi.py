@@ -13,7 +13,10 @@ The design, top to bottom (the same steps serve the three designs of this module
    * design members: the nominal, then the member of the scaled box whose closed-loop
      poles break the region most (:func:`uncertainty.margins.worst_member`) and the
      sampled member that binds the specification;
-   * synthesis: :func:`robust.synthesis.tuning.tune_members` (the nonsmooth start), then
+   * synthesis: a start placing every design member's poles in the region with the
+     budgets' largest utilisation minimised, by linear programs
+     (:func:`robust.synthesis.tuning.minimax_start`; where they end outside the region,
+     the nonsmooth tuning :func:`robust.synthesis.tuning.tune_members`), then
      :func:`robust.synthesis.pk.pksyn_multi`, the LMI synthesis: the P-K iteration with
      a certificate per design member (bounded-real with decay rate, H2 for the RMS
      force, Chilali-Gahinet region);
@@ -49,7 +52,7 @@ from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import deterministic_solvers
-from robust.synthesis.tuning import tune_members
+from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty.margins import margin_lower_bound, scaled_bounds, worst_member
 
 __all__ = [
@@ -66,6 +69,9 @@ __all__ = [
     "DESIGN_CYLINDER",
     "DESIGN_WORKSPACE_FORCE",
 ]
+
+#: Ways of bringing a round's controller into the region (:class:`RobustOptions`).
+START_METHODS = ("minimax", "bfgs")
 
 #: Scales tried upwards (the box about the nominal; 1 = the whole family).
 LADDER = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
@@ -98,6 +104,17 @@ class RobustOptions:
         Design-member rounds per scale.
     pk_iterations : int
         P-K steps per round.
+    start : str
+        How each round's controller is brought into the region before the LMI synthesis:
+        ``"minimax"`` (:func:`robust.synthesis.tuning.minimax_start`: sequential linear
+        programs into the region, then on the largest utilisation of the budgets; the
+        same answer on every machine) or ``"bfgs"``
+        (:func:`robust.synthesis.tuning.tune_members`, the nonsmooth tuning of region and
+        budgets; its path depends on the BLAS kernel's rounding).
+    tune_iterations : int
+        Iterations of the start (linear programs; BFGS iterations per run).
+    tune_restarts : int
+        BFGS runs per phase (``start="bfgs"``).
     worst_samples : int
         Latin-hypercube members of the worst-member search per round.
     spec_samples : int
@@ -118,6 +135,9 @@ class RobustOptions:
     bisection: int = 1
     rounds: int = 3
     pk_iterations: int = 4
+    start: str = "minimax"
+    tune_iterations: int = 100
+    tune_restarts: int = 2
     worst_samples: int = 200
     spec_samples: int = 12
     margin_boxes: int = 60
@@ -137,6 +157,8 @@ class RobustOptions:
             ("bisection", 0),
             ("rounds", 1),
             ("pk_iterations", 0),
+            ("tune_iterations", 0),
+            ("tune_restarts", 1),
             ("worst_samples", 10),
             ("spec_samples", 0),
             ("margin_boxes", 1),
@@ -149,6 +171,10 @@ class RobustOptions:
                 f"RobustOptions.ladder must be increasing scales in (0, 8]; got {self.ladder}"
             )
         object.__setattr__(self, "ladder", ladder)
+        if self.start not in START_METHODS:
+            raise ParameterError(
+                f"RobustOptions.start must be one of {START_METHODS}; got {self.start!r}"
+            )
 
     def force_budget(self, spec: Specification) -> float:
         """The RMS force the synthesis allows, N."""
@@ -183,6 +209,9 @@ class ScaleLevel:
         Why the scale was not reached (empty if it was).
     seconds : float
         Time spent at this scale.
+    starts : dict
+        Rounds started by each method (``minimax``: the linear programs; ``bfgs``: the
+        nonsmooth tuning, run when the linear programs end outside the region).
     """
 
     scale: float
@@ -194,6 +223,7 @@ class ScaleLevel:
     utilisation: float
     reason: str
     seconds: float
+    starts: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -322,11 +352,26 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
     outcome = {"reached": False, "reason": "", "certified": False, "K": K, "pk": None}
     check = None
     worst_v = math.nan
+    starts = {"minimax": 0, "bfgs": 0}
     for rnd in range(options.rounds):
         members = _members(family, rows, options, spec, limits)
-        tuned = tune_members(
-            members, K, region, tracking_bound=options.tracking_bound, h2_bound=h2, margin=0.05
-        )
+        common = dict(tracking_bound=options.tracking_bound, h2_bound=h2, margin=0.05)
+        tuned = None
+        if options.start == "minimax":
+            tuned = minimax_start(members, K, region, max_iter=options.tune_iterations, **common)
+            starts["minimax"] += 1
+        if tuned is None or tuned.violation >= 0:
+            # the linear programs stop at a local minimax point of the region violation;
+            # the nonsmooth tuning may find another basin (its path depends on rounding)
+            tuned = tune_members(
+                members,
+                K,
+                region,
+                max_iter=options.tune_iterations,
+                restarts=options.tune_restarts,
+                **common,
+            )
+            starts["bfgs"] += 1
         if tuned.violation >= 0:
             outcome["reason"] = (
                 f"no controller found with every design member's poles in the region "
@@ -408,6 +453,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         utilisation=float(bad.utilisation) if bad else math.inf,
         reason="" if outcome["reached"] else outcome["reason"],
         seconds=time.perf_counter() - t0,
+        starts=starts,
     )
     return level, outcome, rows
 

@@ -22,7 +22,7 @@ from robust.model.device import DeviceLimits
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import _Affine, h2_norm, pksyn_multi, responses, scale_members, to_scaled
 from robust.synthesis.region import PoleRegion
-from robust.synthesis.tuning import _Terms, tune_members
+from robust.synthesis.tuning import _Terms, minimax_start, region_start, tune_members
 from uncertainty import default_family
 from uncertainty.margins import scaled_bounds
 
@@ -117,6 +117,29 @@ def test_tuning_places_every_member_in_the_region(loops, tuned):
         poles = loop_poles(loop, controller=K).poles
         assert REGION.violation(poles) < 0
     assert tuned.h2 <= 0.8 * 1.02
+
+
+def test_linear_programs_place_every_member_in_the_region(loops, members, start):
+    """The deterministic start: the region by linear programs, then the budgets' maximum."""
+    first = region_start(members, start, REGION, margin=0.05)
+    assert first.violation < -0.05
+    assert first.iterations <= 60
+    # a start inside with the margin already is returned as it is
+    again = region_start(members, first.K, REGION, margin=0.05)
+    assert again.iterations == 0 and np.array_equal(again.K.A, first.K.A)
+    mm = minimax_start(members, start, REGION, tracking_bound=0.95, h2_bound=0.8, margin=0.05)
+    K = _loop_controller(mm.K)
+    worst = -math.inf
+    for loop in loops:
+        poles = loop_poles(loop, controller=K).poles
+        worst = max(worst, REGION.violation(poles))
+    # independent: python-control's poles of the Figure 5 loop
+    assert worst < 0 and mm.violation == pytest.approx(worst, rel=1e-6)
+    # every budget's utilisation below 1: the H2 force and the weighted tracking
+    assert mm.h2 < 0.8 and mm.tracking < 0.95
+    # the same members and start: the same controller, bit for bit
+    mm2 = minimax_start(members, start, REGION, tracking_bound=0.95, h2_bound=0.8, margin=0.05)
+    assert mm2.K.A.tobytes() == mm.K.A.tobytes()
 
 
 def test_pk_certificates_hold_and_agree_with_independent_checks(loops, design):

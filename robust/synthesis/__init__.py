@@ -7,8 +7,8 @@ Modules: :mod:`.genplant` (the plant), :mod:`.forcefb` (the force-feedback plant
 :mod:`.lmi` (LMI builders), :mod:`.solve` (the solver wrapper), :mod:`.nominal`
 (:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`), :mod:`.region` (LMI pole
 regions, :func:`certify_region`), :mod:`.pk` (:func:`pksyn_multi`, the P-K iteration on a
-family with per-member certificates), :mod:`.tuning` (:func:`tune_members`, its nonsmooth
-start), :mod:`.testing` (seeded test plants).
+family with per-member certificates), :mod:`.tuning` (its starts: :func:`minimax_start` by linear
+programs, :func:`tune_members` by nonsmooth BFGS), :mod:`.testing` (seeded test plants).
 """
 
 from robust.synthesis.assumptions import (
@@ -30,7 +30,7 @@ from robust.synthesis.pk import MultiObjectiveResult, SynthesisMember, pksyn_mul
 from robust.synthesis.region import PoleRegion, certify_region
 from robust.synthesis.scaling import D22Removal, PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem
-from robust.synthesis.tuning import tune_members
+from robust.synthesis.tuning import minimax_start, region_start, slp_minimise, tune_members
 
 __all__ = [
     "ForceFeedbackWeights",
@@ -58,4 +58,7 @@ __all__ = [
     "PoleRegion",
     "certify_region",
     "tune_members",
+    "minimax_start",
+    "region_start",
+    "slp_minimise",
 ]

@@ -95,6 +95,7 @@ __all__ = [
     "pksyn_multi",
     "h2_norm",
     "eigen_derivatives",
+    "eigen_region_rows",
     "responses",
     "scale_members",
     "to_scaled",
@@ -634,8 +635,25 @@ def eigen_derivatives(cl: _Affine, Om) -> tuple[np.ndarray, np.ndarray]:
     return lam, left.T[:, :, None] * right.T[:, None, :] / denom[:, None, None]
 
 
-def _eig_rows(cl: _Affine, Om, region: PoleRegion):
-    """Violations of the region plant's poles and their gradients w.r.t. ``Om``."""
+def eigen_region_rows(cl: _Affine, Om, region: PoleRegion) -> list:
+    """Violations of the region plant's poles and their gradients w.r.t. ``Om``.
+
+    Parameters
+    ----------
+    cl : _Affine
+        The region plant's closed loop.
+    Om : numpy.ndarray
+        Controller data.
+    region : PoleRegion
+        The region (in the loop's time unit).
+
+    Returns
+    -------
+    list of (float, numpy.ndarray)
+        Per pole, the decay violation ``Re lambda + alpha`` and, with a damping
+        requirement, the cone violation ``Re lambda + zeta |lambda|``, each with its
+        gradient.
+    """
     lam, dl = eigen_derivatives(cl, Om)
     rows = []
     for j in range(lam.size):
@@ -782,7 +800,7 @@ def _k_step(members, pt: _Point, region_s, h2cap, trust, solvers):
                 _h2_output(cl2, np.eye(cl2.N), Om, Z) >> LMI_MARGIN * np.eye(cl2.N + Z.shape[0]),
                 cp.trace(Z) <= h2cap * (1 + excess),
             ]
-        for v0, grad in _eig_rows(m.region, Om_k, region_s):
+        for v0, grad in eigen_region_rows(m.region, Om_k, region_s):
             if v0 > -ACTIVE:
                 cons.append(v0 + cp.sum(cp.multiply(grad, Om - Om_k)) <= -0.05 * ACTIVE + soft)
         if m.response is not None:

@@ -1,4 +1,4 @@
-"""Nonsmooth multi-model tuning of a fixed-order controller: the start of the LMI iteration.
+"""Starts of the LMI iteration: fixed-order controllers tuned over several members.
 
 The sequential LMIs of :mod:`robust.synthesis.pk` are local and need a controller
 that already places every design member's poles in the region. This module supplies
@@ -20,6 +20,13 @@ l^H r``; frequency responses ``dT = (D12b + C R Bb) dOmega (Cb R B + D21b)`` wit
 ``R = (jw - A)^-1``; the H2 norm through the adjoint Lyapunov equation,
 ``d||G||^2 = 2 trace(L dA W + ...)`` with ``A W + W A' + B B' = 0`` and
 ``A' L + L A + C' C = 0``.
+
+The BFGS path depends on rounding: its inverse-Hessian estimate grows ill-conditioned at
+the kinks, so the rounding differences of two BLAS kernels end at different controllers.
+:func:`minimax_start` is the deterministic alternative: :func:`slp_minimise`, sequential
+linear programming with a trust region (Madsen's minimax method), first on the region
+violations (:func:`region_start`), then on the largest of the same utilisations that the
+second phase's soft maximum weighs.
 """
 
 from __future__ import annotations
@@ -29,12 +36,14 @@ import dataclasses
 import control
 import numpy as np
 import scipy.linalg as sla
+import scipy.optimize as so
 
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.pk import (
     SynthesisMember,
     eigen_derivatives,
+    eigen_region_rows,
     from_scaled,
     responses,
     scale_members,
@@ -43,7 +52,17 @@ from robust.synthesis.pk import (
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.scaling import ControllerMatrices
 
-__all__ = ["TuningResult", "tune_members", "REGION_WEIGHT", "RESTARTS", "BARRIER_WEIGHT"]
+__all__ = [
+    "TuningResult",
+    "tune_members",
+    "region_start",
+    "minimax_start",
+    "slp_minimise",
+    "SLPResult",
+    "REGION_WEIGHT",
+    "RESTARTS",
+    "BARRIER_WEIGHT",
+]
 
 #: BFGS restarts per phase (each from the previous end point).
 RESTARTS = 8
@@ -187,8 +206,8 @@ class _Terms:
                 grad = dl.real + z * (lam.conj()[:, None, None] * dl).real / mag[:, None, None]
                 yield lam.real + z * mag, grad
 
-    def utilisation_term(self, Om, q: float = 8.0):
-        """Soft maximum ``(mean u^q)^(1/q)`` of every utilisation (1 at its limit).
+    def utilisations(self, Om):
+        """Every utilisation (1 at its limit) and its gradient in ``Om``.
 
         The utilisations are those of the specification: per pole of every member
         ``alpha / -Re p`` and ``zeta |p| / -Re p`` (required over achieved decay rate and
@@ -237,7 +256,11 @@ class _Terms:
                 dJ += 2 * cl.Bb.T @ Lo @ B @ cl.D21b.T
                 us.append(np.array([h / self.h2_bound]))
                 dus.append((dJ / (2 * h * self.h2_bound))[None])
-        u, du = np.concatenate(us), np.concatenate(dus)
+        return np.concatenate(us), np.concatenate(dus)
+
+    def utilisation_term(self, Om, q: float = 8.0):
+        """Soft maximum ``(mean u^q)^(1/q)`` of every utilisation (see :meth:`utilisations`)."""
+        u, du = self.utilisations(Om)
         m = np.mean(u**q)
         val = m ** (1 / q)
         grad = m ** (1 / q - 1) * np.einsum("k,kij->ij", u ** (q - 1), du) / u.size
@@ -300,6 +323,34 @@ class _Terms:
         return val, grad, worst
 
 
+def _checked_start(owner: str, members, K0, region) -> tuple:
+    """The members as a list and ``K0``'s matrices, checked: ``(members, K, nk)``."""
+    if not isinstance(region, PoleRegion):
+        raise ModelStructureError(
+            f"{owner}: region must be a PoleRegion; got {type(region).__name__}"
+        )
+    members = list(members)
+    if not members or not all(isinstance(m, SynthesisMember) for m in members):
+        raise ModelStructureError(f"{owner}: members must be SynthesisMember objects")
+    if not isinstance(K0, control.StateSpace):
+        raise ModelStructureError(
+            f"{owner}: K0 must be a control.StateSpace; got {type(K0).__name__}"
+        )
+    K = ControllerMatrices(*(np.asarray(M, float) for M in (K0.A, K0.B, K0.C, K0.D)))
+    nk = K.Ak.shape[0]
+    if K.omega().shape != (nk + members[0].nu, nk + members[0].ny):
+        raise ModelStructureError(
+            f"{owner}: K0 must map {members[0].ny} measurements to {members[0].nu} controls"
+        )
+    return members, K, nk
+
+
+def _controller(Om_s, nk: int, w0: float, channels) -> control.StateSpace:
+    """The controller ``y -> u`` of scaled controller data."""
+    Oo = from_scaled(Om_s, nk, w0, channels)
+    return control.ss(Oo[:nk, :nk], Oo[:nk, nk:], Oo[nk:, :nk], Oo[nk:, nk:])
+
+
 def tune_members(
     members,
     K0,
@@ -313,6 +364,7 @@ def tune_members(
     weights: tuple[float, float] = (10.0, 10.0),
     prox: float = 1e-4,
     max_iter: int = 400,
+    restarts: int = RESTARTS,
     w0: float = 20.0,
 ) -> TuningResult:
     """Tune ``K0`` over ``members``: poles in ``region`` with a margin, budgets kept.
@@ -344,7 +396,10 @@ def tune_members(
     prox : float
         Weight of the proximal term to ``K0``.
     max_iter : int
-        BFGS iterations.
+        BFGS iterations per run.
+    restarts : int
+        BFGS runs per phase, each from the previous end point with a fresh Hessian (the
+        phase stops early when a run no longer decreases the objective).
     w0 : float
         Time scale of the tuning, rad/s (as :func:`robust.synthesis.pk.pksyn_multi`).
 
@@ -352,31 +407,16 @@ def tune_members(
     -------
     TuningResult
     """
-    if not isinstance(region, PoleRegion):
-        raise ModelStructureError(
-            f"tune_members: region must be a PoleRegion; got {type(region).__name__}"
-        )
-    members = list(members)
-    if not members or not all(isinstance(m, SynthesisMember) for m in members):
-        raise ModelStructureError("tune_members: members must be SynthesisMember objects")
-    if not isinstance(K0, control.StateSpace):
-        raise ModelStructureError(
-            f"tune_members: K0 must be a control.StateSpace; got {type(K0).__name__}"
-        )
+    members, K, nk = _checked_start("tune_members", members, K0, region)
     for name, val in (("tracking_bound", tracking_bound), ("margin", margin), ("tau", tau)):
         check_scalar(name, val, POSITIVE, owner="tune_members")
     if h2_bound is not None:
         check_scalar("h2_bound", h2_bound, POSITIVE, owner="tune_members")
     check_scalar("prox", prox, Spec(low=0.0), owner="tune_members")
     check_int("max_iter", max_iter, low=0, owner="tune_members")
+    check_int("restarts", restarts, low=1, owner="tune_members")
     check_scalar("w0", w0, POSITIVE, owner="tune_members")
     f_hz = np.geomspace(0.05, 3.0, 30) if freqs_hz is None else np.asarray(freqs_hz, float)
-    K = ControllerMatrices(*(np.asarray(M, float) for M in (K0.A, K0.B, K0.C, K0.D)))
-    nk = K.Ak.shape[0]
-    if K.omega().shape != (nk + members[0].nu, nk + members[0].ny):
-        raise ModelStructureError(
-            f"tune_members: K0 must map {members[0].ny} measurements to {members[0].nu} controls"
-        )
     channels, scaled = scale_members(members, nk, w0)
     Om0 = to_scaled(K.omega(), nk, w0, channels)
     unit = np.ones_like(Om0)
@@ -425,7 +465,7 @@ def tune_members(
         xb, fb = x, fun(x, budget_scale)[0]
         # BFGS on a nonsmooth objective may stop at a kink; restarting from the last point
         # (a fresh Hessian) continues the descent
-        for _ in range(RESTARTS):
+        for _ in range(restarts):
             xr, fr, it = _bfgs(lambda th, bs=budget_scale: fun(th, bs), xb, max_iter)
             nit += it
             if not fr < fb - 1e-9 * max(abs(fb), 1e-12):
@@ -438,6 +478,335 @@ def tune_members(
     _, _, trk = terms.tracking_term(Om)
     _, _, resp = terms.response_term(Om)
     h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if h2_bound is not None else 0.0
-    Oo = from_scaled(Om, nk, w0, channels)
-    Kt = control.ss(Oo[:nk, :nk], Oo[:nk, nk:], Oo[nk:, :nk], Oo[nk:, nk:])
+    Kt = _controller(Om, nk, w0, channels)
     return TuningResult(Kt, viol * w0, trk, float(h2), resp, float(fun(x, 1.0)[0]), nit)
+
+
+@dataclasses.dataclass(frozen=True)
+class SLPResult:
+    """Result of :func:`slp_minimise`.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The final point.
+    worst : float
+        Largest constraint value there (``max v``).
+    penalty : float
+        The penalty there.
+    merit : float
+        The merit there.
+    iterations : int
+        Linear programs solved.
+    accepted : int
+        Steps kept.
+    """
+
+    x: np.ndarray
+    worst: float
+    penalty: float
+    merit: float
+    iterations: int
+    accepted: int
+
+
+def slp_minimise(
+    evaluate,
+    x0,
+    unit,
+    *,
+    target: float,
+    reference=None,
+    prox: float = 1e-3,
+    trust: float = 0.1,
+    max_iter: int = 60,
+    active: float = np.inf,
+) -> SLPResult:
+    """Sequential linear programming with a trust region: a deterministic local minimiser.
+
+    Minimises the merit ``max(max_j v_j(x), target) + prox * mean |x - reference| / unit
+    + p(x)`` of constraint functions ``v_j`` (e.g. closed-loop eigenvalue real parts) and a
+    penalty ``p`` (e.g. budgets' squared excess). Each step linearises ``v`` and ``p`` at
+    the current point and solves
+
+        minimise  u + prox * mean(a) + <grad p, D>
+        s.t.      v_j + <grad v_j, D> <= u,  u >= target,
+                  |x + D - reference| / unit <= a,  |D| <= radius * unit
+
+    by HiGHS (:func:`scipy.optimize.linprog`); the step is kept when the merit falls by
+    at least a tenth of the fall the linear model predicts (Fletcher's SL1QP test,
+    *Practical Methods of Optimization*, 2nd ed., 1987, Sec. 14.5), the radius doubles
+    after a step that achieves three quarters of it and halves after a rejected one.
+    Unlike a quasi-Newton method, whose inverse-Hessian estimate grows ill-conditioned at
+    the kinks of a largest eigenvalue (Lewis & Overton, Math. Programming 141, 2013) and
+    so turns the rounding differences of BLAS kernels into different end points, every
+    step here depends continuously on the data: the same data give the same answer, on
+    any machine, up to the last digits.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(x) -> (v, G, p, g)``: constraint values ``v`` (m,), their gradients
+        ``G`` (m, size of x), the penalty ``p`` (float) and its gradient ``g`` (size of x).
+    x0 : numpy.ndarray
+        Start.
+    unit : numpy.ndarray
+        Positive scale of every entry of ``x`` (trust region and distance).
+    target : float
+        Constraint level below which the constraints no longer count.
+    reference : numpy.ndarray, optional
+        The point the distance term is measured from (default ``x0``).
+    prox : float
+        Weight of the mean scaled L1 distance to ``reference``.
+    trust : float
+        Initial trust-region radius, in units of ``unit``.
+    max_iter : int
+        Largest number of linear programs.
+    active : float
+        Constraints below ``target - active`` are left out of the linear programs
+        (they cannot reach the target within a trust region).
+
+    Returns
+    -------
+    SLPResult
+    """
+    x = np.asarray(x0, float).copy()
+    shape = x.shape
+    xf = x.ravel()
+    unit = np.broadcast_to(np.asarray(unit, float), shape).ravel()
+    ref = xf.copy() if reference is None else np.asarray(reference, float).ravel()
+    n = xf.size
+
+    def merit_at(z):
+        v, G, p, g = evaluate(z.reshape(shape))
+        v = np.asarray(v, float)
+        m = max(float(v.max()), target) + prox * float(np.mean(np.abs(z - ref) / unit)) + p
+        return m, v, np.asarray(G, float).reshape(v.size, n), float(p), np.ravel(g)
+
+    merit, v, G, p, g = merit_at(xf)
+    radius, it, kept = trust, 0, 0
+    while it < max_iter and radius > 1e-6 * trust:
+        it += 1
+        keep = v >= target - active
+        Gk, vk = G[keep], v[keep]
+        m = int(keep.sum())
+        # variables: D (n), a (n), u
+        c = np.concatenate([g, np.full(n, prox / n), [1.0]])
+        A_ub = np.vstack(
+            [
+                np.hstack([Gk, np.zeros((m, n)), -np.ones((m, 1))]),
+                np.hstack([np.diag(1 / unit), -np.eye(n), np.zeros((n, 1))]),
+                np.hstack([-np.diag(1 / unit), -np.eye(n), np.zeros((n, 1))]),
+            ]
+        )
+        b_ub = np.concatenate([-vk, (ref - xf) / unit, (xf - ref) / unit])
+        bounds = [(-radius * u, radius * u) for u in unit] + [(0.0, None)] * n + [(target, None)]
+        res = so.linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs")
+        if res.status != 0 or res.x is None:
+            radius /= 2
+            continue
+        D = res.x[:n]
+        # the model's merit at x + D: the LP's objective plus the penalty's value
+        predicted = float(res.fun) + p
+        expected = merit - predicted
+        if not expected > 1e-12 * max(1.0, abs(merit)):
+            break
+        new = merit_at(xf + D)
+        fall = merit - new[0]
+        if fall >= 0.1 * expected:
+            xf = xf + D
+            merit, v, G, p, g = new
+            kept += 1
+            if fall >= 0.75 * expected:
+                radius = min(2 * radius, 8 * trust)
+        else:
+            radius /= 2
+    return SLPResult(xf.reshape(shape), float(v.max()), p, merit, it, kept)
+
+
+def _region_rows(scaled, region_s):
+    def evaluate(Om):
+        rows = [r for m in scaled for r in eigen_region_rows(m.region, Om, region_s)]
+        v = np.array([r[0] for r in rows])
+        G = np.array([r[1].ravel() for r in rows])
+        return v, G, 0.0, np.zeros(Om.size)
+
+    return evaluate
+
+
+def region_start(
+    members,
+    K0,
+    region: PoleRegion,
+    *,
+    margin: float = 0.05,
+    max_iter: int = 60,
+    trust: float = 0.1,
+    prox: float = 1e-3,
+    w0: float = 20.0,
+) -> TuningResult:
+    """Move ``K0`` the least it takes to put every member's poles in ``region`` with a margin.
+
+    A deterministic start for :func:`robust.synthesis.pk.pksyn_multi`:
+    :func:`slp_minimise` on the region violations of every member's poles (decay and
+    damping cone, the first-order eigenvalue model of the K-step, ``d lambda = l^H Bb
+    dOmega Cb r / l^H r``), in the scaled controller data of the P-K iteration, with a
+    small L1 distance to ``K0`` (moves as few entries as the region needs). A ``K0`` that
+    meets the margin already is returned unchanged.
+
+    Parameters
+    ----------
+    members : sequence of SynthesisMember
+        Design members.
+    K0 : control.StateSpace
+        Starting controller ``y -> u`` (fixes the order).
+    region : PoleRegion
+        The region.
+    margin : float
+        Required distance inside the region, rad/s.
+    max_iter : int
+        Largest number of linear programs.
+    trust : float
+        Initial trust-region radius, relative to the root-mean-square controller entry.
+    prox : float
+        Weight of the L1 distance to ``K0``.
+    w0 : float
+        Time scale, rad/s (as :func:`robust.synthesis.pk.pksyn_multi`).
+
+    Returns
+    -------
+    TuningResult
+        ``tracking``, ``h2`` and ``response`` are not evaluated (0); ``violation`` and
+        ``objective`` are the final largest violation in rad/s; ``iterations`` the linear
+        programs solved.
+    """
+    members, K, nk = _checked_start("region_start", members, K0, region)
+    for name, val in (("margin", margin), ("trust", trust), ("w0", w0)):
+        check_scalar(name, val, POSITIVE, owner="region_start")
+    check_scalar("prox", prox, Spec(low=0.0), owner="region_start")
+    check_int("max_iter", max_iter, low=0, owner="region_start")
+    channels, scaled = scale_members(members, nk, w0)
+    evaluate = _region_rows(scaled, region.scaled(w0))
+    Om = to_scaled(K.omega(), nk, w0, channels)
+    target = -margin / w0
+    if evaluate(Om)[0].max() < target:
+        res = SLPResult(Om, float(evaluate(Om)[0].max()), 0.0, 0.0, 0, 0)
+    else:
+        unit = max(1.0, float(np.sqrt(np.mean(Om * Om))))
+        # poles far inside cannot reach the boundary within the trust region (scaled time:
+        # 0.5 is the K-step's ACTIVE)
+        # the steps approach their level from above: aiming a tenth deeper than the
+        # margin ends with the margin met
+        res = slp_minimise(
+            evaluate,
+            Om,
+            np.full(Om.shape, unit),
+            target=1.1 * target,
+            prox=prox,
+            trust=trust,
+            max_iter=max_iter,
+            active=0.5,
+        )
+    Kt = _controller(res.x, nk, w0, channels)
+    return TuningResult(Kt, res.worst * w0, 0.0, 0.0, 0.0, res.worst * w0, res.iterations)
+
+
+def minimax_start(
+    members,
+    K0,
+    region: PoleRegion,
+    *,
+    tracking_bound: float = 1.0,
+    h2_bound: float | None = None,
+    freqs_hz=None,
+    margin: float = 0.05,
+    max_iter: int = 100,
+    trust: float = 0.05,
+    prox: float = 1e-4,
+    w0: float = 20.0,
+) -> TuningResult:
+    """A deterministic start: into the region, then the largest utilisation minimised.
+
+    :func:`region_start` first, then :func:`slp_minimise` (a minimax method by sequential
+    linear programming, Madsen, "An algorithm for minimax solution of overdetermined
+    systems of non-linear equations", J. Inst. Maths Applics 16, 1975) on every
+    utilisation of the specification's budgets (those of :func:`tune_members`'s second
+    phase: the poles' required over achieved decay rate and damping ratio, ``|T(jw)| /
+    tracking_bound`` on the grid, each member's H2 norm over ``h2_bound``, the response
+    bounds), all at once: where :func:`tune_members` minimises a soft maximum by BFGS, this
+    minimises the maximum itself, and its steps depend continuously on the data.
+
+    Parameters
+    ----------
+    members : sequence of SynthesisMember
+        Design members.
+    K0 : control.StateSpace
+        Starting controller ``y -> u``.
+    region : PoleRegion
+        The region.
+    tracking_bound : float
+        Scale of ``|T(jw)|`` (1 at the specification's edge).
+    h2_bound : float, optional
+        Bound on every member's H2 norm (needs H2 plants).
+    freqs_hz : array_like, optional
+        Frequency grid of the tracking utilisations, Hz (default 30 log-spaced, 0.05-3 Hz).
+    margin : float
+        Region margin of the first stage, rad/s.
+    max_iter : int
+        Linear programs of each stage.
+    trust : float
+        Initial trust-region radius of the second stage, relative to the root-mean-square
+        controller entry.
+    prox : float
+        Weight of the L1 distance to the region stage's controller.
+    w0 : float
+        Time scale, rad/s.
+
+    Returns
+    -------
+    TuningResult
+    """
+    first = region_start(members, K0, region, margin=margin, max_iter=max_iter, w0=w0)
+    if first.violation >= 0:
+        return first
+    check_scalar("tracking_bound", tracking_bound, POSITIVE, owner="minimax_start")
+    if h2_bound is not None:
+        check_scalar("h2_bound", h2_bound, POSITIVE, owner="minimax_start")
+    K = first.K
+    nk = K.nstates
+    channels, scaled = scale_members(members, nk, w0)
+    Om = to_scaled(np.block([[K.A, K.B], [K.C, K.D]]), nk, w0, channels)
+    f_hz = np.geomspace(0.05, 3.0, 30) if freqs_hz is None else np.asarray(freqs_hz, float)
+    terms = _Terms(
+        scaled,
+        region.scaled(w0),
+        2 * np.pi * f_hz / w0,
+        margin / w0,
+        1.0,
+        tracking_bound,
+        (h2_bound / np.sqrt(w0)) if h2_bound is not None else np.inf,
+    )
+
+    def evaluate(x):
+        u, du = terms.utilisations(x)
+        return u, du.reshape(u.size, -1), 0.0, np.zeros(x.size)
+
+    unit = max(1.0, float(np.sqrt(np.mean(Om * Om))))
+    res = slp_minimise(
+        evaluate,
+        Om,
+        np.full(Om.shape, unit),
+        target=0.0,
+        prox=prox,
+        trust=trust,
+        max_iter=max_iter,
+    )
+    Om = res.x
+    _, _, viol = terms.region_term(Om)
+    _, _, trk = terms.tracking_term(Om)
+    _, _, resp = terms.response_term(Om)
+    h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if h2_bound is not None else 0.0
+    Kt = _controller(Om, nk, w0, channels)
+    return TuningResult(
+        Kt, viol * w0, trk, float(h2), resp, res.merit, first.iterations + res.iterations
+    )
