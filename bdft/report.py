@@ -158,6 +158,7 @@ def run(args) -> int:
             lambda: force_tradeoff(
                 default_family(),
                 args.tradeoff,
+                jobs=args.jobs,
                 progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
             ),
             enabled=use_cache,

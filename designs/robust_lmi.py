@@ -47,6 +47,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
 from robust.checks import POSITIVE, Spec, check_int, validate_fields
+from robust.engine import map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
@@ -600,6 +601,35 @@ class TradeoffPoint:
     seconds: float
 
 
+def _tradeoff_point(task) -> TradeoffPoint:
+    """One point of :func:`force_tradeoff` (a module-level function: it runs in workers)."""
+    family, spec, options, margin_boxes = task
+    t0 = time.perf_counter()
+    d = maximise_margin(family, spec=spec, options=options)
+    certified = 0.0
+    if d.controller is not None:
+        # the certified robust margin of the point's controller for the pole region
+        certified, _ = margin_lower_bound(
+            family,
+            controller=d.controller,
+            region=spec.region(),
+            k_hint=max(d.scale, 1e-3),
+            ladder=8,
+            iterations=1,
+            max_boxes=margin_boxes,
+        )
+    return TradeoffPoint(
+        continuous_force_n=spec.continuous_force_n,
+        peak_force_n=spec.peak_force_n,
+        force_budget_n=d.force_budget,
+        scale=d.scale,
+        certified_scale=float(certified),
+        binding=d.failed.binding if d.failed else "",
+        failed_scale=d.failed.scale if d.failed else math.nan,
+        seconds=time.perf_counter() - t0,
+    )
+
+
 def force_tradeoff(
     family,
     factors=(0.5, 1.0, 2.0, 4.0),
@@ -607,12 +637,17 @@ def force_tradeoff(
     spec: Specification | None = None,
     options: RobustOptions | None = None,
     margin_boxes: int = 100,
+    jobs: int = 1,
+    scheduler: str | None = None,
     progress=None,
 ) -> list[TradeoffPoint]:
     """Certified and reached family scale against the handle-force budget (a Pareto sweep).
 
     For each factor the specification's two force limits are multiplied by it (the
-    device's limits at factor 1) and :func:`maximise_margin` runs with ``options``.
+    device's limits at factor 1) and :func:`maximise_margin` runs with ``options``. The
+    points are independent: they run in ``jobs`` local processes or on a Dask cluster
+    (:func:`robust.engine.map_tasks`), each with one BLAS thread, so every engine gives the
+    same points.
 
     Parameters
     ----------
@@ -628,8 +663,12 @@ def force_tradeoff(
         Sub-boxes per scale of the certified margin of each point's controller
         (:func:`uncertainty.margins.margin_lower_bound`, the specification's region, scales
         up to the one reached).
+    jobs : int
+        Local worker processes (1: in this process).
+    scheduler : str, optional
+        Address of a Dask scheduler (see :func:`robust.engine.map_tasks`).
     progress : callable, optional
-        Called with a short message per point.
+        Called with a short message per point, as it finishes.
 
     Returns
     -------
@@ -638,41 +677,28 @@ def force_tradeoff(
     """
     spec = spec or Specification()
     options = options or RobustOptions(rounds=2, bisection=0, margin_boxes=30)
-    out = []
+    tasks = []
     for f in factors:
         if not (math.isfinite(f) and f > 0):
             raise ParameterError(f"force_tradeoff: factors must be positive; got {f!r}")
-        t0 = time.perf_counter()
         sp = dataclasses.replace(
             spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
         )
-        d = maximise_margin(family, spec=sp, options=options)
-        certified = 0.0
-        if d.controller is not None:
-            # the certified robust margin of the point's controller for the pole region
-            certified, _ = margin_lower_bound(
-                family,
-                controller=d.controller,
-                region=sp.region(),
-                k_hint=max(d.scale, 1e-3),
-                ladder=8,
-                iterations=1,
-                max_boxes=margin_boxes,
-            )
-        out.append(
-            TradeoffPoint(
-                continuous_force_n=sp.continuous_force_n,
-                peak_force_n=sp.peak_force_n,
-                force_budget_n=d.force_budget,
-                scale=d.scale,
-                certified_scale=float(certified),
-                binding=d.failed.binding if d.failed else "",
-                failed_scale=d.failed.scale if d.failed else math.nan,
-                seconds=time.perf_counter() - t0,
-            )
-        )
+        tasks.append((family, sp, options, margin_boxes))
+    done = []
+
+    def finished(i):
+        done.append(i)
         if progress:
-            progress(f"force x{f:g}: scale {d.scale:.3g} reached, certified margin {certified:.3g}")
+            progress(f"force x{factors[i]:g} done ({len(done)} of {len(tasks)})")
+
+    out = map_tasks(_tradeoff_point, tasks, jobs=jobs, scheduler=scheduler, progress=finished)
+    if progress:
+        for f, pt in zip(factors, out):
+            progress(
+                f"force x{f:g}: scale {pt.scale:.3g} reached, certified margin "
+                f"{pt.certified_scale:.3g}"
+            )
     return out
 
 

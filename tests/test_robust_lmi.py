@@ -202,6 +202,18 @@ def test_tradeoff_point_reports_scale_and_certified_margin(family):
     assert 0.0 < pt.certified_scale < pt.scale
 
 
+def test_tradeoff_points_in_two_processes_equal_the_serial_ones(family):
+    o = RobustOptions(ladder=(0.005,), rounds=1, bisection=0, margin_boxes=5, spec_samples=2)
+    serial = force_tradeoff(family, (1.0, 2.0), options=o, margin_boxes=5)
+    parallel = force_tradeoff(family, (1.0, 2.0), options=o, margin_boxes=5, jobs=2)
+    for a, b in zip(serial, parallel):
+        # every field but the time, to the last digit (repr: a NaN equals a NaN)
+        assert repr(dataclasses.replace(a, seconds=0.0)) == repr(
+            dataclasses.replace(b, seconds=0.0)
+        )
+    assert [p.peak_force_n for p in parallel] == [3.3, 6.6]
+
+
 def test_a_given_start_is_checked_against_the_options():
     fam = default_family()
     opts = RobustOptions(controls=("r_corr",), measurements=("c",), order=4)
