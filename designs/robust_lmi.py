@@ -108,8 +108,9 @@ class RobustOptions:
     start : str
         How each round's controller is brought into the region before the LMI synthesis:
         ``"minimax"`` (:func:`robust.synthesis.tuning.minimax_start`: sequential linear
-        programs into the region, then on the largest utilisation of the budgets; the
-        same answer on every machine) or ``"bfgs"``
+        programs into the region, then on the largest utilisation of the budgets; their
+        steps depend continuously on the data, so two machines' answers differ only as
+        much as their inputs do) or ``"bfgs"``
         (:func:`robust.synthesis.tuning.tune_members`, the nonsmooth tuning of region and
         budgets; its path depends on the BLAS kernel's rounding).
     tune_iterations : int

@@ -147,8 +147,10 @@ def test_same_seed_same_controller_under_one_and_two_blas_threads(design):
         ({"budget_fraction": 0.0}, "budget_fraction"),
         ({"crest_factor": -1.0}, "crest_factor"),
         ({"rounds": 0}, "rounds"),
+        ({"start": "newton"}, "start must be one of"),
+        ({"tune_restarts": 0}, "tune_restarts"),
     ],
-    ids=["decreasing", "empty", "order", "budget", "crest", "rounds"],
+    ids=["decreasing", "empty", "order", "budget", "crest", "rounds", "start", "restarts"],
 )
 def test_bad_options(kwargs, match):
     with pytest.raises(ParameterError, match=match):
