@@ -2,9 +2,11 @@
 
 For each member count ``m``, the design members are the nominal member of the default
 family and ``m - 1`` seeded corners of its box scaled to ``--scale``; the start is the
-nominal LMI design truncated to ``--order`` and tuned over the members
-(:func:`robust.synthesis.tuning.tune_members`), then :func:`robust.synthesis.pk.pksyn_multi`
-runs ``--steps`` K-steps. Printed per count: time of the start, of the LMI synthesis in
+nominal LMI design truncated to ``--order`` and brought over the members by each start
+of ``--starts``: ``minimax`` (:func:`robust.synthesis.tuning.minimax_start`, linear
+programs) and ``bfgs`` (:func:`robust.synthesis.tuning.tune_members`, the baseline it
+replaces in the designs); then :func:`robust.synthesis.pk.pksyn_multi` runs ``--steps``
+K-steps. Printed per count: time of the start, of the LMI synthesis in
 total, of one LMI solve (median over the solves: P-steps, K-steps and the final region
 certificates), the number of solves, the certified worst H-infinity level and the peak
 resident memory of the process. The baseline is the solve time per member: the K-step
@@ -13,7 +15,7 @@ holds every member's inequalities, so its cost should grow about linearly with `
 Usage::
 
     python benchmarks/bench_robust_lmi.py                    # members 1 2 4 8
-    python benchmarks/bench_robust_lmi.py --members 1 4 --steps 3
+    python benchmarks/bench_robust_lmi.py --members 1 4 --steps 3 --starts minimax
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.region import PoleRegion
-from robust.synthesis.tuning import tune_members
+from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty import default_family
 from uncertainty.margins import scaled_bounds
 
@@ -42,6 +44,7 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.005)
     ap.add_argument("--steps", type=int, default=4)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--starts", nargs="+", choices=("minimax", "bfgs"), default=["minimax", "bfgs"])
     args = ap.parse_args()
     fam = default_family()
     region = PoleRegion(0.1, 0.1)
@@ -56,23 +59,28 @@ def main() -> None:
         f"order {args.order}, scale {args.scale}, {args.steps} K-steps, seed {args.seed}"
     )
     print(
-        f"{'members':>7} {'start s':>8} {'LMI s':>8} {'solves':>6} {'per solve s':>11} "
-        f"{'per member s':>12} {'gamma':>8} {'steps':>5} {'peak RSS MB':>11}"
+        f"{'members':>7} {'start':>7} {'start s':>8} {'LMI s':>8} {'solves':>6} "
+        f"{'per solve s':>11} {'per member s':>12} {'gamma':>8} {'steps':>5} {'peak RSS MB':>11}"
     )
     for m in args.members:
         rows = [fam.nominal_values()] + corners[: m - 1]
         members = [synthesis_member(fam.member(r), label=f"m{i}") for i, r in enumerate(rows)]
-        t0 = time.perf_counter()
-        tuned = tune_members(members, start, region, tracking_bound=0.95, h2_bound=0.75)
-        t1 = time.perf_counter()
-        res = pksyn_multi(members, tuned.K, region, h2_bound=0.8, max_iter=args.steps)
-        t2 = time.perf_counter()
-        per = float(np.median(res.solve_times))
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        print(
-            f"{m:7d} {t1 - t0:8.2f} {t2 - t1:8.2f} {len(res.solve_times):6d} {per:11.3f} "
-            f"{(t2 - t1) / m:12.2f} {res.gamma_bound:8.4f} {res.iterations:5d} {rss:11.0f}"
-        )
+        for how in args.starts:
+            t0 = time.perf_counter()
+            if how == "minimax":
+                tuned = minimax_start(members, start, region, tracking_bound=0.95, h2_bound=0.75)
+            else:
+                tuned = tune_members(members, start, region, tracking_bound=0.95, h2_bound=0.75)
+            t1 = time.perf_counter()
+            res = pksyn_multi(members, tuned.K, region, h2_bound=0.8, max_iter=args.steps)
+            t2 = time.perf_counter()
+            per = float(np.median(res.solve_times))
+            rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+            print(
+                f"{m:7d} {how:>7} {t1 - t0:8.2f} {t2 - t1:8.2f} {len(res.solve_times):6d} "
+                f"{per:11.3f} {(t2 - t1) / m:12.2f} {res.gamma_bound:8.4f} {res.iterations:5d} "
+                f"{rss:11.0f}"
+            )
 
 
 if __name__ == "__main__":
