@@ -351,6 +351,16 @@ def _controller(Om_s, nk: int, w0: float, channels) -> control.StateSpace:
     return control.ss(Oo[:nk, :nk], Oo[:nk, nk:], Oo[nk:, :nk], Oo[nk:, nk:])
 
 
+def _tuning_result(terms, Om, nk: int, w0: float, channels, objective: float, iterations: int):
+    """The :class:`TuningResult` of scaled controller data: its violation and budgets."""
+    _, _, viol = terms.region_term(Om)
+    _, _, trk = terms.tracking_term(Om)
+    _, _, resp = terms.response_term(Om)
+    h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if terms.h2 and np.isfinite(terms.h2_bound) else 0.0
+    Kt = _controller(Om, nk, w0, channels)
+    return TuningResult(Kt, viol * w0, trk, float(h2), resp, objective, iterations)
+
+
 def tune_members(
     members,
     K0,
@@ -474,12 +484,7 @@ def tune_members(
         if budget_scale < 1 or terms.region_term(xb.reshape(Om0.shape) * unit)[2] < 0:
             x = xb
     Om = x.reshape(Om0.shape) * unit
-    _, _, viol = terms.region_term(Om)
-    _, _, trk = terms.tracking_term(Om)
-    _, _, resp = terms.response_term(Om)
-    h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if h2_bound is not None else 0.0
-    Kt = _controller(Om, nk, w0, channels)
-    return TuningResult(Kt, viol * w0, trk, float(h2), resp, float(fun(x, 1.0)[0]), nit)
+    return _tuning_result(terms, Om, nk, w0, channels, float(fun(x, 1.0)[0]), nit)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -802,11 +807,4 @@ def minimax_start(
         max_iter=max_iter,
     )
     Om = res.x
-    _, _, viol = terms.region_term(Om)
-    _, _, trk = terms.tracking_term(Om)
-    _, _, resp = terms.response_term(Om)
-    h2 = terms.h2_term(Om)[2] * np.sqrt(w0) if h2_bound is not None else 0.0
-    Kt = _controller(Om, nk, w0, channels)
-    return TuningResult(
-        Kt, viol * w0, trk, float(h2), resp, res.merit, first.iterations + res.iterations
-    )
+    return _tuning_result(terms, Om, nk, w0, channels, res.merit, first.iterations + res.iterations)
