@@ -46,6 +46,7 @@ import numpy as np
 from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
+from robust.analysis.reduction import balanced_truncation
 from robust.checks import POSITIVE, Spec, check_int, validate_fields
 from robust.engine import map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
@@ -289,7 +290,7 @@ def _start(family, options: RobustOptions, limits) -> ct.StateSpace:
     nk = options.order
     if options.controls == ("f",) and options.measurements == ("x", "c"):
         K = design_hinf_nominal(family, limits=limits).controller
-        Kr = ct.balred(K, nk, method="truncate") if nk < K.nstates else K
+        Kr = balanced_truncation(K, nk).sys if nk < K.nstates else K
         return ct.ss(Kr.A, Kr.B, Kr.C, Kr.D)
     # a seeded, slow, low-gain filter: the entries break the symmetry of the states
     rng = np.random.default_rng(options.seed)

@@ -18,7 +18,8 @@ import pytest
 from threadpoolctl import threadpool_info
 
 from designs.cancellation import cancellation_controller
-from designs.robust_lmi import RobustOptions, force_tradeoff, maximise_margin
+from designs.hinf_nominal import design_hinf_nominal
+from designs.robust_lmi import RobustOptions, _start, force_tradeoff, maximise_margin
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
 from robust.errors import ParameterError
@@ -226,3 +227,22 @@ def test_a_given_start_is_checked_against_the_options():
         maximise_margin(fam, options=dataclasses.replace(opts, measurements=("x",)), start=Kc)
     with pytest.raises(ParameterError, match="StateSpace"):
         maximise_margin(fam, options=opts, start=np.eye(2))
+
+
+def test_the_handle_force_start_is_slicots_balanced_truncation(family):
+    # the start reduces the nominal LMI design by the workbench's own balanced truncation;
+    # its realisation is SLICOT ab09ad's (python-control's balred) to rounding, signs
+    # included
+    K = design_hinf_nominal(family).controller
+    ref = ct.balred(K, OPTIONS.order, method="truncate")
+    K0 = _start(family, OPTIONS, None)
+    for m in "ABCD":
+        a, b = getattr(K0, m), getattr(ref, m)
+        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(b)), m
+
+
+def test_the_model_refuses_to_load_without_slicot():
+    code = "import sys; sys.modules['slycot'] = None; import robust"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode != 0
+    assert "the workbench needs slycot" in r.stderr and "pip install slycot" in r.stderr

@@ -1,9 +1,10 @@
 """Minimal realisations by orthogonal staircase reduction.
 
-python-control's ``minreal`` for state-space systems needs SLICOT (``tb01pd``),
-which is only a test dependency here; the BDFT loop needs a minimal realisation
-at run time because the paper's Eqn 4 (a double zero at s = 0) and Eqn 5 (a
-double pole at s = 0) cancel exactly in series. This module removes
+python-control's ``minreal`` for state-space systems is SLICOT's ``tb01pd``, whose
+tolerance logic the workbench does not control (the suite checks this module against
+it); the BDFT loop needs a minimal realisation at run time because the paper's
+Eqn 4 (a double zero at s = 0) and Eqn 5 (a double pole at s = 0) cancel exactly in
+series. This module removes
 uncontrollable then unobservable states with orthogonal transformations, the
 staircase idea of
 

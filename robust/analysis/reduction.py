@@ -8,8 +8,9 @@ bound holds:
 
     || G - G_r ||_inf <= 2 * sum of the truncated Hankel singular values
 
-(Glover 1984; Enns 1984). python-control's ``balred`` needs SLICOT, which is only
-a test dependency here; the test suite checks this routine against it.
+(Glover 1984; Enns 1984). python-control's ``balred`` is SLICOT's ``ab09ad``; this
+routine, with its error bound and its states' signs fixed, is the workbench's own, and
+the test suite checks it against SLICOT's.
 """
 
 from __future__ import annotations
@@ -134,6 +135,20 @@ def _chol_psd(M):
     return V * np.sqrt(np.clip(w, 0, None))
 
 
+def _signs_fixed(A, B, C):
+    """The balanced realisation with each state's sign fixed.
+
+    A balanced realisation is unique up to the sign of each state (for distinct Hankel
+    singular values); the sign is chosen so that the entry of largest magnitude in the
+    state's column of ``[C; B^T]`` is positive, which makes the reduced model the same
+    matrices whichever rounding the SVD's signs took.
+    """
+    M = np.vstack([C, B.T])
+    s = np.sign(M[np.argmax(np.abs(M), axis=0), np.arange(M.shape[1])])
+    s[s == 0] = 1.0
+    return s[:, None] * A * s[None, :], s[:, None] * B, C * s[None, :]
+
+
 def balanced_truncation(
     sys: ct.StateSpace, order: int | None = None, *, tol: float | None = None
 ) -> ReducedModel:
@@ -154,7 +169,8 @@ def balanced_truncation(
         The reduced system (named ``<name>_red``, same signals and ``D``), the
         Hankel singular values and the error bound. The order kept is further
         capped at the numerical rank of the stable part (Hankel singular values
-        above ``1e-14`` times the largest).
+        above ``1e-14`` times the largest). Each balanced state's sign is fixed: the
+        entry of largest magnitude in its column of ``[C; B^T]`` is positive.
 
     Raises
     ------
@@ -202,6 +218,7 @@ def balanced_truncation(
         Tl = S @ U[:, :k].T @ Lq.T
         Tr = Lp @ Vt[:k].T @ S
         Ar, Br, Cr = Tl @ As @ Tr, Tl @ Bs, Cs @ Tr
+        Ar, Br, Cr = _signs_fixed(Ar, Br, Cr)
     else:
         Ar, Br, Cr = np.zeros((0, 0)), np.zeros((0, sys.ninputs)), np.zeros((sys.noutputs, 0))
     A = sla.block_diag(Ar, Au)

@@ -11,7 +11,22 @@ Public API (import from here or from :mod:`robust`):
   :mod:`robust.model.wiring`;
 * the device: :class:`DeviceLimits`, :func:`check_force`, the handle units and the
   intended-motion amplitude.
+
+SLICOT is required, not optional: python-control realises transfer functions in state
+space with SLICOT's ``td04ad`` when slycot is importable and with scipy otherwise, and the
+two realisations differ. Every design tuned in state-space coordinates (the nominal LMI
+design, the robust designs' starts) would then differ between installs: the nominal LMI
+controller, for one, changes its frequency response by orders of magnitude at the same
+H-infinity level. So the model refuses to load without it.
 """
+
+try:
+    import slycot  # noqa: F401  (see the module docstring: realisations depend on it)
+except ImportError as exc:
+    raise ImportError(
+        "the workbench needs slycot (SLICOT): python-control's state-space realisations, "
+        "and so every design, change without it; install it with 'pip install slycot'"
+    ) from exc
 
 from robust.model.anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
 from robust.model.arm import ArmGeometry
