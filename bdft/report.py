@@ -118,7 +118,10 @@ def run(args) -> int:
         a previous report; it and the artifacts' folder are checked before any work),
         ``margin_boxes`` (sub-boxes per scale of each design's certified robust margin,
         0 skips it), ``tradeoff`` (force-limit multiples of the Pareto sweep, empty skips
-        it), ``coverage_samples`` and ``jobs`` (each design's coverage certificate),
+        it), ``coverage_samples`` (each design's coverage certificate), ``jobs`` (local
+        processes: the designs run that many at once, each with its coverage checks in
+        its own process; the trade-off's points, the map and the calibrations are split
+        over them),
         ``limit_samples`` (members of the achievable-limit map shown beside the designs'
         coverage, 0 skips it), ``scheduled_samples`` (members of the per-operator design's
         coverage, :func:`designs.scheduled.scheduled_design`, 0 skips it) and ``json``.
@@ -148,6 +151,7 @@ def run(args) -> int:
         n_jobs=args.jobs,
         member_progress=member_progress("coverage"),
         cache=use_cache,
+        design_jobs=args.jobs,
     )
     tradeoff = None
     if args.tradeoff:

@@ -15,6 +15,7 @@ from designs.limit import design_set, limit_coverage_of
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.html import HtmlPage, write_report_dir
 from robust.analysis.loops import loop_poles
+from robust.engine import map_tasks
 from robust.errors import BDFTError
 from robust.jsonio import to_jsonable
 from robust.model.components import StructureParams
@@ -37,10 +38,16 @@ def run_all_designs(
     n_jobs: int = 1,
     member_progress=None,
     cache: bool = False,
+    design_jobs: int = 1,
+    scheduler: str | None = None,
 ):
     """Run every design (or ``names``); a design that fails is kept with its error, not dropped.
 
-    Each design runs through :func:`designs.run_design` on the default family.
+    Each design runs through :func:`designs.run_design` on the default family. With
+    ``design_jobs`` above 1 (or a Dask ``scheduler``) the designs themselves run in
+    parallel processes (:func:`robust.engine.map_tasks`), each with its coverage checks in
+    one process; every design is deterministic in its process (the robust designs run
+    their BLAS on one thread), so the results are those of the serial run.
 
     Parameters
     ----------
@@ -64,6 +71,11 @@ def run_all_designs(
         ``member_progress(done, total)`` during each coverage check.
     cache : bool
         Use the result cache (see :func:`designs.run_design`).
+    design_jobs : int
+        Designs run at once in local processes (1: one after the other in this process,
+        with ``n_jobs`` processes for each coverage check).
+    scheduler : str, optional
+        Address of a Dask scheduler to run the designs on instead of local processes.
 
     Returns
     -------
@@ -71,25 +83,60 @@ def run_all_designs(
         Design name to its evaluated :class:`designs.DesignResult`, or to the
         :class:`robust.errors.BDFTError` it raised.
     """
-    runs = {}
-    for name in names or design_names():
-        if progress:
-            progress(name)
-        try:
-            runs[name] = run_design(
-                name,
-                samples=samples,
-                seed=seed,
-                out_dir=out_dir,
-                margin_boxes=margin_boxes,
-                coverage_samples=coverage_samples,
-                n_jobs=n_jobs,
-                progress=member_progress,
-                cache=cache,
+    names = list(names or design_names())
+    options = dict(
+        samples=samples,
+        seed=seed,
+        out_dir=out_dir,
+        margin_boxes=margin_boxes,
+        coverage_samples=coverage_samples,
+        cache=cache,
+    )
+    if design_jobs == 1 and scheduler is None:
+        runs = {}
+        for name in names:
+            if progress:
+                progress(name)
+            runs[name] = _design_task(
+                (name, dict(options, n_jobs=n_jobs, progress=member_progress))
             )
-        except BDFTError as exc:
-            runs[name] = exc
-    return runs
+        return runs
+    # the longest designs first, so that the last to start is a short one
+    order = sorted(names, key=lambda n: (n not in _LONG_DESIGNS, names.index(n)))
+
+    def finished(i):
+        if progress:
+            progress(f"{order[i]} done")
+
+    results = map_tasks(
+        _design_task,
+        [(n, dict(options, n_jobs=1)) for n in order],
+        jobs=design_jobs,
+        scheduler=scheduler,
+        progress=finished,
+    )
+    by_name = dict(zip(order, results))
+    return {n: by_name[n] for n in names}
+
+
+#: The designs that take minutes (robust synthesis), started first when designs run in
+#: parallel.
+_LONG_DESIGNS = (
+    "hinf-robust-lmi",
+    "workspace2-hinf-lmi",
+    "cylinder-lmi",
+    "hinf-robust-corr",
+    "hinf-robust",
+)
+
+
+def _design_task(task):
+    """One design's :func:`designs.run_design`, or the :class:`BDFTError` it raised."""
+    name, options = task
+    try:
+        return run_design(name, **options)
+    except BDFTError as exc:
+        return exc
 
 
 def _ratio_envelope(family, values, controller, freqs):
