@@ -64,6 +64,7 @@ import scipy.signal as sig
 
 from designs.limit import ACCEL_NOISE_RMS, ENCODER_MM
 from designs.spec import Specification
+from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError
 from robust.model.components import structure
@@ -369,9 +370,8 @@ def simulate_calibration(
         ignore_inputs=["f"] if loop.human.has_force_port else [],
     )
     Ad, Bd, Cd, Dd, _ = sig.cont2discrete((P.A, P.B[:, [1]], P.C, P.D[:, [1]]), 1.0 / fs)
-    _, yout, _ = sig.dlsim((Ad, Bd, Cd, Dd, 1.0 / fs), r)
-    c = yout[:, 0]
-    x = u + loop.handle_gain * yout[:, 1]
+    c, h = (lifted_response(Ad, Bd[:, 0], Cd[i], float(Dd[i, 0]), r) for i in (0, 1))
+    x = u + loop.handle_gain * h
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(c))):
         raise DataError(
             "simulate_calibration: the loop's response is not finite (unstable member?)"

@@ -60,6 +60,7 @@ from designs.spec import (
     peak_time_grid,
 )
 from robust.analysis.loops import resolvent_times
+from robust.analysis.simulation import lifted_response
 from robust.checks import check_int
 from robust.engine import map_tasks
 from robust.errors import BDFTError, ModelStructureError, ParameterError
@@ -329,45 +330,6 @@ def _problem(cache: dict, n_theta: int, n_track: int, n_feed: int) -> LimitProbl
 _PROBLEMS: dict = {}
 
 
-def _lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200) -> np.ndarray:
-    """Output of ``x[k+1] = Ad x[k] + Bd u[k]``, ``y = Cd x + Dd u`` from rest, block-lifted.
-
-    Equivalent to :func:`scipy.signal.dlsim` (a test compares them) but vectorised: the
-    input is cut into blocks of ``block`` samples; within a block the output is
-    ``O x0 + T u_block`` (``O`` the powers ``Cd Ad^i``, ``T`` the lower-triangular Toeplitz
-    matrix of the Markov parameters), and the state jumps by ``Ad^block`` and ``G u_block``.
-    """
-    n = Ad.shape[0]
-    M = block
-    obs = np.empty((M, n))
-    P = np.eye(n)
-    for i in range(M):
-        obs[i] = Cd @ P
-        P = Ad @ P
-    AdM = P
-    markov = np.concatenate([[Dd], obs[:-1] @ Bd])  # h_0 = D, h_i = Cd Ad^(i-1) Bd
-    T = np.zeros((M, M))
-    for i in range(M):
-        T[i, : i + 1] = markov[i::-1]
-    # G = [Ad^(M-1) Bd, ..., Ad Bd, Bd]
-    G = np.empty((n, M))
-    v = Bd.copy()
-    for j in range(M - 1, -1, -1):
-        G[:, j] = v
-        v = Ad @ v
-    N = u.size
-    nblk = -(-N // M)
-    U = np.zeros(nblk * M)
-    U[:N] = u
-    U = U.reshape(nblk, M)
-    y = np.empty((nblk, M))
-    x = np.zeros(n)
-    for b in range(nblk):
-        y[b] = obs @ x + T @ U[b]
-        x = AdM @ x + G @ U[b]
-    return y.ravel()[:N]
-
-
 @functools.lru_cache(maxsize=8)
 def _unit_motion(seed: int, bandwidth_hz: float, duration_s: float) -> np.ndarray:
     """The intended motion of unit amplitude (it scales linearly), shared by a member's sets."""
@@ -381,7 +343,7 @@ def _simulate_peak(A, B, C, amplitude, spec, seed, duration_s):
     dt = t[1] - t[0]
     sys = (A, B[:, [0]], C[[-1]], np.zeros((1, 1)))
     Ad, Bd, Cd, Dd, _ = sig.cont2discrete(sys, dt, method="foh")
-    f = _lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
+    f = lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
     return float(np.max(np.abs(f))) if np.all(np.isfinite(f)) else math.inf
 
 

@@ -102,7 +102,8 @@ def run_all_designs(
             )
         return runs
     # the longest designs first, so that the last to start is a short one
-    order = sorted(names, key=lambda n: (n not in _LONG_DESIGNS, names.index(n)))
+    rank = {n: i for i, n in enumerate(_LONG_DESIGNS)}
+    order = sorted(names, key=lambda n: (rank.get(n, len(rank)), names.index(n)))
 
     def finished(i):
         if progress:

@@ -5,6 +5,7 @@ import math
 import control as ct
 import numpy as np
 import pytest
+import scipy.signal as sig
 
 from designs.calibration import (
     CAB_IDENTIFIED,
@@ -22,6 +23,7 @@ from designs.calibration import (
 from designs.scheduled import cancellation_gap
 from robust.errors import DataError, ParameterError
 from robust.model.components import StructureParams, structure
+from robust.model.wiring import connect
 from uncertainty import default_family, sample
 
 FAM = default_family()
@@ -113,6 +115,26 @@ def test_record_is_reproducible_from_its_seed():
     # the encoder quantises the handle: every sample a multiple of the resolution
     q = pr.encoder_mm * 1e-3 * loop.handle_units_per_m()
     assert np.max(np.abs(a.x / q - np.round(a.x / q))) < 1e-6
+
+
+def test_record_is_the_state_space_recursion_of_the_calibration_loop():
+    # the record's loop response (block-lifted, robust.analysis.simulation.lifted_response)
+    # is scipy's step-by-step dlsim of the same discretised loop; noise-free so that the
+    # encoder's rounding cannot flip a sample
+    row = sample(FAM.parameters, 1, method="mc", seed=11).values[0]
+    loop = FAM.member(row)
+    pr = CalibrationProtocol(
+        duration_s=4.0, nperseg=1024, encoder_mm=0.0, accel_rms=0.0, remnant_fraction=0.0
+    )
+    rec = simulate_calibration(loop, pr, seed=2)
+    blocks = loop.blocks(bdft=False, reference_correction=True)
+    blocks += [structure(loop.struct), loop.human.system()]
+    P = connect(blocks, inputs=["u", "r_corr"], outputs=["c", "h"], name="cal", ignore_inputs=["f"])
+    dt = 1.0 / pr.fs_hz
+    Ad, Bd, Cd, Dd, _ = sig.cont2discrete((P.A, P.B[:, [1]], P.C, P.D[:, [1]]), dt)
+    _, ref, _ = sig.dlsim((Ad, Bd, Cd, Dd, dt), rec.r)
+    for got, want in ((rec.c, ref[:, 0]), (rec.x / loop.handle_gain, ref[:, 1])):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
 
 
 def test_bad_calibration_input():

@@ -201,20 +201,6 @@ def test_sensor_noise_and_set_order(nominal):
     assert not limit.set_contains("reference/full", "force/full")
 
 
-def test_lifted_simulation_equals_dlsim():
-    import scipy.signal as sig
-
-    rng = np.random.default_rng(4)
-    A = rng.normal(size=(30, 30))
-    A -= (np.abs(np.linalg.eigvals(A)).max() + 0.5) * np.eye(30)
-    B, C = rng.normal(size=(30, 1)), rng.normal(size=(1, 30))
-    Ad, Bd, Cd, Dd, _ = sig.cont2discrete((A, B, C, np.zeros((1, 1))), 1e-3, method="foh")
-    u = rng.normal(size=5003)
-    y = limit._lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
-    _, ref, _ = sig.dlsim((Ad, Bd, Cd, Dd, 1e-3), u)
-    np.testing.assert_allclose(y, ref[:, 0], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
-
-
 def test_member_limits_of_the_nominal_member(nominal):
     spec = Specification()
     force = limit.member_limit(nominal, "force", spec, problems={})

@@ -11,6 +11,7 @@ from robust import (
     simulate,
     simulate_swept_sine,
 )
+from robust.analysis.simulation import lifted_response
 
 CAL = DEFAULT_CALIBRATION
 
@@ -64,3 +65,15 @@ def test_simulation_matches_scipy_lsim_of_the_formula():
 def test_bad_sweep(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         SweptSine(**kwargs)
+
+
+def test_lifted_simulation_equals_dlsim():
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(30, 30))
+    A -= (np.abs(np.linalg.eigvals(A)).max() + 0.5) * np.eye(30)
+    B, C = rng.normal(size=(30, 1)), rng.normal(size=(1, 30))
+    Ad, Bd, Cd, Dd, _ = ss.cont2discrete((A, B, C, np.zeros((1, 1))), 1e-3, method="foh")
+    u = rng.normal(size=5003)
+    y = lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
+    _, ref, _ = ss.dlsim((Ad, Bd, Cd, Dd, 1e-3), u)
+    np.testing.assert_allclose(y, ref[:, 0], rtol=1e-9, atol=1e-12 * np.abs(ref).max())

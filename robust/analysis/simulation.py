@@ -18,7 +18,14 @@ from robust.checks import POSITIVE, check_scalar, check_vector
 from robust.errors import DataError, ParameterError
 from robust.model.loop import BDFTLoop
 
-__all__ = ["SweptSine", "swept_sine", "TimeResponse", "simulate_swept_sine", "simulate"]
+__all__ = [
+    "SweptSine",
+    "swept_sine",
+    "TimeResponse",
+    "simulate_swept_sine",
+    "simulate",
+    "lifted_response",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -228,3 +235,66 @@ def simulate_swept_sine(
         simulate(loop, t, u, bdft=True, controller=controller),
         simulate(loop, t, u, bdft=False),
     )
+
+
+def lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200) -> np.ndarray:
+    """Output of ``x[k+1] = Ad x[k] + Bd u[k]``, ``y = Cd x + Dd u`` from rest, block-lifted.
+
+    Equivalent to :func:`scipy.signal.dlsim` (a test compares them) but vectorised: the
+    input is cut into blocks of ``block`` samples; within a block the output is
+    ``O x0 + T u_block`` (``O`` the powers ``Cd Ad^i``, ``T`` the lower-triangular Toeplitz
+    matrix of the Markov parameters), and the state jumps by ``Ad^block`` and ``G u_block``.
+    No eigendecomposition is involved, so badly conditioned modal bases (lightly damped
+    loops in companion-like realisations) cost nothing in accuracy; the time is a few
+    matrix products per block instead of a Python step per sample (a 60 000-sample record
+    of a 13-state loop: milliseconds against about 0.3 s for ``dlsim``).
+
+    Parameters
+    ----------
+    Ad : numpy.ndarray, shape (n, n)
+        Discrete-time state matrix.
+    Bd : numpy.ndarray, shape (n,)
+        Input vector (one input).
+    Cd : numpy.ndarray, shape (n,)
+        Output row (one output).
+    Dd : float
+        Feedthrough.
+    u : numpy.ndarray, shape (N,)
+        Input samples.
+    block : int
+        Samples per block.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        The output samples.
+    """
+    n = Ad.shape[0]
+    M = block
+    obs = np.empty((M, n))
+    P = np.eye(n)
+    for i in range(M):
+        obs[i] = Cd @ P
+        P = Ad @ P
+    AdM = P
+    markov = np.concatenate([[Dd], obs[:-1] @ Bd])  # h_0 = D, h_i = Cd Ad^(i-1) Bd
+    T = np.zeros((M, M))
+    for i in range(M):
+        T[i, : i + 1] = markov[i::-1]
+    # G = [Ad^(M-1) Bd, ..., Ad Bd, Bd]
+    G = np.empty((n, M))
+    v = Bd.copy()
+    for j in range(M - 1, -1, -1):
+        G[:, j] = v
+        v = Ad @ v
+    N = u.size
+    nblk = -(-N // M)
+    U = np.zeros(nblk * M)
+    U[:N] = u
+    U = U.reshape(nblk, M)
+    y = np.empty((nblk, M))
+    x = np.zeros(n)
+    for b in range(nblk):
+        y[b] = obs @ x + T @ U[b]
+        x = AdM @ x + G @ U[b]
+    return y.ravel()[:N]
