@@ -16,19 +16,30 @@ Usage::
 
     python benchmarks/bench_robust_lmi.py                    # members 1 2 4 8
     python benchmarks/bench_robust_lmi.py --members 1 4 --steps 3 --starts minimax
+    python benchmarks/bench_robust_lmi.py --ladder minimax minimax-bfgs   # whole designs
+
+With ``--ladder`` it runs the whole default handle-force design
+(:func:`designs.robust_lmi.maximise_margin`) with each start method instead and prints
+its time, the scale reached, the constraint binding at the first scale not reached, the
+rounds started by linear programs and by BFGS, and a hash of the controller to six
+significant digits (run it under ``OPENBLAS_CORETYPE=Sandybridge`` to compare kernels).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import hashlib
 import platform
 import resource
 import time
 
 import control as ct
 import numpy as np
+from threadpoolctl import threadpool_info
 
 from designs.hinf_nominal import design_hinf_nominal
+from designs.robust_lmi import START_METHODS, RobustOptions, maximise_margin
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.region import PoleRegion
@@ -45,8 +56,18 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=4)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--starts", nargs="+", choices=("minimax", "bfgs"), default=["minimax", "bfgs"])
+    ap.add_argument(
+        "--ladder",
+        nargs="*",
+        choices=START_METHODS,
+        default=None,
+        help="instead: the whole default design (maximise_margin) with each start method",
+    )
     args = ap.parse_args()
     fam = default_family()
+    if args.ladder is not None:
+        ladder(fam, args.ladder or ["minimax", "minimax-bfgs"])
+        return
     region = PoleRegion(0.1, 0.1)
     K = design_hinf_nominal(fam).controller
     Kr = ct.balred(K, args.order, method="truncate")
@@ -81,6 +102,40 @@ def main() -> None:
                 f"{per:11.3f} {(t2 - t1) / m:12.2f} {res.gamma_bound:8.4f} {res.iterations:5d} "
                 f"{rss:11.0f}"
             )
+
+
+def ladder(fam, methods) -> None:
+    """The default handle-force design with each start: time, scale, binding, controller hash.
+
+    The hash is of the controller's matrices printed to 6 significant digits (what the
+    design's JSON shows), so two machines' runs can be compared by eye.
+    """
+    print(f"# maximise_margin on the default family; BLAS {_blas()}")
+    print(
+        f"{'start':>13} {'time s':>7} {'scale':>6} {'binding at failure':>20} {'LP':>3} "
+        f"{'BFGS':>4} {'peak RSS MB':>11} controller"
+    )
+    for how in methods:
+        t0 = time.perf_counter()
+        d = maximise_margin(fam, options=dataclasses.replace(RobustOptions(), start=how))
+        dt = time.perf_counter() - t0
+        K = d.controller
+        text = " ".join(f"{x:.6g}" for m in (K.A, K.B, K.C, K.D) for x in np.ravel(m))
+        digest = hashlib.sha256(text.encode()).hexdigest()[:12]
+        lp = sum(lv.starts.get("minimax", 0) for lv in d.levels)
+        bf = sum(lv.starts.get("bfgs", 0) for lv in d.levels)
+        binding = d.failed.binding if d.failed else "-"
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(
+            f"{how:>13} {dt:7.1f} {d.scale:6.3f} {binding:>20} {lp:3d} {bf:4d} {rss:11.0f} {digest}"
+        )
+
+
+def _blas() -> str:
+    info = {
+        (i["internal_api"], i["architecture"]) for i in threadpool_info() if i["user_api"] == "blas"
+    }
+    return ", ".join(sorted(f"{a} {b}" for a, b in info)) or "unknown"
 
 
 if __name__ == "__main__":

@@ -526,6 +526,7 @@ def slp_minimise(
     trust: float = 0.1,
     max_iter: int = 60,
     active: float = np.inf,
+    constraints=None,
 ) -> SLPResult:
     """Sequential linear programming with a trust region: a deterministic local minimiser.
 
@@ -538,7 +539,8 @@ def slp_minimise(
         s.t.      v_j + <grad v_j, D> <= u,  u >= target,
                   |x + D - reference| / unit <= a,  |D| <= radius * unit
 
-    by HiGHS (:func:`scipy.optimize.linprog`); the step is kept when the merit falls by
+    and, with ``constraints``, ``c_i + <grad c_i, D> <= 0``, by HiGHS
+    (:func:`scipy.optimize.linprog`); the step is kept when the merit falls by
     at least a tenth of the fall the linear model predicts (Fletcher's SL1QP test,
     *Practical Methods of Optimization*, 2nd ed., 1987, Sec. 14.5), the radius doubles
     after a step that achieves three quarters of it and halves after a rejected one.
@@ -570,6 +572,11 @@ def slp_minimise(
     active : float
         Constraints below ``target - active`` are left out of the linear programs
         (they cannot reach the target within a trust region).
+    constraints : callable, optional
+        ``constraints(x) -> (c, C)``: values ``c`` (k,) that must stay ``<= 0`` and their
+        gradients ``C`` (k, size of x); ``x0`` must satisfy them. Each linear program
+        keeps their linear model, and a step that breaks them in fact is rejected (the
+        radius halves), so every iterate satisfies them.
 
     Returns
     -------
@@ -588,7 +595,15 @@ def slp_minimise(
         m = max(float(v.max()), target) + prox * float(np.mean(np.abs(z - ref) / unit)) + p
         return m, v, np.asarray(G, float).reshape(v.size, n), float(p), np.ravel(g)
 
+    def cons_at(z):
+        if constraints is None:
+            return np.zeros(0), np.zeros((0, n))
+        cv, Cg = constraints(z.reshape(shape))
+        cv = np.asarray(cv, float)
+        return cv, np.asarray(Cg, float).reshape(cv.size, n)
+
     merit, v, G, p, g = merit_at(xf)
+    cv, Cg = cons_at(xf)
     radius, it, kept = trust, 0, 0
     while it < max_iter and radius > 1e-6 * trust:
         it += 1
@@ -597,14 +612,16 @@ def slp_minimise(
         m = int(keep.sum())
         # variables: D (n), a (n), u
         c = np.concatenate([g, np.full(n, prox / n), [1.0]])
+        k = cv.size
         A_ub = np.vstack(
             [
                 np.hstack([Gk, np.zeros((m, n)), -np.ones((m, 1))]),
                 np.hstack([np.diag(1 / unit), -np.eye(n), np.zeros((n, 1))]),
                 np.hstack([-np.diag(1 / unit), -np.eye(n), np.zeros((n, 1))]),
+                np.hstack([Cg, np.zeros((k, n + 1))]),
             ]
         )
-        b_ub = np.concatenate([-vk, (ref - xf) / unit, (xf - ref) / unit])
+        b_ub = np.concatenate([-vk, (ref - xf) / unit, (xf - ref) / unit, -cv])
         bounds = [(-radius * u, radius * u) for u in unit] + [(0.0, None)] * n + [(target, None)]
         res = so.linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs")
         if res.status != 0 or res.x is None:
@@ -617,10 +634,12 @@ def slp_minimise(
         if not expected > 1e-12 * max(1.0, abs(merit)):
             break
         new = merit_at(xf + D)
+        new_c = cons_at(xf + D)
         fall = merit - new[0]
-        if fall >= 0.1 * expected:
+        if fall >= 0.1 * expected and not np.any(new_c[0] > 0):
             xf = xf + D
             merit, v, G, p, g = new
+            cv, Cg = new_c
             kept += 1
             if fall >= 0.75 * expected:
                 radius = min(2 * radius, 8 * trust)
@@ -729,6 +748,7 @@ def minimax_start(
     trust: float = 0.05,
     prox: float = 1e-4,
     w0: float = 20.0,
+    keep_region: bool = True,
 ) -> TuningResult:
     """A deterministic start: into the region, then the largest utilisation minimised.
 
@@ -739,7 +759,12 @@ def minimax_start(
     phase: the poles' required over achieved decay rate and damping ratio, ``|T(jw)| /
     tracking_bound`` on the grid, each member's H2 norm over ``h2_bound``, the response
     bounds), all at once: where :func:`tune_members` minimises a soft maximum by BFGS, this
-    minimises the maximum itself, and its steps depend continuously on the data.
+    minimises the maximum itself, and its steps depend continuously on the data. Where the
+    second stage ends outside the region (the budgets cannot all be met, and the minimax
+    spreads the excess over the region's utilisations too), it is run again (with
+    ``keep_region``) from the first stage's controller with the region kept as a
+    constraint of every linear program and every accepted step; should that end outside
+    too, the first stage's controller is returned.
 
     Parameters
     ----------
@@ -766,6 +791,10 @@ def minimax_start(
         Weight of the L1 distance to the region stage's controller.
     w0 : float
         Time scale, rad/s.
+    keep_region : bool
+        Keep the region when the second stage leaves it (see above); ``False`` returns
+        the second stage's controller outside the region, for a caller with another
+        method to try.
 
     Returns
     -------
@@ -797,14 +826,34 @@ def minimax_start(
         return u, du.reshape(u.size, -1), 0.0, np.zeros(x.size)
 
     unit = max(1.0, float(np.sqrt(np.mean(Om * Om))))
-    res = slp_minimise(
-        evaluate,
-        Om,
-        np.full(Om.shape, unit),
-        target=0.0,
-        prox=prox,
-        trust=trust,
-        max_iter=max_iter,
-    )
-    Om = res.x
-    return _tuning_result(terms, Om, nk, w0, channels, res.merit, first.iterations + res.iterations)
+
+    def run(constraints=None):
+        res = slp_minimise(
+            evaluate,
+            Om,
+            np.full(Om.shape, unit),
+            target=0.0,
+            prox=prox,
+            trust=trust,
+            max_iter=max_iter,
+            constraints=constraints,
+        )
+        its = first.iterations + res.iterations
+        return _tuning_result(terms, res.x, nk, w0, channels, res.merit, its)
+
+    out = run()
+    if out.violation < 0 or not keep_region:
+        return out
+    # the budgets' minimax left the region: its decay and damping utilisations weigh no
+    # more than the budgets, so where the budgets cannot all be met it spreads the excess
+    # over the region too. Again from the region stage's controller, with the region
+    # kept as a constraint (a tenth of the margin inside; every iterate stays in it)
+    in_region = _region_rows(scaled, region.scaled(w0))
+    level = max(-0.1 * margin / w0, float(in_region(Om)[0].max()))
+
+    def inside(x):
+        v, G, _, _ = in_region(x)
+        return v - level, G
+
+    out = run(inside)
+    return out if out.violation < 0 else first
