@@ -294,7 +294,7 @@ def _start(family, options: RobustOptions, limits) -> ct.StateSpace:
     nk = options.order
     if options.controls == ("f",) and options.measurements == ("x", "c"):
         K = design_hinf_nominal(family, limits=limits).controller
-        Kr = balanced_truncation(K, nk).sys if nk < K.nstates else K
+        Kr = balanced_truncation(K, nk, fix_signs=True).sys if nk < K.nstates else K
         return ct.ss(Kr.A, Kr.B, Kr.C, Kr.D)
     # a seeded, slow, low-gain filter: the entries break the symmetry of the states
     rng = np.random.default_rng(options.seed)
