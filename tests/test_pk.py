@@ -64,7 +64,17 @@ def start(family):
 
 @pytest.fixture(scope="module")
 def tuned(members, start):
-    return tune_members(members, start, REGION, tracking_bound=0.95, h2_bound=0.8, margin=0.05)
+    # the budget the designs run it with (RobustOptions: 100 iterations, 2 restarts)
+    return tune_members(
+        members,
+        start,
+        REGION,
+        tracking_bound=0.95,
+        h2_bound=0.8,
+        margin=0.05,
+        max_iter=100,
+        restarts=2,
+    )
 
 
 @pytest.fixture(scope="module")
