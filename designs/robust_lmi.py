@@ -112,11 +112,12 @@ class RobustOptions:
         linear programs into the region, then on the largest utilisation of the budgets
         with the region kept; every step depends continuously on the data, so two
         machines' answers differ only as much as their inputs do (measured on the default
-        family: scale 0.05 reached in 102 s, tracking binding at 0.075).
+        family, ``benchmarks/bench_robust_lmi.py --ladder``: scale 0.05 reached in 111 s,
+        tracking binding at 0.075).
         ``"minimax-bfgs"`` (default): the same linear programs, but where the budgets'
         minimax leaves the region (the budgets cannot all be met) the nonsmooth tuning
         :func:`robust.synthesis.tuning.tune_members` takes over; it reaches further (0.075
-        in 122 s, continuous force binding at 0.1) but its path depends on the BLAS
+        in 120 s, continuous force binding at 0.1) but its path depends on the BLAS
         kernel's rounding. ``"bfgs"``: the nonsmooth tuning in every round.
     tune_iterations : int
         Iterations of the start (linear programs; BFGS iterations per run).

@@ -26,6 +26,17 @@ from uncertainty.randomized import coverage_consistent
 __all__ = ["run_all_designs", "verdict", "write_design_report"]
 
 
+#: The designs that take minutes (robust synthesis), started first when designs run in
+#: parallel.
+_LONG_DESIGNS = (
+    "hinf-robust-lmi",
+    "workspace2-hinf-lmi",
+    "cylinder-lmi",
+    "hinf-robust-corr",
+    "hinf-robust",
+)
+
+
 def run_all_designs(
     *,
     samples: int = 2000,
@@ -118,17 +129,6 @@ def run_all_designs(
     )
     by_name = dict(zip(order, results))
     return {n: by_name[n] for n in names}
-
-
-#: The designs that take minutes (robust synthesis), started first when designs run in
-#: parallel.
-_LONG_DESIGNS = (
-    "hinf-robust-lmi",
-    "workspace2-hinf-lmi",
-    "cylinder-lmi",
-    "hinf-robust-corr",
-    "hinf-robust",
-)
 
 
 def _design_task(task):
