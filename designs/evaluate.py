@@ -35,6 +35,7 @@ __all__ = [
     "INTENT_FRACTION",
     "intended_motion",
     "output_ratio",
+    "output_ratios",
     "frequency_metrics",
     "force_histories",
 ]
@@ -172,6 +173,37 @@ def output_ratio(loop: BDFTLoop, controller, f_hz: np.ndarray) -> np.ndarray:
     with_k = frequency_response(loop.system(bdft=True, controller=controller), f_hz)
     ref = frequency_response(loop.system(bdft=False), f_hz)
     return with_k / ref
+
+
+def output_ratios(
+    loop: BDFTLoop, controller, f_hz: np.ndarray, *, closed: ct.StateSpace | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`output_ratio` with ``controller`` and without it, sharing one ``Y_ref``.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        One member.
+    controller : control.StateSpace or None
+        The compensator.
+    f_hz : ndarray
+        Frequencies, Hz.
+    closed : control.StateSpace, optional
+        ``loop.system(bdft=True, controller=controller)`` when the caller has built it
+        already (it is not built again).
+
+    Returns
+    -------
+    (ndarray, ndarray) of complex
+        ``Y / Y_ref`` with the compensator and without it (the same array for ``None``).
+    """
+    if closed is None:
+        closed = loop.system(bdft=True, controller=controller)
+    ref = frequency_response(loop.system(bdft=False), f_hz)
+    with_k = frequency_response(closed, f_hz) / ref
+    if controller is None:
+        return with_k, with_k
+    return with_k, frequency_response(loop.system(bdft=True), f_hz) / ref
 
 
 def frequency_metrics(loop: BDFTLoop, controller) -> tuple[float, float]:

@@ -81,9 +81,9 @@ from designs.evaluate import (
     SUPPRESSION_BAND_HZ,
     TRACKING_BAND_HZ,
     intended_motion,
-    output_ratio,
+    output_ratios,
 )
-from robust.analysis.loops import loop_poles
+from robust.analysis.loops import closed_loop_poles
 from robust.analysis.realization import minimal_realization
 from robust.analysis.simulation import simulate
 from robust.analysis.stability import poles_stable, stability_bound
@@ -322,7 +322,14 @@ class SpecCheck:
         return to_jsonable(self)
 
 
-def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float) -> float:
+def rms_force(
+    loop: BDFTLoop,
+    controller,
+    amplitude: float,
+    bandwidth_hz: float,
+    *,
+    closed: ct.StateSpace | None = None,
+) -> float:
     """Exact stationary RMS handle force under the realistic intended motion, N.
 
     The motion is white noise through the unit intent filter ``F``
@@ -342,6 +349,9 @@ def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float)
         Intended-motion amplitude, handle units.
     bandwidth_hz : float
         Bandwidth of the intended motion, Hz.
+    closed : control.StateSpace, optional
+        ``loop.system(bdft=True, controller=controller)`` when the caller has built it
+        already (its ``u -> f`` channel is used; it is not built again).
 
     Returns
     -------
@@ -360,9 +370,9 @@ def rms_force(loop: BDFTLoop, controller, amplitude: float, bandwidth_hz: float)
     bandwidth_hz = check_scalar("rms_force: bandwidth_hz", bandwidth_hz, POSITIVE)
     if controller is None or "f" not in controller.output_labels:
         return 0.0
-    sys = loop.system(bdft=True, controller=controller, outputs=["f"])
-    iu = sys.input_labels.index("u")
-    g = minimal_realization(sys.A, sys.B[:, [iu]], sys.C, sys.D[:, [iu]])
+    sys = closed if closed is not None else loop.system(bdft=True, controller=controller)
+    iu, jf = sys.input_labels.index("u"), sys.output_labels.index("f")
+    g = minimal_realization(sys.A, sys.B[:, [iu]], sys.C[[jf]], sys.D[[jf]][:, [iu]])
     F = intent_filter(bandwidth_hz, 1.0)
     Af, Bf, Cf = (np.asarray(m, float) for m in (F.A, F.B, F.C))
     n, nf = g.A.shape[0], Af.shape[0]
@@ -525,20 +535,26 @@ def check_specification(
     tracking, amplification = np.full(n, math.inf), np.full(n, math.inf)
     rms = np.full(n, math.inf) if has_force else np.zeros(n)
     amplitude = np.zeros(n)
+    nt = ft.size
     for i, m in enumerate(members):
-        ps = loop_poles(m, controller=controller)
+        # one closed loop per member gives its poles and its output ratio on both grids
+        closed = m.system(bdft=True, controller=controller)
+        ps = closed_loop_poles(closed)
         max_real[i] = ps.max_real
         damping[i] = _damping_in_band(ps.poles, spec.damping_band_hz)
         stable[i] = ps.stable
         if not stable[i]:
             continue
-        tracking[i] = np.max(np.abs(output_ratio(m, controller, ft) - 1.0))
-        peak_k = np.max(np.abs(output_ratio(m, controller, fb) - 1.0))
-        peak_0 = np.max(np.abs(output_ratio(m, None, fb) - 1.0))
+        ratio_k, ratio_0 = output_ratios(m, controller, np.concatenate([ft, fb]), closed=closed)
+        tracking[i] = np.max(np.abs(ratio_k[:nt] - 1.0))
+        peak_k = np.max(np.abs(ratio_k[nt:] - 1.0))
+        peak_0 = np.max(np.abs(ratio_0[nt:] - 1.0))
         amplification[i] = 20 * np.log10(peak_k / peak_0)
         if has_force:
             amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
-            rms[i] = rms_force(m, controller, amplitude[i], spec.intent_bandwidth_hz)
+            rms[i] = rms_force(
+                m, controller, amplitude[i], spec.intent_bandwidth_hz, closed=closed
+            )
 
     notes = []
     if not stable.all():
