@@ -552,9 +552,7 @@ def check_specification(
         amplification[i] = 20 * np.log10(peak_k / peak_0)
         if has_force:
             amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
-            rms[i] = rms_force(
-                m, controller, amplitude[i], spec.intent_bandwidth_hz, closed=closed
-            )
+            rms[i] = rms_force(m, controller, amplitude[i], spec.intent_bandwidth_hz, closed=closed)
 
     notes = []
     if not stable.all():

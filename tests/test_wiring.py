@@ -6,6 +6,8 @@ the force-feedback generalized plant, closed with a controller, contains every p
 of the loop closed with the same controller. Signal names that do not connect fail.
 """
 
+import warnings
+
 import control as ct
 import numpy as np
 import pytest
@@ -127,6 +129,58 @@ def test_force_feedback_plant_contains_the_loop(nominal):
     plant_poles = np.linalg.eigvals(np.asarray(cl.A, float))
     for p in ct.poles(nominal.system(controller=K)):
         assert np.min(np.abs(plant_poles - p)) <= 1e-6 * max(1.0, abs(p))
+
+
+@pytest.mark.parametrize("outputs", [(), ("f",), ("r_corr",)], ids=["open", "force", "correction"])
+def test_connect_equals_python_controls_interconnection(family, outputs):
+    # the exact closed form against python-control's interconnect (a nonlinear system
+    # linearised by finite differences): the same states in the same order, and matrices
+    # equal to rounding, with a controller in the loop and with the loop without BDFT
+    K = _controller(outputs) if outputs else None
+    rows = np.random.default_rng(11).random((3, len(family.names)))
+    lo = np.array([p.low for p in family.parameters])
+    hi = np.array([p.high for p in family.parameters])
+    for row in lo + (hi - lo) * rows:
+        m = family.member(row)
+        for bdft in (True, False) if K is None else (True,):
+            ext = bdft and m.human.has_force_port
+            blocks = m.blocks(bdft=bdft, controller=K, external_force=ext)
+            ins = ["u", "f_ext"] if ext else ["u"]
+            outs = ["y", "c", "h", "x", "e"] if bdft else ["y", "x", "e"]
+            outs += list(outputs)
+            got = connect(blocks, inputs=ins, outputs=outs, name="loop")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                want = ct.interconnect(blocks, inputs=ins, outputs=outs, check_unused=False)
+            assert list(got.state_labels) == list(want.state_labels)
+            assert list(got.input_labels) == ins and list(got.output_labels) == outs
+            for a, b in ((got.A, want.A), (got.B, want.B), (got.C, want.C), (got.D, want.D)):
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+
+
+def test_connect_refuses_clashes_and_algebraic_loops():
+    a = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="a")
+    b = ct.ss([[-2.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="b")
+    with pytest.raises(ModelStructureError, match="two blocks drive signal 'y'"):
+        connect([a, b], inputs=["u"], outputs=["y"], name="twice")
+    with pytest.raises(ModelStructureError, match="no block has the output 'z'"):
+        connect([a], inputs=["u"], outputs=["z"], name="unknown")
+    d = ct.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.01, inputs="y", outputs="z", name="d")
+    with pytest.raises(ModelStructureError, match="different timebases"):
+        connect([a, d], inputs=["u"], outputs=["z"], name="mixed")
+    # y = u + y has no solution: an algebraic loop through a unit direct feedthrough
+    g = ct.ss([], [], [], [[1.0, 1.0]], inputs=["u", "y"], outputs="y", name="g")
+    with pytest.raises(ModelStructureError, match="algebraic loop"):
+        connect([g], inputs=["u"], outputs=["y"], name="loop")
+    # a static gain in a loop with a solution: y = 2 (u - y) -> y = 2/3 u
+    h = ct.ss([], [], [], [[2.0, -2.0]], inputs=["u", "y"], outputs="y", name="h")
+    sys = connect([h], inputs=["u"], outputs=["y"], name="static")
+    assert sys.nstates == 0 and sys.D[0, 0] == pytest.approx(2.0 / 3.0, rel=1e-15)
+    # a transfer-function block is converted
+    tf = ct.tf([1.0], [1.0, 3.0], inputs="y", outputs="z", name="tf")
+    sys = connect([a, tf], inputs=["u"], outputs=["z"], name="mixed_types")
+    assert sys.nstates == 2
+    np.testing.assert_allclose(sys(0.0), 1.0 / 3.0, rtol=1e-12)
 
 
 def test_unconnected_inputs_and_unknown_names_fail():

@@ -168,9 +168,9 @@ def balanced_truncation(
         Instead of ``order``: keep the smallest order whose error bound is <= ``tol``.
     fix_signs : bool
         Fix each balanced state's sign: the entry of largest magnitude in its column of
-        ``[C; B^T]`` positive (SLICOT ab09ad's realisation where they were compared). Off
-        by default: the controllers tuned from a reduced start keep the coordinates they
-        were tuned in.
+        ``[C; B^T]`` positive (SLICOT ab09ad's realisation up to these signs, which SLICOT
+        takes from its factorisations). Off by default: the controllers tuned from a
+        reduced start keep the coordinates they were tuned in.
 
     Returns
     -------
