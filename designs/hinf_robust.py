@@ -222,6 +222,7 @@ def design_hinf_robust(
             dict(zip(("design_members", "worst_sampled_max_real", "fraction_stable"), h))
             for h in tuned.history
         ],
+        "chosen_round": tuned.chosen_round,
         "design_member_alpha_max": float(tuned.alpha_design.max()),
         "force_phase": tuned.force_phase,
         "member_gammas": gammas.tolist(),

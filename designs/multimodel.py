@@ -476,6 +476,10 @@ class RobustTuning:
         Outcome of the second (force and tracking budget) phase: ``accepted``,
         ``worst_sampled_max_real`` (rad/s) and ``fraction_stable``; ``None`` if it
         did not run.
+    chosen_round : int
+        The entry of ``history`` whose controller is returned: the last when converged,
+        else the one with the largest fraction stable (then the lowest worst abscissa);
+        ``design_rows`` is that round's design set.
     """
 
     controller: ct.StateSpace
@@ -485,6 +489,7 @@ class RobustTuning:
     rounds: int
     converged: bool  # every sampled member stable with the margin
     force_phase: dict | None = None  # outcome of the force-budget phase (None if not run)
+    chosen_round: int = -1  # the history entry whose controller is returned
 
 
 def tune_spectral_abscissa(
@@ -608,10 +613,12 @@ def tune_spectral_abscissa(
             val, gr = val + pv, gr + pg
         return val, (gr * unit).ravel()
 
+    validated = []  # per history entry: the controller validated and its design set's size
     for r in range(rounds):
         v = validate_family(family, samples, controller=K)
         worst = np.argsort(v.max_real)[::-1]
         history.append((len(rows), float(v.max_real.max()), float(v.fraction_stable)))
+        validated.append((K, len(rows)))
         if progress:
             progress(r, history[-1])
         if v.max_real.max() < -margin:
@@ -625,7 +632,16 @@ def tune_spectral_abscissa(
     else:
         v = validate_family(family, samples, controller=K)
         history.append((len(rows), float(v.max_real.max()), float(v.fraction_stable)))
+        validated.append((K, len(rows)))
         converged = bool(v.max_real.max() < -margin)
+    chosen = len(history) - 1
+    if not converged:
+        # the enlargement need not improve monotonically (a round fitted to the members
+        # it added can lose others): keep the round with the most sampled members stable,
+        # then the lowest worst abscissa (the fractions are counts: no tie on rounding)
+        chosen = min(range(len(history)), key=lambda i: (-history[i][2], history[i][1], i))
+        K, n_rows = validated[chosen]
+        rows = rows[:n_rows]
     force_phase = None
     if (force is not None or tracking is not None) and converged:
         # second phase: the force budget on the design members, the margin kept by the same term
@@ -643,5 +659,5 @@ def tune_spectral_abscissa(
     data = open_loop_data([family.member(x) for x in rows], K)
     alpha = spectral_abscissas(data, _omega(K), nk)
     return RobustTuning(
-        K, np.array(rows), alpha, tuple(history), len(history), converged, force_phase
+        K, np.array(rows), alpha, tuple(history), len(history), converged, force_phase, chosen
     )
