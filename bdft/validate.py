@@ -19,10 +19,10 @@ from bdft.args import (
     seed,
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
+from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.model.literature import DEFAULT_POSTURE, POSTURES
 from robust.model.physical import nominal_params
 from uncertainty import (
-    BDFT_BAND_HZ,
     DEFAULT_CHUNK,
     RANGES,
     default_family,
@@ -132,8 +132,9 @@ def register(sub) -> None:
         "--band",
         default=None,
         metavar="LO-HI",
-        help="frequency band of the reported minimum damping ratio, Hz (default: the BDFT "
-        "band, 2-12 Hz)",
+        help="frequency band of the reported minimum damping ratio, Hz (default: the "
+        f"damping band of the specification and the pole region, "
+        f"{DAMPING_BAND_HZ[0]:g}-{DAMPING_BAND_HZ[1]:g} Hz)",
     )
     p.add_argument(
         "--method", choices=_METHODS, default="lhs", help="sampling method (default: %(default)s)"
@@ -273,7 +274,7 @@ def progress_bar(total: int, desc: str):
 
 def _band(text):
     if text is None:
-        return BDFT_BAND_HZ
+        return DAMPING_BAND_HZ
     lo, sep, hi = str(text).partition("-")
     try:
         band = (float(lo), float(hi))

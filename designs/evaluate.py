@@ -70,8 +70,8 @@ class DesignEvaluation:
     max_real_pole : float
         Largest real part of any member's closed-loop pole, rad/s.
     min_damping : float
-        Smallest damping ratio of the members' poles in the BDFT band (2-12 Hz;
-        ``inf`` if no pole lies in it).
+        Smallest damping ratio of the members' poles in the damping band
+        (:data:`robust.analysis.stability.DAMPING_BAND_HZ`; ``inf`` if no pole lies in it).
     worst : dict
         Parameters (name -> value) of the member with the largest real part.
     suppression_db : float

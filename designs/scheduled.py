@@ -79,7 +79,7 @@ from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
 from designs.spec import N_FEEDTHROUGH_FREQS, N_TRACKING_FREQS, Specification
 from robust.analysis.loops import resolvent_times
-from robust.analysis.stability import stability_bound
+from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import structure
@@ -575,9 +575,7 @@ def _utilisations(ol: _OpenLoop, spec: Specification, Kc, w: float, gain, phase)
     max_real = p.real.max(axis=1)
     stable = max_real < stability_bound(0.0)
     out[stable, 0] = spec.decay_rate / -max_real[stable]
-    f = np.abs(p.imag) / (2 * math.pi)
-    inband = (f >= spec.damping_band_hz[0]) & (f <= spec.damping_band_hz[1])
-    zeta = np.where(inband, -p.real / np.abs(p), math.inf).min(axis=1)
+    zeta = damping_in_band(p, spec.damping_band_hz)
     out[:, 1] = np.where(zeta > 0, spec.min_damping / np.where(zeta > 0, zeta, 1.0), math.inf)
     out[:, 1] = np.where(np.isinf(zeta), 0.0, out[:, 1])
     trk = np.abs(ratio[:, :nt] - 1.0).max(axis=1) / spec.tracking_error

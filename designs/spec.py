@@ -86,7 +86,12 @@ from designs.evaluate import (
 from robust.analysis.loops import closed_loop_poles
 from robust.analysis.realization import minimal_realization
 from robust.analysis.simulation import simulate
-from robust.analysis.stability import poles_stable, stability_bound
+from robust.analysis.stability import (
+    DAMPING_BAND_HZ,
+    damping_in_band,
+    poles_stable,
+    stability_bound,
+)
 from robust.checks import (
     FINITE,
     NONNEGATIVE,
@@ -182,7 +187,7 @@ class Specification:
     intent_bandwidth_hz: float = 2.0
     decay_rate: float = 0.1
     min_damping: float = 0.1
-    damping_band_hz: tuple[float, float] = (0.5, 10.0)
+    damping_band_hz: tuple[float, float] = DAMPING_BAND_HZ
     tracking_error: float = 0.2
     tracking_band_hz: tuple[float, float] = TRACKING_BAND_HZ
     feedthrough_band_hz: tuple[float, float] = SUPPRESSION_BAND_HZ
@@ -426,16 +431,6 @@ def peak_time_grid(duration_s: float) -> np.ndarray:
     return np.arange(int(round(duration_s * SIMULATION_RATE_HZ)) + 1) / SIMULATION_RATE_HZ
 
 
-def _damping_in_band(poles: np.ndarray, band_hz) -> float:
-    """Smallest ``-Re p / |p|`` of the poles with ``|Im p| / (2 pi)`` in ``band_hz``."""
-    f = np.abs(poles.imag) / (2 * np.pi)
-    inband = (f >= band_hz[0]) & (f <= band_hz[1])
-    if not inband.any():
-        return math.inf
-    p = poles[inband]
-    return float(np.min(-p.real / np.abs(p)))
-
-
 def _ratio_required(required: float, achieved: float) -> float:
     """``required / achieved`` for a larger-is-better figure (``inf`` when achieved <= 0)."""
     if required == 0.0 and achieved > 0:
@@ -541,7 +536,7 @@ def check_specification(
         closed = m.system(bdft=True, controller=controller)
         ps = closed_loop_poles(closed)
         max_real[i] = ps.max_real
-        damping[i] = _damping_in_band(ps.poles, spec.damping_band_hz)
+        damping[i] = float(damping_in_band(ps.poles, spec.damping_band_hz))
         stable[i] = ps.stable
         if not stable[i]:
             continue

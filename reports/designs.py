@@ -15,6 +15,7 @@ from designs.limit import design_set, limit_coverage_of
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.html import HtmlPage, write_report_dir
 from robust.analysis.loops import loop_poles
+from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.engine import map_tasks
 from robust.errors import BDFTError
 from robust.jsonio import to_jsonable
@@ -885,7 +886,7 @@ def write_design_report(
             "fraction stable",
             "held-out stable",
             "worst real part [1/s]",
-            "min damping (2-12 Hz)",
+            f"min damping ({DAMPING_BAND_HZ[0]:g}-{DAMPING_BAND_HZ[1]:g} Hz)",
             "BDFT near 6 Hz [dB]",
             "tracking error 0-2 Hz",
             "peak force [N]",

@@ -7,8 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 
+from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import ModelStructureError, ParameterError
-from uncertainty.batched import BDFT_BAND_HZ, batched_poles, closed_loop_matrices, validate_family
+from uncertainty.batched import batched_poles, closed_loop_matrices, validate_family
 from uncertainty.family import default_family
 from uncertainty.sampling import sample
 
@@ -92,7 +93,7 @@ def test_validation_metrics_agree_with_per_member_poles():
     assert res.fraction_stable == pytest.approx(np.mean(max_real < res.stability_threshold))
     assert res.n_unstable == int(np.sum(max_real >= res.stability_threshold))
     f = np.abs(P.imag) / (2 * np.pi)
-    band = (f >= BDFT_BAND_HZ[0]) & (f <= BDFT_BAND_HZ[1])
+    band = (f >= DAMPING_BAND_HZ[0]) & (f <= DAMPING_BAND_HZ[1])
     assert res.min_damping == pytest.approx(np.min((-P.real / np.abs(P))[band]))
     assert res.worst == S.row(int(np.argmax(max_real)))
     assert res.seed == 5 and res.method == "lhs" and res.samples == 300

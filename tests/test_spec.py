@@ -24,6 +24,7 @@ from designs.spec import (
 from designs.virtual_damping import virtual_damping_controller
 from robust.analysis.loops import loop_poles
 from robust.analysis.simulation import simulate
+from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, in_band
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
@@ -261,3 +262,28 @@ def test_several_members_with_an_unstable_one(mixed_members, damper):
     util = {k.name: k.utilisation for k in res2.constraints}
     assert res2.binding == max(util, key=util.get)
     assert all(math.isfinite(v) for v in util.values())
+
+
+def test_one_default_damping_band_and_one_damping_ratio():
+    # the specification, the pole region and the validation report one band by default
+    fam = default_family()
+    v = validate_family(fam, sample(fam.parameters, 4, method="lhs", seed=0))
+    assert Specification().damping_band_hz == Region().band_hz == v.band_hz == DAMPING_BAND_HZ
+
+    def pole(f_hz, zeta):
+        wn = 2 * np.pi * f_hz / np.sqrt(1 - zeta**2)
+        return complex(-zeta * wn, 2 * np.pi * f_hz)
+
+    # poles at 0.4 Hz (outside the band), 1 Hz with damping 0.3, 9 Hz with damping 0.05 and
+    # a real pole (0 Hz, outside); a second row with no pole in the band
+    p = np.array(
+        [
+            [pole(0.4, 0.01), pole(1.0, 0.3), pole(9.0, 0.05), -3.0],
+            [pole(0.4, 0.01), pole(12.0, 0.01), -1.0, -2.0],
+        ]
+    )
+    assert in_band(p).tolist() == [[False, True, True, False], [False, False, False, False]]
+    z = damping_in_band(p)
+    assert z.shape == (2,) and z[0] == pytest.approx(0.05, rel=1e-12) and np.isinf(z[1])
+    assert damping_in_band(p, (0.3, 0.5))[0] == pytest.approx(0.01, rel=1e-12)
+    assert np.isinf(damping_in_band(np.zeros((3, 0), complex))).all()

@@ -12,7 +12,7 @@ Public API (import from here; module layout may change):
   and :func:`max_members` (the largest sample drawn at once);
 * batched validation: :func:`validate_family`, :class:`ValidationResult`,
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
-  :data:`BDFT_BAND_HZ`;
+  :data:`DAMPING_BAND_HZ` (the one default damping band, also the pole region's);
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`,
   :func:`load_system` (a user's uncertain system from a Python file);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
@@ -28,8 +28,8 @@ Public API (import from here; module layout may change):
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
+from robust.analysis.stability import DAMPING_BAND_HZ
 from uncertainty.batched import (
-    BDFT_BAND_HZ,
     DEFAULT_CHUNK,
     MAX_CHUNK_BYTES,
     STABILITY_THRESHOLD,
@@ -107,7 +107,7 @@ __all__ = [
     "sample",
     "MAX_SAMPLE_BYTES",
     "max_members",
-    "BDFT_BAND_HZ",
+    "DAMPING_BAND_HZ",
     "DEFAULT_CHUNK",
     "MAX_CHUNK_BYTES",
     "STABILITY_THRESHOLD",

@@ -57,7 +57,7 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from robust.analysis.stability import stability_bound
+from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, stability_bound
 from robust.checks import FINITE, check_callable, check_int, check_scalar
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError
@@ -70,7 +70,6 @@ from uncertainty.sampling import SampleSet
 from uncertainty.uss import USS
 
 __all__ = [
-    "BDFT_BAND_HZ",
     "STABILITY_THRESHOLD",
     "DEFAULT_CHUNK",
     "Block",
@@ -85,9 +84,6 @@ __all__ = [
     "CHECK_ROWS",
 ]
 
-#: Band (Hz) of the poles whose damping ratio is reported: the structure's modes from
-#: a machine on its tyres (about 2.5 Hz) up to twice the stilts frequencies (6.3-6.5 Hz).
-BDFT_BAND_HZ = (2.0, 12.0)
 #: A member is stable when every closed-loop pole has real part below this, rad/s
 #: (the definition of :mod:`robust.analysis.stability`).
 STABILITY_THRESHOLD = stability_bound(0.0)
@@ -600,13 +596,7 @@ class ValidationResult:
 
 
 def _member_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]:
-    max_real = poles.real.max(axis=1)
-    f = np.abs(poles.imag) / (2 * math.pi)
-    in_band = (f >= band_hz[0]) & (f <= band_hz[1])
-    mag = np.abs(poles)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        zeta = np.where(in_band & (mag > 0), -poles.real / np.where(mag > 0, mag, 1.0), np.inf)
-    return max_real, zeta.min(axis=1)
+    return poles.real.max(axis=1), damping_in_band(poles, band_hz)
 
 
 def _check_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[float, float]]:
@@ -655,7 +645,7 @@ def member_metrics(
     *,
     controller: ct.StateSpace | None = None,
     chunk: int = DEFAULT_CHUNK,
-    band_hz: tuple[float, float] = BDFT_BAND_HZ,
+    band_hz: tuple[float, float] = DAMPING_BAND_HZ,
     progress: Callable[[int], None] | None = None,
     check_bounds: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, int]:
@@ -750,7 +740,7 @@ def validate_family(
     *,
     controller: ct.StateSpace | None = None,
     chunk: int = DEFAULT_CHUNK,
-    band_hz: tuple[float, float] = BDFT_BAND_HZ,
+    band_hz: tuple[float, float] = DAMPING_BAND_HZ,
     stability_threshold: float = STABILITY_THRESHOLD,
     progress: Callable[[int], None] | None = None,
     check_bounds: bool = True,

@@ -69,7 +69,7 @@ from scipy.stats import qmc
 from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinate, subdivide
 from robust.analysis.intervals import Gradient, Interval, imatrix, norm2_bound
 from robust.analysis.loops import loop_poles
-from robust.analysis.stability import STABILITY_TOL
+from robust.analysis.stability import DAMPING_BAND_HZ, STABILITY_TOL
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
 from uncertainty.batched import closed_loop_matrices
@@ -120,7 +120,7 @@ class Region:
 
     decay_rate: float = 0.0
     min_damping: float = 0.0
-    band_hz: tuple[float, float] = (0.5, 10.0)
+    band_hz: tuple[float, float] = DAMPING_BAND_HZ
 
     def __post_init__(self):
         a, z = float(self.decay_rate), float(self.min_damping)

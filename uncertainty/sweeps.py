@@ -20,9 +20,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.checks import check_callable
 from robust.errors import ParameterError
-from uncertainty.batched import BDFT_BAND_HZ, DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
+from uncertainty.batched import DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
 from uncertainty.family import Family
 from uncertainty.sampling import sample
 
@@ -83,7 +84,7 @@ def _metrics_on_grid(
     seed: int,
     chunk: int,
     progress: Callable[[int], None] | None,
-    band_hz=BDFT_BAND_HZ,
+    band_hz=DAMPING_BAND_HZ,
     check_bounds: bool = True,
 ):
     """Validate the base sample at every grid point.
