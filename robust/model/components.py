@@ -20,6 +20,7 @@ for the declared loop-scale factor that absorbs them).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import control as ct
@@ -134,6 +135,41 @@ def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFuncti
     return ct.tf(num, [1.0, 2.0 * zeta * wn, wn * wn])
 
 
+@functools.lru_cache(maxsize=1024)
+def _realised(kind: str, params) -> tuple[np.ndarray, ...]:
+    """``A, B, C, D`` of a block's transfer function, realised once per parameter set.
+
+    A loop is assembled many times over with the same valve, PI and structure (every
+    check of a member builds its loop with and without the compensator and the
+    feedthrough); the transfer-function products and their conversion to state space
+    (SLICOT ``td04ad``) took most of an assembly. The parameters are frozen, validated
+    dataclasses, so they key the cache; each call gets fresh copies of the matrices.
+    """
+    if kind == "valve_cylinder":
+        wn = TWO_PI * params.wn_hz
+        g = ct.tf([params.k_vc * params.p1], [1.0, params.p1, 0.0]) * _second_order(
+            wn, params.zeta, [wn * wn]
+        )
+    elif kind == "structure":
+        w1, w2 = TWO_PI * params.f1_hz, TWO_PI * params.f2_hz
+        m1 = _second_order(w1, params.zeta1, [2.0 * params.zeta1 * w1, w1 * w1])
+        m2 = _second_order(w2, params.zeta2, [2.0 * params.zeta2 * w2, w2 * w2])
+        g = ct.tf([params.k_s, 0.0, 0.0], [1.0]) * m1 * m2
+    else:  # the PI controller
+        g = (
+            ct.tf([params.kp, params.ki], [1.0, 0.0])
+            if params.ki > 0.0
+            else ct.tf([params.kp], [1.0])
+        )
+    sys = ct.ss(g)
+    return tuple(np.array(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
+
+
+def _block(kind: str, params, inputs: str, outputs: str, name: str) -> ct.StateSpace:
+    A, B, C, D = (m.copy() for m in _realised(kind, params))
+    return ct.ss(A, B, C, D, inputs=inputs, outputs=outputs, name=name)
+
+
 def valve_cylinder(
     params: ValveCylinderParams | None = None, *, name: str = "valve_cylinder"
 ) -> ct.StateSpace:
@@ -157,10 +193,7 @@ def valve_cylinder(
         SISO system, input ``e`` (valve command) and output ``y`` (cylinder
         position), both in the paper's units.
     """
-    p = params or ValveCylinderParams()
-    wn = TWO_PI * p.wn_hz
-    g = ct.tf([p.k_vc * p.p1], [1.0, p.p1, 0.0]) * _second_order(wn, p.zeta, [wn * wn])
-    return ct.ss(g, inputs="e", outputs="y", name=name)
+    return _block("valve_cylinder", params or ValveCylinderParams(), "e", "y", name)
 
 
 def structure(params: StructureParams | None = None, *, name: str = "structure") -> ct.StateSpace:
@@ -185,12 +218,7 @@ def structure(params: StructureParams | None = None, *, name: str = "structure")
         SISO system, input ``y`` (cylinder position) and output ``c`` (cab
         acceleration), in the paper's units.
     """
-    p = params or StructureParams()
-    w1, w2 = TWO_PI * p.f1_hz, TWO_PI * p.f2_hz
-    m1 = _second_order(w1, p.zeta1, [2.0 * p.zeta1 * w1, w1 * w1])
-    m2 = _second_order(w2, p.zeta2, [2.0 * p.zeta2 * w2, w2 * w2])
-    g = ct.tf([p.k_s, 0.0, 0.0], [1.0]) * m1 * m2
-    return ct.ss(g, inputs="y", outputs="c", name=name)
+    return _block("structure", params or StructureParams(), "y", "c", name)
 
 
 def pi_controller(params: PIParams, *, name: str = "pi") -> ct.StateSpace:
@@ -210,11 +238,7 @@ def pi_controller(params: PIParams, *, name: str = "pi") -> ct.StateSpace:
         SISO system, input ``err`` (cylinder reference minus cylinder position) and
         output ``e`` (valve command).
     """
-    if params.ki > 0.0:
-        g = ct.tf([params.kp, params.ki], [1.0, 0.0])
-    else:
-        g = ct.tf([params.kp], [1.0])
-    return ct.ss(g, inputs="err", outputs="e", name=name)
+    return _block("pi", params, "err", "e", name)
 
 
 def position_scale(k_psf: float, *, name: str = "k_psf") -> ct.StateSpace:
