@@ -176,11 +176,25 @@ def test_connect_refuses_clashes_and_algebraic_loops():
     h = ct.ss([], [], [], [[2.0, -2.0]], inputs=["u", "y"], outputs="y", name="h")
     sys = connect([h], inputs=["u"], outputs=["y"], name="static")
     assert sys.nstates == 0 and sys.D[0, 0] == pytest.approx(2.0 / 3.0, rel=1e-15)
-    # a transfer-function block is converted
+    # a loop whose gain is unity only up to rounding (1 - 0.1 * 3 / 0.3 ~ 2e-16) is refused
+    # too, not solved into a gain of 1e16
+    k1 = ct.ss([], [], [], [[1.0, 0.1 * 3.0]], inputs=["u", "q"], outputs="p", name="k1")
+    k2 = ct.ss([], [], [], [[1.0 / 0.3]], inputs="p", outputs="q", name="k2")
+    with pytest.raises(ModelStructureError, match="algebraic loop.*condition number"):
+        connect([k1, k2], inputs=["u"], outputs=["p"], name="near")
+    # a transfer-function block is converted, keeping its name in the state labels
     tf = ct.tf([1.0], [1.0, 3.0], inputs="y", outputs="z", name="tf")
     sys = connect([a, tf], inputs=["u"], outputs=["z"], name="mixed_types")
-    assert sys.nstates == 2
+    assert sys.nstates == 2 and list(sys.state_labels) == ["a_x[0]", "tf_x[0]"]
     np.testing.assert_allclose(sys(0.0), 1.0 / 3.0, rtol=1e-12)
+    # repeated names would leave a column or a state unlabelled: refused
+    with pytest.raises(ModelStructureError, match=r"repeated external input\(s\) \['u'\]"):
+        connect([a], inputs=["u", "u"], outputs=["y"], name="twice_in")
+    with pytest.raises(ModelStructureError, match=r"repeated output\(s\) \['y'\]"):
+        connect([a], inputs=["u"], outputs=["y", "y"], name="twice_out")
+    a2 = ct.ss([[-3.0]], [[1.0]], [[1.0]], [[0.0]], inputs="y", outputs="z", name="a")
+    with pytest.raises(ModelStructureError, match=r"repeated block name\(s\) \['a'\]"):
+        connect([a, a2], inputs=["u"], outputs=["z"], name="twice_block")
 
 
 def test_unconnected_inputs_and_unknown_names_fail():

@@ -45,6 +45,7 @@ __all__ = [
     "expand",
     "interconnection_matrix",
     "connect",
+    "MAX_LOOP_CONDITION",
     "renamed",
     "CONTROLLER_FORCE",
     "EXOGENOUS",
@@ -198,6 +199,11 @@ def expand(
     return acc
 
 
+#: Largest condition number of ``I - D K`` (the blocks' direct feedthrough around the
+#: wiring) that :func:`connect` solves; above it the algebraic loop is refused.
+MAX_LOOP_CONDITION = 1e10
+
+
 def connect(
     blocks: list,
     *,
@@ -244,12 +250,26 @@ def connect(
     ------
     ModelStructureError
         For an unconnected block input (``Unused input``), an external input or output
-        that no block has, two blocks driving one signal, blocks on different timebases,
-        or an algebraic loop without a solution (the message names the signal or block).
+        that no block has, two blocks driving one signal, a repeated block name, external
+        input or output, blocks on different timebases, or an algebraic loop without a
+        solution (``I - D K`` with a condition number above :data:`MAX_LOOP_CONDITION`;
+        a loop through static gains that has a solution is solved, where
+        :func:`control.interconnect` refuses every algebraic loop). The message names the
+        signal or block.
     """
     ignore = set(ignore_inputs)
     systems = [_as_state_space(name, b) for b in blocks]
     dt = _common_timebase(name, systems)
+    for what, names in (
+        ("block name", [b.name for b in systems]),
+        ("external input", list(inputs)),
+        ("output", list(outputs)),
+    ):
+        twice = sorted({x for x in names if names.count(x) > 1})
+        if twice:
+            raise ModelStructureError(
+                f"{name}: cannot connect the blocks by name: repeated {what}(s) {twice}"
+            )
     out_index: dict[str, int] = {}
     z_names = [s for b in systems for s in b.output_labels]
     for k, sig in enumerate(z_names):
@@ -292,14 +312,14 @@ def connect(
         )
     A, B, C, D = _stacked(systems)
     M = np.eye(len(z_names)) - D @ K
-    try:
-        # z = Minv_C x + Minv_DE w
-        sol = np.linalg.solve(M, np.hstack([C, D @ E]))
-    except np.linalg.LinAlgError:
+    # an algebraic loop of unit gain (or one off unity by rounding) has no solution
+    if M.size and np.linalg.cond(M) > MAX_LOOP_CONDITION:
         raise ModelStructureError(
             f"{name}: the blocks' direct feedthrough forms an algebraic loop without a "
-            "solution (I - D K is singular)"
-        ) from None
+            f"solution (I - D K is singular or nearly so: condition number "
+            f"{np.linalg.cond(M):.3g} > {MAX_LOOP_CONDITION:.0e})"
+        )
+    sol = np.linalg.solve(M, np.hstack([C, D @ E]))  # z = sol @ [x; w]
     n = A.shape[0]
     Zx, Zw = sol[:, :n], sol[:, n:]
     S = np.zeros((len(outputs), len(z_names)))
@@ -325,7 +345,7 @@ def _as_state_space(name: str, block) -> ct.StateSpace:
     if isinstance(block, ct.StateSpace):
         return block
     if isinstance(block, ct.TransferFunction):
-        return ct.ss(block)
+        return ct.ss(block, name=block.name)
     raise ModelStructureError(
         f"{name}: cannot connect the blocks by name: each block must be a linear "
         f"control.StateSpace or TransferFunction; got {type(block).__name__}"
