@@ -200,8 +200,10 @@ def expand(
 
 
 #: Largest condition number of ``I - D K`` (the blocks' direct feedthrough around the
-#: wiring) that :func:`connect` solves; above it the algebraic loop is refused.
-MAX_LOOP_CONDITION = 1e10
+#: wiring; rows and columns scaled to unit largest entry) that :func:`connect` solves; above
+#: it the algebraic loop is refused (measured: at most 4.6 on the BDFT family's loops, 3e16
+#: on a loop whose gain is unity up to rounding).
+MAX_LOOP_CONDITION = 1e12
 
 
 def connect(
@@ -252,7 +254,8 @@ def connect(
         For an unconnected block input (``Unused input``), an external input or output
         that no block has, two blocks driving one signal, a repeated block name, external
         input or output, blocks on different timebases, or an algebraic loop without a
-        solution (``I - D K`` with a condition number above :data:`MAX_LOOP_CONDITION`;
+        solution (``I - D K``, scaled, with a condition number above
+        :data:`MAX_LOOP_CONDITION`;
         a loop through static gains that has a solution is solved, where
         :func:`control.interconnect` refuses every algebraic loop). The message names the
         signal or block.
@@ -313,11 +316,12 @@ def connect(
     A, B, C, D = _stacked(systems)
     M = np.eye(len(z_names)) - D @ K
     # an algebraic loop of unit gain (or one off unity by rounding) has no solution
-    if M.size and np.linalg.cond(M) > MAX_LOOP_CONDITION:
+    cond = _equilibrated_condition(M)
+    if cond > MAX_LOOP_CONDITION:
         raise ModelStructureError(
             f"{name}: the blocks' direct feedthrough forms an algebraic loop without a "
-            f"solution (I - D K is singular or nearly so: condition number "
-            f"{np.linalg.cond(M):.3g} > {MAX_LOOP_CONDITION:.0e})"
+            f"solution (I - D K is singular or nearly so: condition number {cond:.3g} "
+            f"after row and column scaling > {MAX_LOOP_CONDITION:.0e})"
         )
     sol = np.linalg.solve(M, np.hstack([C, D @ E]))  # z = sol @ [x; w]
     n = A.shape[0]
@@ -338,6 +342,22 @@ def connect(
         states=states,
         name=name,
     )
+
+
+def _equilibrated_condition(M: np.ndarray) -> float:
+    """2-norm condition number of ``M`` with its rows, then its columns, scaled to unit
+    largest entry: free of the signals' units (the loop's gains span decades, so the raw
+    condition number of a well-posed loop reached 5e10), infinite for a singular ``M``."""
+    if not M.size:
+        return 1.0
+    r = np.max(np.abs(M), axis=1)
+    if not np.all(r > 0):
+        return math.inf
+    M1 = M / r[:, None]
+    c = np.max(np.abs(M1), axis=0)
+    if not np.all(c > 0):
+        return math.inf
+    return float(np.linalg.cond(M1 / c[None, :]))
 
 
 def _as_state_space(name: str, block) -> ct.StateSpace:
