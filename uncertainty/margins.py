@@ -69,7 +69,7 @@ from scipy.stats import qmc
 from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinate, subdivide
 from robust.analysis.intervals import Gradient, Interval, imatrix, norm2_bound
 from robust.analysis.loops import loop_poles
-from robust.analysis.stability import DAMPING_BAND_HZ, STABILITY_TOL
+from robust.analysis.stability import DAMPING_BAND_HZ, STABILITY_TOL, in_band
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
 from uncertainty.batched import closed_loop_matrices
@@ -221,9 +221,7 @@ class Region:
         p = np.atleast_2d(np.asarray(poles))
         v = p.real.max(axis=1) + max(self.decay_rate, STABILITY_TOL)
         if self.min_damping > 0:
-            f = np.abs(p.imag) / (2 * np.pi)
-            inband = (f >= self.band_hz[0]) & (f <= self.band_hz[1])
-            d = np.where(inband, p.real + self.min_damping * np.abs(p), -np.inf)
+            d = np.where(in_band(p, self.band_hz), p.real + self.min_damping * np.abs(p), -np.inf)
             v = np.maximum(v, d.max(axis=1))
         return v
 
@@ -356,10 +354,11 @@ def _gradient(loop, t, region, h=1e-6):
     # the pole that attains the violation
     score = lam.real + max(region.decay_rate, STABILITY_TOL)
     if region.min_damping > 0:
-        f = np.abs(lam.imag) / (2 * np.pi)
-        inband = (f >= region.band_hz[0]) & (f <= region.band_hz[1])
         score = np.maximum(
-            score, np.where(inband, lam.real + region.min_damping * np.abs(lam), -np.inf)
+            score,
+            np.where(
+                in_band(lam, region.band_hz), lam.real + region.min_damping * np.abs(lam), -np.inf
+            ),
         )
     i = int(np.argmax(score))
     w, u = W[:, i], V[:, i]
