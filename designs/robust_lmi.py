@@ -103,22 +103,26 @@ class RobustOptions:
     bisection : int
         Bisection steps between the last scale reached and the first failed.
     rounds : int
-        Design-member rounds per scale.
+        Design-member rounds per scale (four: with three, whether a rung was reached hung
+        on the BLAS kernel's rounding; see ``start``).
     pk_iterations : int
         P-K steps per round.
     start : str
         How each round's controller is brought into the region before the LMI synthesis.
         ``"minimax"``: :func:`robust.synthesis.tuning.minimax_start` alone, sequential
         linear programs into the region, then on the largest utilisation of the budgets
-        with the region kept; every step depends continuously on the data, so two
-        machines' answers differ only as much as their inputs do (measured on the default
-        family, ``benchmarks/bench_robust_lmi.py --ladder``: scale 0.05 reached in 111 s,
-        tracking binding at 0.075).
+        with the region kept (measured on the default family,
+        ``benchmarks/bench_robust_lmi.py --ladder``: scale 0.05 reached in 136 s).
         ``"minimax-bfgs"`` (default): the same linear programs, but where the budgets'
         minimax leaves the region (the budgets cannot all be met) the nonsmooth tuning
-        :func:`robust.synthesis.tuning.tune_members` takes over; it reaches further (0.075
-        in 120 s, continuous force binding at 0.1) but its path depends on the BLAS
-        kernel's rounding. ``"bfgs"``: the nonsmooth tuning in every round.
+        :func:`robust.synthesis.tuning.tune_members` takes over. ``"bfgs"``: the nonsmooth
+        tuning in every round. With either start the ladder's path depends on rounding:
+        the linear programs' trust-region steps, the SDP solver's answers and the rounds'
+        design members are decisions that a last-digit change of the data can flip, and a
+        rung is reached or not by a few tenths of a rad/s of region violation in its last
+        round. Measured (``minimax-bfgs``, scale reached; the README has the table): with
+        three rounds per scale 0.075, 0.05 and 0.035 on the SkylakeX, Haswell and
+        Sandybridge BLAS kernels; with four (``rounds``' default) 0.075 on all three.
     tune_iterations : int
         Iterations of the start (linear programs; BFGS iterations per run).
     tune_restarts : int
@@ -141,7 +145,7 @@ class RobustOptions:
     tracking_bound: float = 0.95
     ladder: tuple = LADDER
     bisection: int = 1
-    rounds: int = 3
+    rounds: int = 4
     pk_iterations: int = 4
     start: str = "minimax-bfgs"
     tune_iterations: int = 100

@@ -53,6 +53,7 @@ rebuilt in numpy, each member's closed-loop eigenvalues, its H-infinity norm
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -335,9 +336,8 @@ def responses(cl: _Affine, Om, w) -> tuple[np.ndarray, np.ndarray]:
     RB = np.linalg.solve(
         lhs, np.broadcast_to(np.hstack([B, cl.Bb]), (w.size, n, 1 + cl.Bb.shape[1]))
     )
-    CR = np.linalg.solve(np.swapaxes(lhs, 1, 2), np.broadcast_to(C.T, (w.size, n, 1)))[..., 0]
     T = (RB[:, :, 0] @ C[0]) + D[0, 0]
-    p = cl.D12b[0][None, :] + CR @ cl.Bb  # (n_w, m)
+    p = cl.D12b[0][None, :] + C[0] @ RB[:, :, 1:]  # (n_w, m): C R Bb from the one solve
     q = RB[:, :, 0] @ cl.Cb.T + cl.D21b[:, 0][None, :]  # (n_w, p)
     return T, p[:, :, None] * q[:, None, :]
 
@@ -681,6 +681,58 @@ class _Point:
     z_member: list
 
 
+class _AnalysisSDP:
+    """A P-step SDP built once per size, the closed loop's matrices its parameters.
+
+    cvxpy compiles a problem written with :class:`cvxpy.Parameter` data once (disciplined
+    parametrised programming) and maps new values into the solver's data without
+    compiling again; the P-steps of every member and iteration share one problem per size.
+    """
+
+    def __init__(self, problem, data, P, t, level=None):
+        self.problem, self.data, self.P, self.t, self.level = problem, data, P, t, level
+
+
+@functools.lru_cache(maxsize=16)
+def _hinf_analysis_sdp(n: int, nw: int, nz: int) -> _AnalysisSDP:
+    """``max t`` s.t. ``P > 0``, ``trace P <= 10 n``, BRL(A, B, C, D; P) at level 1 ``<= -t I``."""
+    A, B = cp.Parameter((n, n), name="A"), cp.Parameter((n, nw), name="B")
+    C, D = cp.Parameter((nz, n), name="C"), cp.Parameter((nz, nw), name="D")
+    P, t = cp.Variable((n, n), symmetric=True), cp.Variable()
+    PA, PB = P @ A, P @ B
+    M = sym(cp.bmat([[PA + PA.T, PB, C.T], [PB.T, -np.eye(nw), D.T], [C, D, -np.eye(nz)]]))
+    problem = cp.Problem(
+        cp.Maximize(t), [P >> 0, cp.trace(P) <= 10 * n, M << -t * np.eye(n + nw + nz)]
+    )
+    return _AnalysisSDP(problem, (A, B, C, D), P, t)
+
+
+@functools.lru_cache(maxsize=16)
+def _h2_analysis_sdp(n: int, nw: int, nz: int) -> _AnalysisSDP:
+    """``max t``: the H2 inequalities in ``(Q, Z)`` with margin ``t``, ``trace Z <= level``."""
+    A, B = cp.Parameter((n, n), name="A"), cp.Parameter((n, nw), name="B")
+    C, level = cp.Parameter((nz, n), name="C"), cp.Parameter(nonneg=True, name="level")
+    Q, Z, t = (
+        cp.Variable((n, n), symmetric=True),
+        cp.Variable((nz, nz), symmetric=True),
+        cp.Variable(),
+    )
+    QA, QB = Q @ A, Q @ B
+    M = sym(cp.bmat([[QA + QA.T, QB], [QB.T, -np.eye(nw)]]))
+    N2 = cp.bmat([[Q, C.T], [C, Z]])
+    problem = cp.Problem(
+        cp.Maximize(t),
+        [
+            Q >> 0,
+            cp.trace(Q) <= 10 * n,
+            M << -t * np.eye(n + nw),
+            N2 >> t * np.eye(n + nz),
+            cp.trace(Z) <= level,
+        ],
+    )
+    return _AnalysisSDP(problem, (A, B, C), Q, t, level)
+
+
 def _analyse_hinf(cl: _Affine, Om, T_prev, solvers):
     """P-step for one member: a centred certificate of the shifted H-infinity channel.
 
@@ -701,13 +753,14 @@ def _analyse_hinf(cl: _Affine, Om, T_prev, solvers):
         except (np.linalg.LinAlgError, ValueError, VerificationError):
             T_prev = recentring(sla.solve_continuous_lyapunov(A.T, -(Cs.T @ Cs + np.eye(n))))
     clt = cl.transformed(T_prev).scaled_output(g0)
-    P, t = cp.Variable((n, n), symmetric=True), cp.Variable()
-    M = _bmi(*_brl_parts(clt, P, Om, 1.0))
+    sdp = _hinf_analysis_sdp(n, B.shape[1], C.shape[0])
+    sdp.t.value = None
+    for par, val in zip(sdp.data, clt.matrices(Om)):
+        par.value = val
     sol = solve_problem(
-        cp.Problem(cp.Maximize(t), [P >> 0, cp.trace(P) <= 10 * n, M << -t * np.eye(M.shape[0])]),
-        step="pksyn_multi: H-infinity analysis (P) step",
-        solvers=solvers,
+        sdp.problem, step="pksyn_multi: H-infinity analysis (P) step", solvers=solvers
     )
+    P, t = sdp.P, sdp.t
     if t.value is None or not t.value > 0:
         raise InfeasibleError(
             f"pksyn_multi: no bounded-real certificate at level {g0:.6g} (margin {t.value})"
@@ -724,29 +777,13 @@ def _analyse_h2(cl: _Affine, Om, T_prev, solvers):
         BB = B @ B.T
         S = sla.solve_continuous_lyapunov(A, -(BB + 1e-9 * np.linalg.norm(BB, 2) * np.eye(n)))
         T_prev = recentring(np.linalg.inv(sym(S)))
-    clt = cl.transformed(T_prev)
-    nz = C.shape[0]
-    Q, Z, t = (
-        cp.Variable((n, n), symmetric=True),
-        cp.Variable((nz, nz), symmetric=True),
-        cp.Variable(),
-    )
-    M = _bmi(*_h2_parts(clt, Q, Om))
-    N2 = _h2_output(clt, Q, Om, Z)
-    sol = solve_problem(
-        cp.Problem(
-            cp.Maximize(t),
-            [
-                Q >> 0,
-                cp.trace(Q) <= 10 * n,
-                M << -t * np.eye(M.shape[0]),
-                N2 >> t * np.eye(N2.shape[0]),
-                cp.trace(Z) <= z0,
-            ],
-        ),
-        step="pksyn_multi: H2 analysis (P) step",
-        solvers=solvers,
-    )
+    sdp = _h2_analysis_sdp(n, B.shape[1], C.shape[0])
+    sdp.t.value = None
+    for par, val in zip(sdp.data, cl.transformed(T_prev).matrices(Om)[:3]):
+        par.value = val
+    sdp.level.value = z0
+    sol = solve_problem(sdp.problem, step="pksyn_multi: H2 analysis (P) step", solvers=solvers)
+    Q, t = sdp.P, sdp.t
     if t.value is None or not t.value > 0:
         raise InfeasibleError(f"pksyn_multi: no H2 certificate at level {z0:.6g} ({t.value})")
     return T_prev @ recentring(sym(Q.value)), z0, sol.solve_time
@@ -786,6 +823,7 @@ def _k_step(members, pt: _Point, region_s, h2cap, trust, solvers):
     soft = cp.Variable(nonneg=True, name="linearised_slack")
     gref = max(pt.g_member)
     cons = [cp.norm(Om - Om_k, "fro") <= trust * max(1.0, float(np.linalg.norm(Om_k)))]
+    step = cp.vec(Om - Om_k, order="F")
     for i, m in enumerate(members):
         cl = m.hinf_shifted.transformed(pt.T_hinf[i]).scaled_output(pt.g_member[i])
         g = cp.Variable()
@@ -800,20 +838,23 @@ def _k_step(members, pt: _Point, region_s, h2cap, trust, solvers):
                 _h2_output(cl2, np.eye(cl2.N), Om, Z) >> LMI_MARGIN * np.eye(cl2.N + Z.shape[0]),
                 cp.trace(Z) <= h2cap * (1 + excess),
             ]
-        for v0, grad in eigen_region_rows(m.region, Om_k, region_s):
-            if v0 > -ACTIVE:
-                cons.append(v0 + cp.sum(cp.multiply(grad, Om - Om_k)) <= -0.05 * ACTIVE + soft)
+        # the first-order rows as one vector inequality each (one row per eigenvalue or
+        # frequency, the gradient flattened in the order of cp.vec): compiled at once
+        rows = [(v0, grad) for v0, grad in eigen_region_rows(m.region, Om_k, region_s)]
+        rows = [(v0, grad) for v0, grad in rows if v0 > -ACTIVE]
+        if rows:
+            v0s = np.array([v0 for v0, _ in rows])
+            G = np.array([np.ravel(grad, order="F") for _, grad in rows])
+            cons.append(v0s + G @ step <= -0.05 * ACTIVE + soft)
         if m.response is not None:
             T, dT = responses(m.hinf, Om_k, m.w_resp)
             rb = m.response
             r = rb.offset + rb.gain * T
-            for j in range(T.size):
-                # |r + gain dT|^2 <= bound^2, first order: |r|^2 + 2 Re(conj(r) gain dT)
-                coef = 2 * (np.conj(r[j]) * rb.gain[j] * dT[j]).real
-                cons.append(
-                    abs(r[j]) ** 2 + cp.sum(cp.multiply(coef, Om - Om_k))
-                    <= rb.bound[j] ** 2 * (1 + soft)
-                )
+            # |r + gain dT|^2 <= bound^2, first order: |r|^2 + 2 Re(conj(r) gain dT)
+            coef = 2 * (np.conj(r)[:, None, None] * rb.gain[:, None, None] * dT).real
+            G = coef.reshape(T.size, -1, order="F")
+            b2 = rb.bound**2
+            cons.append(np.abs(r) ** 2 + G @ step <= b2 + b2 * soft)
     obj = gam / gref + SLACK_WEIGHT * excess + 100.0 * soft
     sol = solve_problem(
         cp.Problem(cp.Minimize(obj), cons), step="pksyn_multi: synthesis (K) step", solvers=solvers
