@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from bdft.args import check_report_dir, integer, real
-from bdft.common import print_json
+from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import add_family_arguments, build_family, check_family_arguments, progress_bar
 from reports.sweeps import write_sweep_report
 from uncertainty import DEFAULT_CHUNK
@@ -78,6 +78,8 @@ def register(sub) -> None:
         help="report folder: a new folder or a previous bdft report, never another folder "
         "or file (default: reports/out/sweep-<name>)",
     )
+    add_jobs_argument(p)
+    add_scheduler_argument(p)
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with the table and settings"
     )
@@ -92,6 +94,8 @@ def _run_sweep(args, family, progress):
         seed=args.seed,
         chunk=args.chunk or DEFAULT_CHUNK,
         progress=progress,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
     )
     if args.name == "workspace":
         factors = None if args.points is None else np.linspace(1.0, 10.0, args.points)
@@ -134,7 +138,9 @@ def run(args) -> int:
         19 factors, a 12 x 12 map or 13 frequencies); ``workspace_factor`` (``None``:
         1 for the workspace sweep, 2 for the others); ``out`` (report folder, ``None`` for
         ``reports/out/sweep-<name>``; a new folder or a previous report, checked
-        before the sweep runs) and ``json``.
+        before the sweep runs), ``jobs`` (local processes for the grid points, used above
+        50,000 members in all), ``scheduler`` (a Dask scheduler's address: the grid points
+        run on its workers) and ``json``.
 
     Returns
     -------

@@ -16,14 +16,16 @@ parameter nominal, 1/s), after the swept quantities.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 
 import numpy as np
 
 from robust.analysis.stability import DAMPING_BAND_HZ
-from robust.checks import check_callable
+from robust.checks import check_callable, check_int
+from robust.engine import map_tasks, scheduler_address
 from robust.errors import ParameterError
-from uncertainty.batched import DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
+from uncertainty.batched import DEFAULT_CHUNK, STABILITY_THRESHOLD, TASK_MEMBERS, member_metrics
 from uncertainty.family import Family
 from uncertainty.sampling import sample
 
@@ -86,13 +88,19 @@ def _metrics_on_grid(
     progress: Callable[[int], None] | None,
     band_hz=DAMPING_BAND_HZ,
     check_bounds: bool = True,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ):
     """Validate the base sample at every grid point.
 
     Returns the per-point fraction stable, worst real part and minimum damping, and
     the settings. With ``check_bounds=False`` the grid values may leave the family's
-    bounds (they must stay physical).
+    bounds (they must stay physical). The grid points are independent tasks: on a Dask
+    scheduler, or in ``jobs`` local processes when the sweep holds more than
+    :data:`~uncertainty.batched.TASK_MEMBERS` members (below that, starting the
+    processes costs more than the poles); every engine gives the same bits.
     """
+    jobs = check_int("sweep: jobs", jobs, low=1)
     fixed = set().union(*(g.keys() for g in grid_values))
     base_params = [p for p in family.parameters if p.name not in fixed]
     S = sample(base_params, members, method=method, seed=seed)
@@ -106,15 +114,20 @@ def _metrics_on_grid(
         "nominal_max_real": [],
     }
     nominal = dict(zip(names, family.nominal_values()))
+    tasks = []
     for g in grid_values:
-        fam = g.get("__family__", family)
         vals = np.empty((M + 1, len(names)))
         for j, name in enumerate(names):
             vals[:M, j] = g[name] if name in g else S.column(name)
             vals[M, j] = g.get(name, nominal[name])  # the other parameters at their nominal values
-        mr_all, md_all, _ = member_metrics(
-            fam, vals, chunk=chunk, band_hz=band_hz, progress=progress, check_bounds=check_bounds
-        )
+        tasks.append((g.get("__family__", family), vals))
+    point = functools.partial(_point_metrics, chunk, band_hz, check_bounds)
+    if scheduler_address(scheduler) is None and (jobs == 1 or len(tasks) * (M + 1) <= TASK_MEMBERS):
+        results = [point(t, progress) for t in tasks]
+    else:
+        done = (lambda i: progress(M + 1)) if progress is not None else None
+        results = map_tasks(point, tasks, jobs=jobs, scheduler=scheduler, progress=done)
+    for mr_all, md_all in results:
         mr, md = mr_all[:M], md_all[:M]
         rows["nominal_max_real"].append(float(mr_all[M]))
         stable = mr < STABILITY_THRESHOLD
@@ -136,6 +149,15 @@ def _metrics_on_grid(
     return {k: np.asarray(v) for k, v in rows.items()}, settings
 
 
+def _point_metrics(chunk, band_hz, check_bounds, task, progress=None):
+    """Per-member largest real part and smallest in-band damping at one grid point."""
+    fam, vals = task
+    mr, md, _ = member_metrics(
+        fam, vals, chunk=chunk, band_hz=band_hz, progress=progress, check_bounds=check_bounds
+    )
+    return mr, md
+
+
 def _check_members(members, family=None, progress=None):
     if isinstance(members, bool) or not isinstance(members, (int, np.integer)) or members < 1:
         raise ParameterError(f"members must be a positive integer; got {members!r}")
@@ -153,6 +175,8 @@ def workspace_sweep(
     seed: int = 0,
     chunk: int = DEFAULT_CHUNK,
     progress=None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> SweepResult:
     """Fraction stable and worst real part versus workspace factor (``K_PSF = K_PSF0 / factor``).
 
@@ -170,6 +194,12 @@ def workspace_sweep(
         Members per batch.
     progress : callable, optional
         Called with the number of members finished.
+    jobs : int
+        Local worker processes for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
+        its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
 
     Returns
     -------
@@ -185,7 +215,15 @@ def workspace_sweep(
         )
     grid = [{"__family__": family.with_workspace_factor(x)} for x in f]
     rows, settings = _metrics_on_grid(
-        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+        family,
+        grid,
+        members,
+        method=method,
+        seed=seed,
+        chunk=chunk,
+        progress=progress,
+        jobs=jobs,
+        scheduler=scheduler,
     )
     cols = {"workspace_factor": f, "k_psf": family.k_psf / f, **rows}
     return SweepResult(
@@ -213,6 +251,8 @@ def frequency_damping_sweep(
     seed: int = 0,
     chunk: int = DEFAULT_CHUNK,
     progress=None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> SweepResult:
     """Map of the worst real part over a grid of one human natural frequency x damping ratio.
 
@@ -233,6 +273,12 @@ def frequency_damping_sweep(
         Members per batch.
     progress : callable, optional
         Called with the number of members finished.
+    jobs : int
+        Local worker processes for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
+        its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
 
     Returns
     -------
@@ -259,7 +305,15 @@ def frequency_damping_sweep(
     F, Z = np.meshgrid(fs, zs, indexing="ij")
     grid = [{pf.name: f, pz.name: z} for f, z in zip(F.ravel(), Z.ravel())]
     rows, settings = _metrics_on_grid(
-        family, grid, members, method=method, seed=seed, chunk=chunk, progress=progress
+        family,
+        grid,
+        members,
+        method=method,
+        seed=seed,
+        chunk=chunk,
+        progress=progress,
+        jobs=jobs,
+        scheduler=scheduler,
     )
     settings["pair"] = pair
     settings["nominal"] = {pf.name: pf.nominal, pz.name: pz.nominal}
@@ -288,6 +342,8 @@ def structure_frequency_sweep(
     seed: int = 0,
     chunk: int = DEFAULT_CHUNK,
     progress=None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> SweepResult:
     """Fraction stable, worst real part and minimum damping versus the structure's frequencies.
 
@@ -311,6 +367,12 @@ def structure_frequency_sweep(
         Members per batch.
     progress : callable, optional
         Called with the number of members finished.
+    jobs : int
+        Local worker processes for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
+        its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
 
     Returns
     -------
@@ -343,6 +405,8 @@ def structure_frequency_sweep(
         chunk=chunk,
         progress=progress,
         check_bounds=False,
+        jobs=jobs,
+        scheduler=scheduler,
     )
     cols = {"scale": s, "f1_hz": s * f1n, "f2_hz": s * f2n, **rows}
     return SweepResult(
