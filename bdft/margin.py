@@ -7,7 +7,7 @@ import sys
 from tqdm import tqdm
 
 from bdft.args import check_json_file, integer, real, seed
-from bdft.common import print_json
+from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import add_family_arguments, add_system_argument, build_family, read_system
 from uncertainty.files import load_controller
 from uncertainty.margins import DEFAULT_BOXES, LOWER_METHODS, Region, robust_margin
@@ -35,6 +35,8 @@ def register(sub) -> None:
     )
     add_family_arguments(p, samples=1000)
     add_system_argument(p)
+    add_jobs_argument(p)
+    add_scheduler_argument(p)
     p.add_argument(
         "--controller",
         default=None,
@@ -107,7 +109,9 @@ def run(args) -> int:
         (``--samples`` is the upper bound's search size per scale), ``system`` (a
         Python file defining a ``uss``, instead of the family), ``controller``,
         ``region``, ``workspace_factor``, ``time_limit``, ``max_boxes``, ``method``,
-        ``search_seed`` and ``json``.
+        ``search_seed``, ``jobs`` and ``scheduler`` (where the lower bound's sub-boxes are
+        certified: local processes or a Dask cluster; the same result on every engine) and
+        ``json``.
 
     Returns
     -------
@@ -140,6 +144,8 @@ def run(args) -> int:
             time_limit_s=args.time_limit,
             method=args.method,
             progress=progress,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
         )
     for k, v in res.timings_s.items():
         print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)

@@ -16,6 +16,7 @@ import pytest
 from robust.analysis.eigen_enclosure import (
     certify_affine_family,
     enclose_eigenvalues,
+    subdivide,
 )
 
 
@@ -152,3 +153,42 @@ def test_cluster_operator_encloses_two_close_modes_and_their_neighbours():
     # the well separated pair keeps a tight enclosure
     far = np.abs(res["centre"] - complex(-1.4, 6.9)) < 0.5
     assert far.any() and res["rad_re"][far].max() < 0.2
+
+
+@pytest.mark.parametrize("bad", [None, (0.9, 0.1)])
+def test_subdivision_verdict_does_not_depend_on_the_wave(bad):
+    # a box of the plane is "certified" when it is narrower than 1/8 in both coordinates
+    # and far from the bad point; the tree of sub-boxes is the same whatever the order
+    def certify(a, b):
+        w = b - a
+        near = bad is not None and np.all(a - 0.01 <= bad) and np.all(bad <= b + 0.01)
+        small = bool(np.all(w <= 0.125 + 1e-12))
+        return {
+            "certified": small and not near,
+            "centre_violates": small and near,
+            "check": -float(w.max()),
+            "split": int(np.argmax(w)),
+        }
+
+    lo, hi = np.zeros(2), np.ones(2)
+    calls = []
+
+    def many(boxes):
+        calls.append(len(boxes))
+        return [certify(a, b) for a, b in boxes]
+
+    for budget in (200, 40):
+        runs = [
+            subdivide(certify, lo, hi, max_boxes=budget, wave=w, certify_many=many)
+            for w in (1, 3, 8)
+        ]
+        verdicts = {ok for ok, _ in runs}
+        assert len(verdicts) == 1
+        if bad is None and budget == 200:
+            # 64 leaves of width 1/8 and the 63 boxes above them, on every wave
+            assert runs[0][0] and all(st["boxes"] == 127 for _, st in runs)
+            assert all(st["certified_boxes"] == 64 for _, st in runs)
+        else:
+            assert not runs[0][0]
+        assert all(st["boxes"] <= budget for _, st in runs)
+    assert max(calls) == 8

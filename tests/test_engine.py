@@ -14,6 +14,7 @@ from robust.engine import SCHEDULER_ENV, map_tasks, scheduler_address
 from robust.errors import BDFTError, ParameterError
 from uncertainty import default_family, sample, validate_family
 from uncertainty.batched import TASK_MEMBERS
+from uncertainty.margins import robust_margin
 from uncertainty.sweeps import frequency_damping_sweep
 
 distributed = pytest.importorskip("distributed")
@@ -133,3 +134,22 @@ def test_sweeps_are_the_same_bits_on_every_engine(cluster, tmp_path, capsys):
         obj.pop("report")
         outs.append(json.dumps(obj, sort_keys=True))
     assert outs[0] == outs[1]
+
+
+def test_margin_is_the_same_on_every_engine(cluster):
+    # the lower bound's sub-boxes certified in one process, two local processes and on the
+    # cluster: the same bounds and the same statistics of every scale tried
+    fam = default_family("physical")
+    kw = dict(samples=200, max_boxes=24, ladder=6, iterations=2)
+    outs = []
+    for engine_kw in ({}, {"jobs": 2}, {"scheduler": cluster.scheduler_address}):
+        res = robust_margin(fam, **kw, **engine_kw)
+        obj = res.to_json()
+        obj.pop("timings_s", None)
+        outs.append(json.dumps(obj, sort_keys=True))
+    assert outs[0] == outs[1] == outs[2]
+    obj = json.loads(outs[0])
+    # a real answer: a positive certified scale below the upper bound, and the last scale
+    # tried needed several waves of sub-boxes
+    assert 0 < obj["lower"] < obj["upper"] < 0.2
+    assert max(h["boxes"] for h in obj["certificate"]["history"]) > 8

@@ -55,6 +55,7 @@ Lower bound (:func:`margin_lower_bound`)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -70,6 +71,8 @@ from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinat
 from robust.analysis.intervals import Gradient, Interval, imatrix, norm2_bound
 from robust.analysis.loops import loop_poles
 from robust.analysis.stability import DAMPING_BAND_HZ, STABILITY_TOL, in_band
+from robust.checks import check_int
+from robust.engine import map_tasks, scheduler_address
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
 from uncertainty.batched import closed_loop_matrices
@@ -99,6 +102,11 @@ PHYSICAL_FLOOR = 1e-6
 LOWER_METHODS = ("eigenvalues", "lyapunov")
 #: Sub-boxes tried per scale by the lower bound (sets the result on every machine).
 DEFAULT_BOXES = 400
+#: Sub-boxes taken from the search's stack and certified together per step, on every
+#: engine (one process, local processes, a Dask cluster), so that every engine gives the
+#: same statistics; the certified scales do not depend on it
+#: (:func:`robust.analysis.eigen_enclosure.subdivide`).
+WAVE = 8
 _EPS = float(np.finfo(float).eps)
 
 
@@ -1106,24 +1114,43 @@ def _certify_box(loop, lo_t, hi_t, region, spot_checks, seed) -> dict:
     return dict(out, certified=True, route="eigenvalues", reason="certified")
 
 
-def _certify_scale(loop, k, region, max_boxes, deadline, method):
+def _box_task(loop, region, method, box) -> dict:
+    """One sub-box of the search: ``box = (lo_t, hi_t, index)``; the index seeds its spot checks."""
+    a, b, index = box
+    if method == "eigenvalues":
+        return _certify_box(loop, a, b, region, 8, index)
+    try:
+        enc = loop.enclosure(_to_values(loop, a), _to_values(loop, b), False)
+    except _Unbounded:
+        return {"certified": False, "centre_violates": True, "check": math.inf}
+    res = certify_interval_matrix(enc, region.decay_rate)
+    if not res["certified"] and not res["centre_violates"]:
+        res["split"] = _split_dimension(loop, a, b)
+    return res
+
+
+def _certify_scale(loop, k, region, max_boxes, deadline, method, jobs=1, scheduler=None):
     lo_t, hi_t = _scaled_t(loop, k)
+    task = functools.partial(_box_task, loop, region, method)
     count = [0]
+    local = jobs == 1 and scheduler_address(scheduler) is None
 
-    def certify(a, b):
-        count[0] += 1
-        if method == "eigenvalues":
-            return _certify_box(loop, a, b, region, 8, count[0])
-        try:
-            enc = loop.enclosure(_to_values(loop, a), _to_values(loop, b), False)
-        except _Unbounded:
-            return {"certified": False, "centre_violates": True, "check": math.inf}
-        res = certify_interval_matrix(enc, region.decay_rate)
-        if not res["certified"] and not res["centre_violates"]:
-            res["split"] = _split_dimension(loop, a, b)
-        return res
+    def certify_many(batch):
+        boxes = [(a, b, count[0] + i + 1) for i, (a, b) in enumerate(batch)]
+        count[0] += len(batch)
+        if local or len(boxes) == 1:
+            return [task(x) for x in boxes]
+        return map_tasks(task, boxes, jobs=jobs, scheduler=scheduler)
 
-    ok, stats = subdivide(certify, lo_t, hi_t, max_boxes=max_boxes, deadline=deadline)
+    ok, stats = subdivide(
+        lambda a, b: certify_many([(a, b)])[0],
+        lo_t,
+        hi_t,
+        max_boxes=max_boxes,
+        deadline=deadline,
+        wave=WAVE,
+        certify_many=certify_many,
+    )
     return ok, dict(stats, method=method)
 
 
@@ -1139,6 +1166,8 @@ def margin_lower_bound(
     time_limit_s: float = 600.0,
     method: str = "eigenvalues",
     progress: Callable[[str], None] | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> tuple[float, dict]:
     """Certified lower bound of the robust margin (see the module notes).
 
@@ -1172,6 +1201,13 @@ def margin_lower_bound(
         interval matrix, :func:`certify_interval_matrix`; decay rate only).
     progress : callable, optional
         Called with a short message at each scale.
+    jobs : int
+        Local worker processes that certify the sub-boxes of each step (:data:`WAVE` at a
+        time); 1 certifies them in this process.
+    scheduler : str, optional
+        A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the sub-boxes are
+        certified on its workers (:func:`robust.engine.map_tasks`). Every engine gives the
+        same result and statistics.
 
     Returns
     -------
@@ -1185,6 +1221,7 @@ def margin_lower_bound(
         raise ParameterError(f"method: expected one of {LOWER_METHODS}; got {method!r}")
     if method == "lyapunov":
         region = Region(decay_rate=region.decay_rate)
+    jobs = check_int("margin_lower_bound: jobs", jobs, low=1)
     loop = _loop(family, controller)
     step = progress or (lambda msg: None)
     start = time.perf_counter()
@@ -1199,7 +1236,7 @@ def margin_lower_bound(
     def attempt(k):
         step(f"lower bound: certifying the box at scale {k:.4g}")
         deadline = min(time.perf_counter() + per_scale, start + time_limit_s)
-        ok, st = _certify_scale(loop, k, region, max_boxes, deadline, method)
+        ok, st = _certify_scale(loop, k, region, max_boxes, deadline, method, jobs, scheduler)
         history.append({"scale": float(k), "certified": ok, **st})
         return ok, st
 
@@ -1254,6 +1291,8 @@ def robust_margin(
     time_limit_s: float = 600.0,
     method: str = "eigenvalues",
     progress: Callable[[str], None] | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> MarginResult:
     """Both bounds of the robust margin of ``family`` (with ``controller``) for ``region``.
 
@@ -1279,6 +1318,9 @@ def robust_margin(
         Lower bound: ``"eigenvalues"`` or ``"lyapunov"`` (see :func:`margin_lower_bound`).
     progress : callable, optional
         Called with a short message at each step.
+    jobs, scheduler
+        Lower bound: where the sub-boxes are certified (see :func:`margin_lower_bound`;
+        the same result on every engine).
 
     Returns
     -------
@@ -1317,6 +1359,8 @@ def robust_margin(
         time_limit_s=time_limit_s,
         method=method,
         progress=progress,
+        jobs=jobs,
+        scheduler=scheduler,
     )
     t2 = time.perf_counter()
     if lower > upper:

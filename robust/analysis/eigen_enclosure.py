@@ -723,8 +723,18 @@ def subdivide(
     *,
     max_boxes: int,
     deadline: float = math.inf,
+    wave: int = 1,
+    certify_many: Callable[[list], list] | None = None,
 ) -> tuple[bool, dict]:
     """Branch and bound: certify a box by certifying sub-boxes, halving the ones that fail.
+
+    The boxes wait on a stack (depth first). Each step takes up to ``wave`` boxes from its
+    top and certifies them together (``certify_many``, e.g. on several processes), then
+    reads the answers in the order taken. Whether the box is certified does not depend on
+    ``wave``: every sub-box's answer and split depend on that sub-box alone, so the tree
+    of sub-boxes is the same, and the box is certified exactly when that tree holds at most
+    ``max_boxes`` boxes and none whose centre violates; only the statistics of a failure
+    (boxes tried, the reason met first) do.
 
     Parameters
     ----------
@@ -739,6 +749,11 @@ def subdivide(
     deadline : float
         ``time.perf_counter()`` value after which the search stops (a safety limit; the
         statistics say when it was hit).
+    wave : int
+        Boxes taken from the stack per step (1: one at a time).
+    certify_many : callable, optional
+        ``certify_many([(lo, hi), ...])`` returns the answers of ``certify`` for those boxes,
+        in order (default: ``certify`` on each in turn).
 
     Returns
     -------
@@ -747,6 +762,7 @@ def subdivide(
         ``boxes`` tried, ``certified_boxes``, ``worst_check`` over the certified boxes,
         ``reason``, and ``routes`` (certified boxes per ``route`` named by ``certify``).
     """
+    many = certify_many or (lambda boxes: [certify(a, b) for a, b in boxes])
     queue = [(np.asarray(lo, float), np.asarray(hi, float))]
     stats = {"boxes": 0, "certified_boxes": 0, "worst_check": -math.inf}
     while queue:
@@ -754,23 +770,23 @@ def subdivide(
             return False, dict(stats, reason="box budget")
         if time.perf_counter() > deadline:
             return False, dict(stats, reason="time limit (result depends on the machine)")
-        a, b = queue.pop()
-        stats["boxes"] += 1
-        res = certify(a, b)
-        if res["certified"]:
-            stats["certified_boxes"] += 1
-            if res.get("route"):
-                routes = stats.setdefault("routes", {})
-                routes[res["route"]] = routes.get(res["route"], 0) + 1
-            stats["worst_check"] = max(stats["worst_check"], float(res["check"]))
-            continue
-        if res["centre_violates"]:
-            return False, dict(stats, reason="a member violates the region")
-        j = int(res["split"])
-        mid = (a[j] + b[j]) / 2
-        b1, a2 = b.copy(), a.copy()
-        b1[j], a2[j] = mid, mid
-        queue += [(a, b1), (a2, b)]
+        batch = [queue.pop() for _ in range(min(wave, len(queue), max_boxes - stats["boxes"]))]
+        stats["boxes"] += len(batch)
+        for (a, b), res in zip(batch, many(batch)):
+            if res["certified"]:
+                stats["certified_boxes"] += 1
+                if res.get("route"):
+                    routes = stats.setdefault("routes", {})
+                    routes[res["route"]] = routes.get(res["route"], 0) + 1
+                stats["worst_check"] = max(stats["worst_check"], float(res["check"]))
+                continue
+            if res["centre_violates"]:
+                return False, dict(stats, reason="a member violates the region")
+            j = int(res["split"])
+            mid = (a[j] + b[j]) / 2
+            b1, a2 = b.copy(), a.copy()
+            b1[j], a2[j] = mid, mid
+            queue += [(a, b1), (a2, b)]
     return True, dict(stats, reason="certified")
 
 
