@@ -94,7 +94,7 @@ def register(sub) -> None:
         default=(0.5, 1.0, 2.0, 4.0),
         help="multiples of the Omni's force limits at which the robust handle-force LMI design "
         "is rerun for the force-budget trade-off (Pareto curve), comma-separated, or 'none' "
-        "(default: 0.5,1,2,4; one to two minutes each, run in parallel over --jobs)",
+        "(default: 0.5,1,2,4; half a minute to three minutes each, run in parallel over --jobs)",
     )
     add_cache_argument(p)
     p.add_argument(
