@@ -840,8 +840,7 @@ def _k_step(members, pt: _Point, region_s, h2cap, trust, solvers):
             ]
         # the first-order rows as one vector inequality each (one row per eigenvalue or
         # frequency, the gradient flattened in the order of cp.vec): compiled at once
-        rows = [(v0, grad) for v0, grad in eigen_region_rows(m.region, Om_k, region_s)]
-        rows = [(v0, grad) for v0, grad in rows if v0 > -ACTIVE]
+        rows = [(v0, g) for v0, g in eigen_region_rows(m.region, Om_k, region_s) if v0 > -ACTIVE]
         if rows:
             v0s = np.array([v0 for v0, _ in rows])
             G = np.array([np.ravel(grad, order="F") for _, grad in rows])
