@@ -250,10 +250,10 @@ def run(args) -> int:
             "artifact",
         ):
             print(f"{key:20s} {obj[key]}")
-        margin = res.details.get("robust_margin")
-        if margin:
-            print(f"{'margin, certified':20s} {margin['lower']:.4g}")
-            print(f"{'margin, upper':20s} {margin['upper']:.4g}")
+        margin = None if res.checks is None else res.checks.margin
+        if margin is not None:
+            print(f"{'margin, certified':20s} {margin.lower:.4g}")
+            print(f"{'margin, upper':20s} {margin.upper:.4g}")
         if res.coverage is not None:
             print(f"{'coverage':20s} {res.coverage.describe()}")
         for note in obj["notes"]:

@@ -238,7 +238,7 @@ def run(args) -> int:
                 print(f"{k:16s} FAILED: {str(r)[:400]}")
             else:
                 e = r.evaluation
-                ho = r.details.get("held_out", {}).get("fraction_stable", float("nan"))
+                ho = float("nan") if r.checks is None else r.checks.held_out.fraction_stable
                 print(
                     f"{k:16s} stable {e.fraction_stable:.4f} (held-out {ho:.4f})  "
                     f"worst Re {e.max_real_pole:+.3f}  "

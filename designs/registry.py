@@ -27,8 +27,8 @@ from designs import (
 )
 from designs.coverage import COVERAGE_SAMPLES, COVERAGE_SEED_OFFSET, design_coverage
 from designs.evaluate import INTENT_FRACTION, evaluate_design, intended_motion
-from designs.result import Design, DesignResult
-from designs.spec import Specification, check_specification
+from designs.result import Design, DesignChecks, DesignResult, HeldOutCheck, SaturatedRun
+from designs.spec import SpecCheck, Specification, check_specification
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
 from robust.cache import cached
@@ -91,16 +91,16 @@ def get_design(name: str) -> Design:
         raise ParameterError(f"unknown design {name!r}; choose one of {design_names()}") from None
 
 
-def _held_out(family, K, n: int, seed: int) -> dict:
+def _held_out(family, K, n: int, seed: int) -> HeldOutCheck:
     """Fraction stable and worst real part on a sample the design did not use."""
     v = validate_family(family, sample(family.parameters, n, method="lhs", seed=seed), controller=K)
-    return {
-        "samples": n,
-        "seed": seed,
-        "method": "lhs",
-        "fraction_stable": v.fraction_stable,
-        "max_real_pole": v.max_real_pole,
-    }
+    return HeldOutCheck(
+        samples=n,
+        seed=seed,
+        method="lhs",
+        fraction_stable=v.fraction_stable,
+        max_real_pole=v.max_real_pole,
+    )
 
 
 def _sampled_checks(family, worst: dict, K, Kd) -> dict:
@@ -110,13 +110,13 @@ def _sampled_checks(family, worst: dict, K, Kd) -> dict:
         "worst": [worst[n] for n in family.names] if worst else None,
     }
     return {
-        label: sampled_data_check(family.member(row), K, Kd).to_json()
+        label: sampled_data_check(family.member(row), K, Kd)
         for label, row in rows.items()
         if row is not None
     }
 
 
-def _spec_check(family, members, ev, K, spec: Specification, seed: int) -> dict:
+def _spec_check(family, members, ev, K, spec: Specification, seed: int) -> SpecCheck:
     """The specification on the nominal member, the worst sampled member and 8 more.
 
     The worst sampled member is the one with the largest closed-loop real part; the
@@ -126,11 +126,10 @@ def _spec_check(family, members, ev, K, spec: Specification, seed: int) -> dict:
     if ev.worst:
         rows.append([ev.worst[n] for n in family.names])
     rows += [members.values[i] for i in range(min(8, len(members)))]
-    res = check_specification([family.member(r) for r in rows], K, spec, seed=seed)
-    return dict(res.to_json(), specification=spec.to_json())
+    return check_specification([family.member(r) for r in rows], K, spec, seed=seed)
 
 
-def _saturation_checks(family, worst: dict, details: dict, K, Kd, limits, seed: int) -> dict:
+def _saturation_checks(family, worst: dict, margin, K, Kd, limits, seed: int) -> dict:
     """Saturated 1 kHz simulations of the critical members (limit cycles, divergence).
 
     The nominal member, the worst sampled member and the margin search's critical member
@@ -143,7 +142,7 @@ def _saturation_checks(family, worst: dict, details: dict, K, Kd, limits, seed: 
     rows = {"nominal": family.nominal_values()}
     if worst:
         rows["worst sampled"] = [worst[n] for n in family.names]
-    crit = details.get("robust_margin", {}).get("critical")
+    crit = None if margin is None else margin.critical
     if crit and crit.get("scale", 2.0) <= 1.0:
         rows["margin critical"] = [crit["parameters"][n] for n in family.names]
     out = {}
@@ -153,9 +152,10 @@ def _saturation_checks(family, worst: dict, details: dict, K, Kd, limits, seed: 
         loop = family.member(row)
         amp = loop.intended_amplitude(limits, INTENT_FRACTION)
         u = intended_motion(t, amp, 2.0, seed=seed)
-        entry = saturated_response(loop, Kd, u, peak_force_n=limits.peak_force_n).to_json()
-        entry["linear_stable"] = bool(sampled_data_check(loop, K, Kd).stable_discrete)
-        out[label] = entry
+        out[label] = SaturatedRun.of(
+            saturated_response(loop, Kd, u, peak_force_n=limits.peak_force_n),
+            sampled_data_check(loop, K, Kd).stable_discrete,
+        )
     return out
 
 
@@ -200,7 +200,7 @@ def run_design(
         Sub-boxes per scale of the certified robust margin
         (:func:`uncertainty.margins.robust_margin`, open left half-plane, eigenvalue
         method); 0 skips the margin. Both bounds, the critical member, the method and the
-        certificate's summary go into ``details["robust_margin"]``.
+        certificate's summary go into ``checks.margin``.
     coverage_samples : int
         Independent members (Monte Carlo, seed ``seed + 2``, never used by the design)
         of the coverage certificate (:func:`designs.coverage.design_coverage`: the
@@ -263,9 +263,12 @@ def _build_design(
     res = design.build(family, members, lim)
     fam, K = res.family, res.controller
     ev = evaluate_design(name, fam, members, K, limits=lim, notes=res.notes)
-    details = dict(res.details, held_out=_held_out(fam, K, held_out, seed + 1))
     spec = Specification(peak_force_n=lim.peak_force_n, continuous_force_n=lim.continuous_force_n)
-    details["spec"] = _spec_check(fam, members, ev, K, spec, seed)
+    checks = DesignChecks(
+        held_out=_held_out(fam, K, held_out, seed + 1),
+        spec=_spec_check(fam, members, ev, K, spec, seed),
+        specification=spec,
+    )
     if margin_boxes:
         margin = robust_margin(
             fam,
@@ -276,9 +279,8 @@ def _build_design(
             max_boxes=margin_boxes,
             ladder=6,
             iterations=2,
-        ).to_json()
-        margin.pop("timings_s")
-        details["robust_margin"] = margin
+        )
+        checks = dataclasses.replace(checks, margin=margin)
     coverage = None
     if coverage_samples:
         coverage = design_coverage(
@@ -294,11 +296,13 @@ def _build_design(
     if K is not None:
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
         Kd = discretize(K, lim.sample_time_s, prewarp_hz=prewarp)
-        details["sampled_data_check"] = _sampled_checks(fam, ev.worst, K, Kd)
+        checks = dataclasses.replace(checks, sampled_data=_sampled_checks(fam, ev.worst, K, Kd))
         if "f" in K.output_labels:
-            details["saturation_check"] = _saturation_checks(
-                fam, ev.worst, details, K, Kd, lim, seed
+            checks = dataclasses.replace(
+                checks,
+                saturation=_saturation_checks(fam, ev.worst, checks.margin, K, Kd, lim, seed),
             )
+        details = res.replace(checks=checks).details_json()
         art = ControllerArtifact(
             name=name,
             continuous=K,
@@ -316,4 +320,4 @@ def _build_design(
                 ev.to_json(), coverage=None if coverage is None else coverage.to_json()
             ),
         )
-    return res.replace(evaluation=ev, details=details, artifact=None, coverage=coverage), art
+    return res.replace(evaluation=ev, checks=checks, artifact=None, coverage=coverage), art

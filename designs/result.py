@@ -13,8 +13,152 @@ import dataclasses
 from collections.abc import Callable
 
 from designs.evaluate import DesignEvaluation
+from designs.spec import SpecCheck, Specification
+from robust.analysis.sampled import SampledDataCheck
+from robust.analysis.saturation import SaturationCheck
+from uncertainty.margins import MarginResult
 
-__all__ = ["Design", "DesignResult"]
+__all__ = ["Design", "DesignResult", "DesignChecks", "HeldOutCheck", "SaturatedRun"]
+
+
+@dataclasses.dataclass(frozen=True)
+class HeldOutCheck:
+    """Batched validation of a design on members it was not designed on.
+
+    Parameters
+    ----------
+    samples : int
+        Members checked.
+    seed : int
+        Their sampling seed.
+    method : str
+        Their sampling method.
+    fraction_stable : float
+        Fraction whose closed loop is stable.
+    max_real_pole : float
+        Largest closed-loop real part over them, rad/s.
+    """
+
+    samples: int
+    seed: int
+    method: str
+    fraction_stable: float
+    max_real_pole: float
+
+    def to_json(self) -> dict:
+        """The fields as a JSON-able dict."""
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class SaturatedRun:
+    """A saturated 1 kHz simulation of one member (:class:`SaturationCheck` without the
+    histories) and whether that member's linear 1 kHz loop is stable.
+
+    Parameters
+    ----------
+    diverged, sustained, delayed : bool
+        As in :class:`robust.analysis.saturation.SaturationCheck`.
+    saturated_fraction, peak_request_n, decay_ratio : float
+        As in :class:`robust.analysis.saturation.SaturationCheck`.
+    linear_stable : bool
+        The member's unsaturated sampled-data loop is stable (a divergence the saturation
+        causes is told apart from a member the controller does not stabilise at all).
+    """
+
+    diverged: bool
+    sustained: bool
+    saturated_fraction: float
+    peak_request_n: float
+    decay_ratio: float
+    delayed: bool
+    linear_stable: bool
+
+    @classmethod
+    def of(cls, check: SaturationCheck, linear_stable: bool) -> SaturatedRun:
+        """The summary of ``check``.
+
+        Parameters
+        ----------
+        check : SaturationCheck
+            The simulation.
+        linear_stable : bool
+            Whether the member's linear 1 kHz loop is stable.
+        """
+        return cls(
+            diverged=check.diverged,
+            sustained=check.sustained,
+            saturated_fraction=check.saturated_fraction,
+            peak_request_n=check.peak_request_n,
+            decay_ratio=check.decay_ratio,
+            delayed=check.delayed,
+            linear_stable=bool(linear_stable),
+        )
+
+    @property
+    def ok(self) -> bool:
+        """Neither diverged nor sustained."""
+        return not (self.diverged or self.sustained)
+
+    def to_json(self) -> dict:
+        """The verdicts and figures as a JSON-able dict."""
+        return {
+            "diverged": self.diverged,
+            "sustained": self.sustained,
+            "ok": self.ok,
+            "saturated_fraction": self.saturated_fraction,
+            "peak_request_n": self.peak_request_n,
+            "decay_ratio": self.decay_ratio,
+            "delayed": self.delayed,
+            "linear_stable": self.linear_stable,
+        }
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignChecks:
+    """What :func:`designs.registry.run_design` checks on every design, typed.
+
+    Parameters
+    ----------
+    held_out : HeldOutCheck
+        Validation on members the design did not use.
+    spec : designs.spec.SpecCheck
+        The specification on the nominal, the worst sampled and 8 seeded members.
+    specification : designs.spec.Specification
+        The specification checked.
+    margin : uncertainty.MarginResult or None
+        The certified robust margin for the specification's pole region (``None``: not
+        computed).
+    sampled_data : dict
+        Label (``"nominal"``, ``"worst"``) -> :class:`robust.analysis.sampled.SampledDataCheck`
+        of the 1 kHz loop (empty without a controller).
+    saturation : dict
+        Label -> :class:`SaturatedRun` (empty unless the controller drives the force).
+    """
+
+    held_out: HeldOutCheck
+    spec: SpecCheck
+    specification: Specification
+    margin: MarginResult | None = None
+    sampled_data: dict[str, SampledDataCheck] = dataclasses.field(default_factory=dict)
+    saturation: dict[str, SaturatedRun] = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        """The checks under the keys of ``bdft design --json``'s ``details`` (the margin
+        without its timings, which are run information)."""
+        out = {
+            "held_out": self.held_out.to_json(),
+            "spec": dict(self.spec.to_json(), specification=self.specification.to_json()),
+        }
+        if self.margin is not None:
+            margin = self.margin.to_json()
+            margin.pop("timings_s")
+            out["robust_margin"] = margin
+        if self.sampled_data:
+            out["sampled_data_check"] = {k: v.to_json() for k, v in self.sampled_data.items()}
+        if self.saturation:
+            out["saturation_check"] = {k: v.to_json() for k, v in self.saturation.items()}
+        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,7 +182,8 @@ class DesignResult:
     reduction_error_bound : float
         Balanced-truncation error bound of the reduction (0 if none).
     details : dict
-        Design-specific facts (JSON-able): gains, weights, solver statistics, scans.
+        Design-specific facts (JSON-able): gains, weights, solver statistics, scans. What
+        every design is checked on is typed, in ``checks``.
     notes : tuple of str
         Caveats the design itself states (a search that did not converge...).
     cost_note : str
@@ -53,6 +198,9 @@ class DesignResult:
     coverage : designs.coverage.DesignCoverage or None
         Fraction of the population meeting the specification, with its probabilistic
         certificate (set by ``run_design`` unless skipped).
+    checks : DesignChecks or None
+        Held-out validation, specification, robust margin, sampled-data and saturation
+        checks (set by ``run_design``).
     """
 
     name: str
@@ -68,6 +216,7 @@ class DesignResult:
     evaluation: DesignEvaluation | None = None
     artifact: str | None = None
     coverage: object = None
+    checks: DesignChecks | None = None
 
     @property
     def order_reduced(self) -> int:
@@ -115,9 +264,14 @@ class DesignResult:
             "method": ev.method,
             "notes": list(ev.notes),
             "coverage": None if self.coverage is None else self.coverage.to_json(),
-            "details": self.details,
+            "details": self.details_json(),
             "artifact": self.artifact,
         }
+
+    def details_json(self) -> dict:
+        """``details`` followed by the JSON of ``checks`` (as ``bdft design --json`` and the
+        artifact's weights carry them)."""
+        return dict(self.details, **({} if self.checks is None else self.checks.to_json()))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -153,28 +153,28 @@ def _ratio_envelope(family, values, controller, freqs):
 def _margin_section(page: HtmlPage, runs: dict) -> None:
     """Both bounds of every design's robust margin, the member that breaks it, the method."""
     margins = {
-        k: r.details["robust_margin"]
+        k: r.checks.margin
         for k, r in runs.items()
-        if not isinstance(r, Exception) and "robust_margin" in r.details
+        if not isinstance(r, Exception) and r.checks is not None and r.checks.margin is not None
     }
     if not margins:
         return
     page.h2("Robust margins")
     rows = []
     for name, m in margins.items():
-        crit = m.get("critical") or {}
+        crit = m.critical or {}
         worst = ""
-        if crit.get("poles"):
-            p = max(crit["poles"], key=lambda z: z["re"])
-            worst = f"{p['re']:+.3f} {p['im']:+.3f}j"
-        cert = m["certificate"].get("certified_stats") or {}
+        if len(crit.get("poles", ())):
+            p = max(crit["poles"], key=lambda z: z.real)
+            worst = f"{p.real:+.3f} {p.imag:+.3f}j"
+        cert = m.certificate.get("certified_stats") or {}
         routes = ", ".join(f"{k} {v}" for k, v in cert.get("routes", {}).items())
-        gap = m["upper"] / m["lower"] if m["lower"] > 0 else float("inf")
+        gap = m.upper / m.lower if m.lower > 0 else float("inf")
         rows.append(
             [
                 name,
-                m["lower"],
-                m["upper"],
+                m.lower,
+                m.upper,
                 gap,
                 worst,
                 f"{cert.get('boxes', 0)} sub-boxes ({routes or '-'})",
@@ -193,17 +193,17 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
     )
     first = next(iter(margins.values()))
     page.p(
-        f"Region: {first['region']['text']}. Lower bound: {first['method']['lower']}. "
-        f"Upper bound: {first['method']['upper']}. Scaling: {first['method']['scaling']}.",
+        f"Region: {first.region.describe()}. Lower bound: {first.method['lower']}. "
+        f"Upper bound: {first.method['upper']}. Scaling: {first.method['scaling']}.",
         cls="note",
     )
     fig, ax = plt.subplots(figsize=(7.5, 0.45 * len(margins) + 1.2))
     for i, m in enumerate(margins.values()):
-        lo = max(m["lower"], 1e-4)
-        up = m["upper"] if math.isfinite(m["upper"]) else 10.0
+        lo = max(m.lower, 1e-4)
+        up = m.upper if math.isfinite(m.upper) else 10.0
         ax.plot([lo, up], [i, i], "-", lw=6, color="0.75", solid_capstyle="butt")
         ax.plot([lo], [i], "o", color="tab:green", label="certified lower" if i == 0 else None)
-        if m["lower"] <= 0:
+        if m.lower <= 0:
             ax.annotate(
                 "0: no scale > 0 certified",
                 (lo, i),
@@ -245,7 +245,7 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
         c = r.coverage.to_json()
         fails = {k: v for k, v in c["binding"].items() if v}
         top = max(fails, key=fails.get) if fails else "-"
-        m = r.details.get("robust_margin", {})
+        m = r.checks.margin if r.checks is not None else None
         row = [
             name,
             f"{100 * c['fraction']:.2f} %",
@@ -253,7 +253,7 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
             f"{c['epsilon']:.3g}",
             f"{100 * c['lower']:.2f} %",
             top if not fails else f"{top} ({fails[top]})",
-            m.get("lower", float("nan")),
+            float("nan") if m is None else m.lower,
         ]
         if limit is not None:
             row += _limit_cells(r, limit)
@@ -407,24 +407,24 @@ def _fmt(value) -> str:
 def _spec_section(page: HtmlPage, runs: dict) -> None:
     """Every design against the specification: each constraint's worst value, the binding one."""
     checks = {
-        k: r.details["spec"]
+        k: r.checks
         for k, r in runs.items()
-        if not isinstance(r, Exception) and "spec" in r.details
+        if not isinstance(r, Exception) and r.checks is not None
     }
     if not checks:
         return
     page.h2("Specification")
     first = next(iter(checks.values()))
-    names = [c["name"] for c in first["constraints"]]
+    names = [c.name for c in first.spec.constraints]
     rows, classes = [], []
-    for name, c in checks.items():
-        vals = {x["name"]: x for x in c["constraints"]}
+    for name, ch in checks.items():
+        c = ch.spec
         rows.append(
-            [name, "holds" if c["holds"] else "fails", c["binding"]]
-            + [_fmt(vals[n]["value"]) + ("" if vals[n]["holds"] else " !") for n in names]
+            [name, "holds" if c.holds else "fails", c.binding]
+            + [_fmt(c.constraint(n).value) + ("" if c.constraint(n).holds else " !") for n in names]
         )
-        classes.append("holds" if c["holds"] else "fails")
-    sp = first["specification"]
+        classes.append("holds" if c.holds else "fails")
+    sp = first.specification.to_json()
     page.table(["design", "verdict", "binding"] + names, rows, row_classes=classes)
     page.p(
         f"Checked on the nominal member, the worst sampled member and 8 seeded sampled "
@@ -445,9 +445,9 @@ def _spec_section(page: HtmlPage, runs: dict) -> None:
 
 def _saturation_section(page: HtmlPage, runs: dict) -> None:
     sat = {
-        k: r.details["saturation_check"]
+        k: r.checks.saturation
         for k, r in runs.items()
-        if not isinstance(r, Exception) and "saturation_check" in r.details
+        if not isinstance(r, Exception) and r.checks is not None and r.checks.saturation
     }
     if not sat:
         return
@@ -459,11 +459,11 @@ def _saturation_section(page: HtmlPage, runs: dict) -> None:
                 [
                     name,
                     label,
-                    "ok" if c["ok"] else ("diverged" if c["diverged"] else "sustained oscillation"),
-                    {True: "stable", False: "unstable"}.get(c.get("linear_stable"), "-"),
-                    c["saturated_fraction"],
-                    c["peak_request_n"],
-                    c["decay_ratio"],
+                    "ok" if c.ok else ("diverged" if c.diverged else "sustained oscillation"),
+                    "stable" if c.linear_stable else "unstable",
+                    c.saturated_fraction,
+                    c.peak_request_n,
+                    c.decay_ratio,
                 ]
             )
     page.table(
@@ -674,7 +674,7 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
         )
     for n in robust:
         r = ok[n]
-        e, d = r.evaluation, r.details
+        e = r.evaluation
         force = (
             f"peak force {e.peak_force_n:.3g} N, RMS {e.rms_force_n:.3g} N"
             if r.drives_force
@@ -683,8 +683,8 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
         cost = ", ".join(
             x for x in (r.cost_note, f"tracking error {e.tracking_error:.3g}", force) if x
         )
-        ho = d.get("held_out", {})
-        held = f"; {ho['fraction_stable']:.4g} of {ho['samples']} held-out members" if ho else ""
+        ho = None if r.checks is None else r.checks.held_out
+        held = f"; {ho.fraction_stable:.4g} of {ho.samples} held-out members" if ho else ""
         out.append(
             f"{n} stabilises every sampled member (worst real part {e.max_real_pole:.3g} "
             f"rad/s{held}) at the cost of: {cost}."
@@ -705,7 +705,7 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
         if "certified_scale" not in d:
             continue
         syn = d.get("synthesis", {})
-        rm = d.get("robust_margin", {})
+        rm = None if r.checks is None else r.checks.margin
         fail = d.get("binding_at_failure")
         text = (
             f"{n} (LMI synthesis, {syn.get('members', 0)} design members, certificates "
@@ -716,7 +716,7 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
         if rm:
             text += (
                 f"; its certified robust margin for the specification's pole region is "
-                f"{rm['lower']:.3g} (upper bound {rm['upper']:.3g})"
+                f"{rm.lower:.3g} (upper bound {rm.upper:.3g})"
             )
         if fail:
             text += (
@@ -857,14 +857,16 @@ def write_design_report(
             continue
         e = run.evaluation
         valid = e.fraction_stable == 1.0 and e.force_within_limits
-        ho = run.details.get("held_out", {})
+        ho = run.checks.held_out if run.checks is not None else None
+        rm = run.checks.margin if run.checks is not None else None
+        nan = float("nan")
         rows.append(
             [
                 name,
                 "valid" if valid else "invalid",
                 "; ".join(e.notes) or run.description,
                 e.fraction_stable,
-                ho.get("fraction_stable", float("nan")),
+                nan if ho is None else ho.fraction_stable,
                 e.max_real_pole,
                 e.min_damping,
                 e.suppression_db,
@@ -872,8 +874,8 @@ def write_design_report(
                 e.peak_force_n,
                 e.rms_force_n,
                 f"{run.order_full} -> {run.order_reduced}",
-                run.details.get("robust_margin", {}).get("lower", float("nan")),
-                run.details.get("robust_margin", {}).get("upper", float("nan")),
+                nan if rm is None else rm.lower,
+                nan if rm is None else rm.upper,
             ]
         )
         classes.append("holds" if valid else "fails")

@@ -74,11 +74,11 @@ def test_hinf_robust_stabilises_the_sampled_members_and_says_when_not_all(runs):
     # controller's output (the zero-order hold's delay); without it the tuned controller's
     # nominal 1 kHz loop was unstable (+0.53 rad/s) while its continuous loop decayed at
     # -0.35 rad/s
-    chk = r.details["sampled_data_check"]["nominal"]
-    assert chk["stable_continuous"] and chk["stable_discrete"]
-    assert chk["max_real_discrete"] < -0.25
-    chk = r.details["sampled_data_check"]["worst"]
-    assert chk["max_real_discrete"] < chk["max_real_continuous"] + 0.1
+    chk = r.checks.sampled_data["nominal"]
+    assert chk.stable_continuous and chk.stable_discrete
+    assert chk.max_real_discrete < -0.25
+    chk = r.checks.sampled_data["worst"]
+    assert chk.max_real_discrete < chk.max_real_continuous + 0.1
 
 
 def test_hinf_robust_holds_on_a_held_out_sample(runs):
@@ -118,8 +118,8 @@ def test_hinf_nominal_margins(runs):
     )  # the nominal design is not robust: that is what the robust one buys
     assert ev.tracking_error < 0.2
     _force_flag_consistent(ev)
-    chk = r.details["sampled_data_check"]["nominal"]
-    assert chk["stable_discrete"] and chk["max_response_deviation_db"] < 0.1
+    chk = r.checks.sampled_data["nominal"]
+    assert chk.stable_discrete and chk.max_response_deviation_db < 0.1
 
 
 def test_virtual_damping_margins(runs):
@@ -216,9 +216,9 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     # saturated 1 kHz simulations of the nominal member: no divergence, no limit cycle; the
     # worst sampled member of the whole family lies beyond the scale held: its linear loop is
     # already unstable, so its divergence is not the saturation's doing
-    sat = d["saturation_check"]
-    assert sat["nominal"]["ok"] and sat["nominal"]["linear_stable"]
-    assert not sat["worst sampled"]["linear_stable"]
+    sat = r.checks.saturation
+    assert sat["nominal"].ok and sat["nominal"].linear_stable
+    assert not sat["worst sampled"].linear_stable
     for label in ("nominal", "worst"):
-        chk = d["sampled_data_check"][label]
-        assert chk["stable_continuous"] == chk["stable_discrete"]
+        chk = r.checks.sampled_data[label]
+        assert chk.stable_continuous == chk.stable_discrete
