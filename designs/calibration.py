@@ -71,7 +71,7 @@ from robust.model.components import structure
 from robust.model.modal import modal_to_physical, physical_to_modal
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
-from robust.sysid.spectral import estimate_frequency_response
+from robust.sysid.spectral import estimate_frequency_responses
 from uncertainty import default_family
 
 __all__ = [
@@ -82,6 +82,7 @@ __all__ = [
     "OperatorEstimate",
     "simulate_calibration",
     "identify_operator",
+    "excitation_responses",
     "operator_truth",
     "human_response",
     "operator_row",
@@ -436,6 +437,8 @@ def identify_operator(
     family,
     handle_gain: float,
     protocol: CalibrationProtocol | None = None,
+    *,
+    responses: tuple | None = None,
 ) -> OperatorEstimate:
     """Estimate :data:`IDENTIFIED` with an error bound from one record (module notes).
 
@@ -449,6 +452,9 @@ def identify_operator(
         ``sigma * kappa`` of the loop (:attr:`robust.model.loop.BDFTLoop.handle_gain`).
     protocol : CalibrationProtocol, optional
         The protocol the record was taken with (its band and segment length).
+    responses : tuple, optional
+        :func:`excitation_responses` of this record and protocol, when already computed
+        (:func:`identify_cab` uses the same).
 
     Returns
     -------
@@ -460,7 +466,7 @@ def identify_operator(
         If the record holds NaN or infinite values, or too little coherent data in the band.
     """
     pr = protocol or CalibrationProtocol()
-    ex, ec, band = _excitation_responses(record, pr, "identify_operator")
+    ex, ec, band = responses or _excitation_responses(record, pr, "identify_operator")
     f = ex.f_hz[band]
     H = ex.g_uy[band] / ec.g_uy[band]
     gx, gc = ex.coherence[band], ec.coherence[band]
@@ -513,6 +519,37 @@ def identify_operator(
     )
 
 
+def excitation_responses(
+    record: CalibrationRecord, protocol: CalibrationProtocol | None = None
+) -> tuple:
+    """The record's two H1 estimates with the excitation as input, and the fitted band.
+
+    What :func:`identify_operator` and :func:`identify_cab` both start from; computed
+    once (the excitation's segments transformed once,
+    :func:`robust.sysid.spectral.estimate_frequency_responses`) and passed to both.
+
+    Parameters
+    ----------
+    record : CalibrationRecord
+        The record.
+    protocol : CalibrationProtocol, optional
+        Its protocol (the band and segment length).
+
+    Returns
+    -------
+    tuple
+        ``(excitation -> handle, excitation -> cab, band mask)``: two
+        :class:`robust.sysid.spectral.FrequencyResponseEstimate` and a boolean array over
+        their frequencies.
+
+    Raises
+    ------
+    robust.errors.DataError
+        If a channel of the record is not a finite 1-D array.
+    """
+    return _excitation_responses(record, protocol or CalibrationProtocol(), "excitation_responses")
+
+
 def _excitation_responses(record, pr, where):
     """The two H1 estimates with the excitation as input (to the handle, to the cab)."""
     for name in ("r", "x", "c"):
@@ -520,8 +557,9 @@ def _excitation_responses(record, pr, where):
         if a.ndim != 1 or not np.all(np.isfinite(a)):
             raise DataError(f"{where}: record.{name} must be a finite 1-D array")
     nseg = min(pr.nperseg, record.r.size // 2)
-    ex = estimate_frequency_response(record.r, record.x, record.fs_hz, nperseg=nseg)
-    ec = estimate_frequency_response(record.r, record.c, record.fs_hz, nperseg=nseg)
+    ex, ec = estimate_frequency_responses(
+        record.r, [record.x, record.c], record.fs_hz, nperseg=nseg
+    )
     band = (ex.f_hz >= pr.band_hz[0]) & (ex.f_hz <= pr.band_hz[1])
     return ex, ec, band
 
@@ -673,7 +711,12 @@ def _cab_ranges(family):
 
 
 def identify_cab(
-    record: CalibrationRecord, loop, protocol: CalibrationProtocol | None = None, family=None
+    record: CalibrationRecord,
+    loop,
+    protocol: CalibrationProtocol | None = None,
+    family=None,
+    *,
+    responses: tuple | None = None,
 ) -> OperatorEstimate:
     """Estimate the cab's modes (:data:`CAB_IDENTIFIED`) with an error bound from one record.
 
@@ -695,6 +738,8 @@ def identify_cab(
     protocol : CalibrationProtocol, optional
     family : uncertainty.Family, optional
         Whose ranges bound the fit (default: the default family).
+    responses : tuple, optional
+        :func:`excitation_responses` of this record and protocol, when already computed.
 
     Returns
     -------
@@ -703,7 +748,7 @@ def identify_cab(
     """
     pr = protocol or CalibrationProtocol()
     family = family if family is not None else default_family()
-    _, ec, band = _excitation_responses(record, pr, "identify_cab")
+    _, ec, band = responses or _excitation_responses(record, pr, "identify_cab")
     f = ec.f_hz[band]
     T = connect(
         loop.blocks(bdft=False, reference_correction=True),

@@ -67,6 +67,7 @@ from designs.calibration import (
     OPERATOR_NAMES,
     CalibrationProtocol,
     cab_truth,
+    excitation_responses,
     identified_ranges,
     identify_cab,
     identify_operator,
@@ -330,9 +331,10 @@ def _calibrate_chunk(family, rows, seeds, protocol):
         for row, s in zip(rows, seeds):
             loop = family.member(row)
             rec = simulate_calibration(loop, protocol, seed=int(s))
-            e = identify_operator(rec, family, loop.handle_gain, protocol)
+            resp = excitation_responses(rec, protocol)
+            e = identify_operator(rec, family, loop.handle_gain, protocol, responses=resp)
             t = operator_truth(family, row)
-            c = identify_cab(rec, loop, protocol, family)
+            c = identify_cab(rec, loop, protocol, family, responses=resp)
             ct_ = cab_truth(family, row)
             for j, v in enumerate(
                 (

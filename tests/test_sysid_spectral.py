@@ -10,6 +10,7 @@ from robust.sysid import (
     ChirpProtocol,
     effective_averages,
     estimate_frequency_response,
+    estimate_frequency_responses,
     simulate_experiment,
     simulate_response,
 )
@@ -207,3 +208,43 @@ def test_linear_detrend_removes_sensor_drift(detrend, ok):
     band = est.band_mask((2.0, 10.0))
     err = np.median(np.abs(est.h1[band] / _foh_response(exp.system, est.f_hz[band]) - 1))
     assert bool(err < 0.01) is ok, err
+
+
+@pytest.mark.parametrize(
+    "n, nperseg, detrend",
+    [
+        (60000, 16384, "constant"),
+        (5000, 256, "linear"),
+        (4097, 255, "constant"),
+        (3000, 100, "none"),
+    ],
+)
+def test_several_outputs_equal_scipy_welch_and_csd(n, nperseg, detrend):
+    # each signal transformed once; the spectra are scipy's (odd and even segment lengths,
+    # every detrend), and each output's estimate is the one-output call's
+    rng = np.random.default_rng(n)
+    u = rng.standard_normal(n)
+    y1 = np.convolve(u, [1.0, 0.5, 0.2], "same") + 0.1 * rng.standard_normal(n)
+    y2 = np.cumsum(u) * 0.01 + rng.standard_normal(n)
+    win = sps.get_window("hann", nperseg)
+    kw = dict(fs=FS, window=win, nperseg=nperseg, noverlap=nperseg // 2)
+    kw["detrend"] = False if detrend == "none" else detrend
+    e1, e2 = estimate_frequency_responses(u, [y1, y2], FS, nperseg=nperseg, detrend=detrend)
+    f, puu = sps.welch(u, **kw)
+    np.testing.assert_array_equal(e1.f_hz, f)
+    np.testing.assert_allclose(e1.g_uu, puu, rtol=1e-13, atol=0)
+    for est, y in ((e1, y1), (e2, y2)):
+        np.testing.assert_allclose(est.g_yy, sps.welch(y, **kw)[1], rtol=1e-13, atol=0)
+        np.testing.assert_allclose(est.g_uy, sps.csd(u, y, **kw)[1], rtol=1e-13, atol=0)
+        one = estimate_frequency_response(u, y, FS, nperseg=nperseg, detrend=detrend)
+        for name in ("h1", "coherence", "g_uu", "g_yy", "g_uy"):
+            np.testing.assert_array_equal(getattr(est, name), getattr(one, name))
+        assert est.n_effective == one.n_effective and est.n_segments == one.n_segments
+
+
+def test_several_outputs_need_matching_records():
+    u = np.zeros(2048)
+    with pytest.raises(ParameterError, match="outputs must be a non-empty sequence"):
+        estimate_frequency_responses(u, [], FS)
+    with pytest.raises(DataError, match="input has 2048 samples but output has 1000"):
+        estimate_frequency_responses(u, [np.zeros(2048), np.zeros(1000)], FS)

@@ -50,6 +50,7 @@ from robust.sysid.spectral import (
     default_nperseg,
     effective_averages,
     estimate_frequency_response,
+    estimate_frequency_responses,
 )
 
 __all__ = [
@@ -74,6 +75,7 @@ __all__ = [
     "default_nperseg",
     "effective_averages",
     "estimate_frequency_response",
+    "estimate_frequency_responses",
     "fit_frequency_response",
     "form_system",
     "identify_file",

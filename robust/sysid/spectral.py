@@ -5,10 +5,13 @@ The paper's Eqn 1 and Eqn 2 in one-sided auto- and cross-spectra ``G``:
 * H1 estimate:           ``H1(f) = G_uy(f) / G_uu(f)``;
 * magnitude-squared coherence: ``gamma^2(f) = |G_uy(f)|^2 / (G_uu(f) G_yy(f))``.
 
-Spectra come from :func:`scipy.signal.csd` and :func:`scipy.signal.welch`
+Spectra are those of :func:`scipy.signal.csd` and :func:`scipy.signal.welch`
 (windowed, optionally detrended, overlapping segments), averaged over segments
-and over records. ``scipy.signal.csd(u, y)`` computes ``conj(U) Y``, the
-convention under which ``G_uy / G_uu`` is the response from ``u`` to ``y``.
+and over records, formed from each signal's segment transforms
+(:class:`scipy.signal.ShortTimeFFT`) computed once, so that one input and several
+outputs (:func:`estimate_frequency_responses`) transform the input once.
+``scipy.signal.csd(u, y)`` computes ``conj(U) Y``, the convention under which
+``G_uy / G_uu`` is the response from ``u`` to ``y``.
 
 H1 is unbiased for noise on the output only. Noise on the measured input (the
 paper's seat accelerometer on a running tractor) biases it low by the factor
@@ -54,6 +57,7 @@ __all__ = [
     "default_nperseg",
     "effective_averages",
     "estimate_frequency_response",
+    "estimate_frequency_responses",
 ]
 
 _DETRENDS = {"none": False, "constant": "constant", "linear": "linear"}
@@ -368,17 +372,65 @@ def estimate_frequency_response(
     ParameterError
         Bad ``fs``, ``nperseg``, ``noverlap``, ``window`` or ``detrend``.
     """
+    return estimate_frequency_responses(
+        u, [y], fs, nperseg=nperseg, noverlap=noverlap, window=window, detrend=detrend
+    )[0]
+
+
+def estimate_frequency_responses(
+    u,
+    outputs: Sequence,
+    fs: float,
+    *,
+    nperseg: int | None = None,
+    noverlap: int | None = None,
+    window: str | None = None,
+    detrend: str = "constant",
+) -> list[FrequencyResponseEstimate]:
+    """:func:`estimate_frequency_response` from one input to several outputs, at once.
+
+    Each signal's segments are transformed once (:class:`scipy.signal.ShortTimeFFT`, as
+    :func:`scipy.signal.csd` and :func:`scipy.signal.welch` transform them) and every
+    auto- and cross-spectrum is formed from those transforms, in the operations and
+    order those functions use, so each estimate equals the one-output call's.
+
+    Parameters
+    ----------
+    u : array_like
+        Measured input (records as in :func:`estimate_frequency_response`).
+    outputs : sequence of array_like
+        Measured outputs, each with records matching ``u``'s.
+    fs : float
+        Sampling rate in Hz.
+    nperseg, noverlap, window, detrend
+        As in :func:`estimate_frequency_response`.
+
+    Returns
+    -------
+    list of FrequencyResponseEstimate
+        One per output, in order.
+
+    Raises
+    ------
+    DataError, ParameterError
+        As :func:`estimate_frequency_response`, for any output.
+    """
     fs = check_scalar("fs", fs, POSITIVE)
     us = _as_records("input", u)
-    ys = _as_records("output", y)
-    if len(us) != len(ys):
-        raise DataError(f"input has {len(us)} record(s) but output has {len(ys)}; they must match")
-    for i, (a, b) in enumerate(zip(us, ys)):
-        if a.size != b.size:
+    if isinstance(outputs, (str, bytes)) or not isinstance(outputs, Sequence) or not outputs:
+        raise ParameterError("outputs must be a non-empty sequence of output records")
+    yss = [_as_records("output", y) for y in outputs]
+    for ys in yss:
+        if len(us) != len(ys):
             raise DataError(
-                f"record {i}: input has {a.size} samples but output has {b.size}; "
-                "channels must be sampled together"
+                f"input has {len(us)} record(s) but output has {len(ys)}; they must match"
             )
+        for i, (a, b) in enumerate(zip(us, ys)):
+            if a.size != b.size:
+                raise DataError(
+                    f"record {i}: input has {a.size} samples but output has {b.size}; "
+                    "channels must be sampled together"
+                )
     if detrend not in _DETRENDS:
         raise ParameterError(f"detrend must be one of {sorted(_DETRENDS)}; got {detrend!r}")
     shortest = min(r.size for r in us)
@@ -409,58 +461,80 @@ def estimate_frequency_response(
         win = sps.get_window(window, nperseg)
     except (ValueError, TypeError) as exc:
         raise ParameterError(f"window {window!r} is not a scipy.signal window: {exc}") from None
-    kw = {
-        "fs": fs,
-        "window": win,
-        "nperseg": nperseg,
-        "noverlap": int(noverlap),
-        "detrend": _DETRENDS[detrend],
-    }
-    hop = nperseg - int(noverlap)
-    acc_uu = acc_yy = 0.0
-    acc_uy = 0.0j
+    noverlap = int(noverlap)
+    hop = nperseg - noverlap
+    sft = sps.ShortTimeFFT(
+        win, hop, fs, fft_mode="onesided", mfft=nperseg, scale_to="psd", phase_shift=None
+    )
+    detr = None if _DETRENDS[detrend] is False else _DETRENDS[detrend]
+    n_out = len(yss)
+    acc_uu = 0.0
+    acc_yy = [0.0] * n_out
+    acc_uy = [0.0j] * n_out
     n_seg_total = 0
     n_eff = 0.0
-    f = None
-    for a, b in zip(us, ys):
+    for r, a in enumerate(us):
         k = 1 + (a.size - nperseg) // hop
-        f, puu = sps.welch(a, **kw)
-        _, pyy = sps.welch(b, **kw)
-        _, puy = sps.csd(a, b, **kw)
-        acc_uu = acc_uu + k * puu
-        acc_yy = acc_yy + k * pyy
-        acc_uy = acc_uy + k * puy
+
+        def transform(x):
+            return sft.stft_detrend(
+                x, detr, 0, (x.size - noverlap) // hop, k_offset=nperseg // 2, axis=-1
+            )
+
+        Su = transform(a)
+        acc_uu = acc_uu + k * _averaged(Su.real**2 + Su.imag**2, nperseg).real
+        for j, ys in enumerate(yss):
+            Sy = transform(ys[r])
+            acc_yy[j] = acc_yy[j] + k * _averaged(Sy.real**2 + Sy.imag**2, nperseg).real
+            # csd(u, y) is conj(U) Y, formed as scipy does: Y conj(U)
+            acc_uy[j] = acc_uy[j] + k * _averaged(Sy * Su.conj(), nperseg)
         n_seg_total += k
-        n_eff += effective_averages(win, nperseg, int(noverlap), k)
+        n_eff += effective_averages(win, nperseg, noverlap, k)
     if n_seg_total < 2:
         raise DataError(
             f"only {n_seg_total} segment (nperseg={nperseg}, {len(us)} record(s)): "
             "coherence and confidence bounds need at least 2 averages; "
             "give more records or a shorter nperseg"
         )
+    f = sft.f
     g_uu = acc_uu / n_seg_total
-    g_yy = acc_yy / n_seg_total
-    g_uy = acc_uy / n_seg_total
-    with np.errstate(divide="ignore", invalid="ignore"):
-        h1 = np.where(g_uu > 0, g_uy / g_uu, np.nan + 0j)
-        coh = np.where((g_uu > 0) & (g_yy > 0), np.abs(g_uy) ** 2 / (g_uu * g_yy), 0.0)
-    coh = np.clip(coh, 0.0, 1.0)
-    arrays = [f, h1, coh, g_uu, g_yy, g_uy]
-    for arr in arrays:
-        arr.setflags(write=False)
-    return FrequencyResponseEstimate(
-        f_hz=f,
-        h1=h1,
-        coherence=coh,
-        g_uu=g_uu,
-        g_yy=g_yy,
-        g_uy=g_uy,
-        fs=fs,
-        nperseg=nperseg,
-        noverlap=int(noverlap),
-        window=str(window),
-        detrend=detrend,
-        n_segments=n_seg_total,
-        n_effective=float(n_eff),
-        n_records=len(us),
-    )
+    out = []
+    for j in range(n_out):
+        g_yy = acc_yy[j] / n_seg_total
+        g_uy = acc_uy[j] / n_seg_total
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h1 = np.where(g_uu > 0, g_uy / g_uu, np.nan + 0j)
+            coh = np.where((g_uu > 0) & (g_yy > 0), np.abs(g_uy) ** 2 / (g_uu * g_yy), 0.0)
+        coh = np.clip(coh, 0.0, 1.0)
+        arrays = [f.copy(), h1, coh, g_uu.copy(), g_yy, g_uy]
+        for arr in arrays:
+            arr.setflags(write=False)
+        out.append(
+            FrequencyResponseEstimate(
+                f_hz=arrays[0],
+                h1=h1,
+                coherence=coh,
+                g_uu=arrays[3],
+                g_yy=g_yy,
+                g_uy=g_uy,
+                fs=fs,
+                nperseg=nperseg,
+                noverlap=noverlap,
+                window=str(window),
+                detrend=detrend,
+                n_segments=n_seg_total,
+                n_effective=float(n_eff),
+                n_records=len(us),
+            )
+        )
+    return out
+
+
+def _averaged(P: np.ndarray, nfft: int) -> np.ndarray:
+    """A segment spectrogram (frequencies x segments) made one-sided and averaged over the
+    segments, as :func:`scipy.signal.csd` does (complex result)."""
+    P = np.moveaxis(P, -2, -1)
+    P[..., 1 : -1 if nfft % 2 == 0 else None] *= 2
+    P = np.moveaxis(P, -1, -2)
+    P = P.mean(axis=-1) if P.shape[-1] > 1 else np.reshape(P, P.shape[:-1])
+    return P.astype(np.complex128)
