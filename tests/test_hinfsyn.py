@@ -243,6 +243,33 @@ def test_multi_model_input_errors():
         hinfsyn_multi([as_generalized_plant(plants[0], 1, 1), with_d22])
 
 
+def test_multi_model_with_no_iteration_certifies_the_given_controller():
+    # max_iter = 0: the given static controller, certified member by member (the P-step's
+    # level sits 2 % above each norm: LEVEL_SLACK) and re-checked here from scratch
+    plants = [dgkf_scalar_plant(0.0), dgkf_scalar_plant(0.5)]
+    K0 = control.ss([], [], [], [[-2.0]])
+    res = hinfsyn_multi(plants, 1, 1, K0=K0, max_iter=0)
+    np.testing.assert_array_equal(res.K.D, K0.D)
+    g = res.gamma_bound
+    norms = []
+    for P, Pcert, gam in zip(plants, res.certificates, res.gammas):
+        cl = as_generalized_plant(P, 1, 1).closed_loop(res.K)
+        A, B, C, D = cl.A, cl.B, cl.C, cl.D
+        M = np.block(
+            [
+                [A.T @ Pcert + Pcert @ A, Pcert @ B, C.T],
+                [B.T @ Pcert, -g * np.eye(B.shape[1]), D.T],
+                [C, D, -g * np.eye(C.shape[0])],
+            ]
+        )
+        assert np.linalg.eigvalsh(Pcert).min() > 0
+        assert np.linalg.eigvalsh(M).max() < 0
+        norms.append(hinf_norm(cl, method="slicot"))
+        assert gam == pytest.approx(norms[-1], rel=1e-6)
+    assert max(norms) <= g <= 1.021 * max(norms)
+    assert res.iterations == 0 and len(res.history) == 1
+
+
 # --------------------------------------------------------------------------- solver wrapper
 def test_scs_fallback_when_clarabel_fails(monkeypatch):
     import cvxpy as cp

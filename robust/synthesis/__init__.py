@@ -5,7 +5,8 @@ solve wrapper.
 Modules: :mod:`.genplant` (the plant), :mod:`.forcefb` (the force-feedback plant),
 :mod:`.assumptions` (checks before any solve), :mod:`.scaling` (apply/invert pairs),
 :mod:`.lmi` (LMI builders), :mod:`.solve` (the solver wrapper), :mod:`.nominal`
-(:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`), :mod:`.region` (LMI pole
+(:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`: generalized plants, through
+:func:`pksyn_multi`), :mod:`.region` (LMI pole
 regions, :func:`certify_region`), :mod:`.pk` (:func:`pksyn_multi`, the P-K iteration on a
 family with per-member certificates), :mod:`.tuning` (its starts: :func:`minimax_start` by linear
 programs, :func:`tune_members` by nonsmooth BFGS), :mod:`.testing` (seeded test plants).

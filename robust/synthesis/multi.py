@@ -1,9 +1,11 @@
 """Multi-model H-infinity synthesis: one controller for a set of plants, verified per member.
 
-:func:`hinfsyn_multi` runs a sequential convex (analysis/synthesis, "P-K")
-iteration on the bilinear matrix inequalities of the multi-model problem and
-returns the controller with a bounded-real certificate for every member; each
-member's closed-loop norm is recomputed independently (Bruinsma-Steinbuch,
+:func:`hinfsyn_multi` takes generalized plants, finds a controller that stabilises
+every member (or takes the caller's), and runs the workbench's one sequential convex
+(analysis/synthesis, "P-K") iteration, :func:`robust.synthesis.pk.pksyn_multi`, with each
+member as its own H-infinity channel; it returns the controller with a bounded-real
+certificate for every member, each certificate rebuilt in numpy on the member's closed
+loop and each member's norm recomputed independently (Bruinsma-Steinbuch,
 :func:`robust.analysis.norms.hinf_norm`) before anything is returned.
 
 References: see :mod:`robust.synthesis.lmi`.
@@ -15,7 +17,6 @@ import dataclasses
 import time
 
 import control
-import cvxpy as cp
 import numpy as np
 
 from robust.analysis.norms import hinf_norm, spectral_abscissa
@@ -31,10 +32,12 @@ from robust.errors import (
 )
 from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
-from robust.synthesis.lmi import PlantBlocks, bounded_real_lmi, closed_loop_matrices
-from robust.synthesis.nominal import MARGIN_FACTOR, hinfsyn_lmi
-from robust.synthesis.scaling import ControllerMatrices, PlantScaling
-from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, check_solvers, solve_problem
+from robust.synthesis.lmi import PlantBlocks
+from robust.synthesis.nominal import hinfsyn_lmi
+from robust.synthesis.pk import SynthesisMember, pksyn_multi
+from robust.synthesis.region import PoleRegion
+from robust.synthesis.scaling import PlantScaling
+from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers
 
 __all__ = ["MultiHinfResult", "hinfsyn_multi"]
 
@@ -49,7 +52,9 @@ class MultiHinfResult:
         The common controller, ``u = K y``.
     gamma_bound : float
         Common bound certified by the final analysis step: every member i has a
-        Lyapunov matrix ``P_i > 0`` proving ``||F_l(P_i, K)||_inf < gamma_bound``.
+        Lyapunov matrix ``P_i > 0`` proving ``||F_l(P_i, K)||_inf < gamma_bound`` (each
+        member certified at ``1 + LEVEL_SLACK`` = 1.02 times its norm, the bound the largest
+        of these).
     gammas : numpy.ndarray, shape (n_members,)
         H-infinity norm of each member's closed loop, computed independently
         (Bruinsma-Steinbuch); each ``<= gamma_bound * (1 + verify_rtol)``.
@@ -62,7 +67,8 @@ class MultiHinfResult:
         controller states): ``[[Acl' P + P Acl, P Bcl, Ccl'], [., -g I, Dcl'],
         [., ., -g I]] < 0`` with ``g = gamma_bound``.
     history : tuple of float
-        Worst-member norm after the initial controller and after each accepted iteration.
+        Certified worst-member level at the initial controller and after each accepted
+        step.
     iterations : int
         Number of analysis/synthesis (P/K) iterations performed.
     solve_time, wall_time : float
@@ -70,9 +76,9 @@ class MultiHinfResult:
     method : str
         Short description of the method and guarantee.
     scaling : dict
-        The common scaling used (:meth:`robust.synthesis.scaling.PlantScaling.as_dict`):
-        time scale ``w0`` (rad/s), scalars ``sw``, ``sz``
-        (gamma_scaled = gamma * sw / sz) and per-channel ``su``, ``sy``.
+        ``w0``: the time scale of the SDPs, rad/s (that of
+        :class:`robust.synthesis.scaling.PlantScaling` fitted to the mean plant); the
+        channels are scaled by :func:`robust.synthesis.pk.pksyn_multi`.
     notes : tuple of str
         What went wrong on the way and the fallback taken (e.g. the final analysis
         step solved without scaling because the scaled one failed).
@@ -105,44 +111,6 @@ def _cl_norms(gps, K):
         sa = spectral_abscissa(cl)
         out.append((sa, hinf_norm(cl) if sa < stability_bound() else np.inf))
     return np.array([o[0] for o in out]), np.array([o[1] for o in out])
-
-
-def _p_step(blocks, Om, nk, margin, solvers, verbose):
-    """Analysis: min gamma s.t. a BRL certificate P_i for every member with K fixed."""
-    g = cp.Variable(name="gamma")
-    Ps, cons = [], []
-    for b in blocks:
-        Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
-        P = cp.Variable((Acl.shape[0], Acl.shape[0]), symmetric=True)
-        Ps.append(P)
-        cons += [
-            P >> margin * np.eye(Acl.shape[0]),
-            bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, g, margin=margin),
-        ]
-    prob = cp.Problem(cp.Minimize(g), cons)
-    sol = solve_problem(
-        prob, step="hinfsyn_multi: analysis (P) step", solvers=solvers, verbose=verbose
-    )
-    return float(g.value), [P.value for P in Ps], sol
-
-
-def _k_step(blocks, Ps, Om0, nk, margin, trust, solvers, verbose):
-    """Synthesis: min gamma over the controller data with every member's P_i fixed."""
-    g = cp.Variable(name="gamma")
-    Om = cp.Variable(Om0.shape, name="Omega")
-    cons = [cp.norm(Om - Om0, "fro") <= trust * max(1.0, float(np.linalg.norm(Om0)))]
-    for b, P in zip(blocks, Ps):
-        Acl, Bcl, Ccl, Dcl = closed_loop_matrices(b, Om, nk)
-        cons.append(bounded_real_lmi(Acl, Bcl, Ccl, Dcl, _sym_np(P), g, margin=margin))
-    prob = cp.Problem(cp.Minimize(g), cons)
-    sol = solve_problem(
-        prob, step="hinfsyn_multi: synthesis (K) step", solvers=solvers, verbose=verbose
-    )
-    return float(g.value), Om.value, sol
-
-
-def _sym_np(P):
-    return (np.asarray(P) + np.asarray(P).T) / 2
 
 
 def _check_options(plants, max_iter, rtol, trust, verify_rtol, solvers, verbose):
@@ -259,19 +227,20 @@ def hinfsyn_multi(
     1. start from a controller that stabilises every member (``K0``, or a
        nominal :func:`robust.synthesis.nominal.hinfsyn_lmi` design on the mean
        plant, else on a member);
-    2. P-step: with K fixed, the bounded-real LMI of every member is linear in
-       its own Lyapunov matrix ``P_i``; minimise the common gamma (one SDP);
-    3. K-step: with all ``P_i`` fixed, every member's bounded-real LMI is linear
-       in the controller data ``[[Ak, Bk], [Ck, Dk]]`` ([GA94] eq. (2.5));
-       minimise gamma within a trust region around the current controller;
-    4. accept the new controller only if its verified worst-member norm
-       decreased; stop when the relative decrease is below ``rtol``.
+    2. the P-K iteration of :func:`robust.synthesis.pk.pksyn_multi` with every member
+       as one H-infinity channel (its pole region the open left half-plane): P-step,
+       with K fixed, one bounded-real LMI per member in its own Lyapunov matrix
+       ``P_i`` at 1.02 times the member's norm, in coordinates where ``P_i`` is the
+       identity; K-step, with the ``P_i`` fixed, one LMI in the controller data
+       ``[[Ak, Bk], [Ck, Dk]]`` ([GA94] eq. (2.5)) minimising the common level within
+       a trust region; a step is kept only if the certified worst-member level
+       decreases (otherwise the region is halved); stop when the relative decrease is
+       below ``rtol``.
 
-    The LMIs are solved in scaled coordinates
-    (:class:`robust.synthesis.scaling.PlantScaling`): the time, channel and
-    performance scalings are those of the mean plant, common to every member
-    so that one controller serves them all; the state transformation is each
-    member's own.
+    The SDPs are solved with the time scale of the mean plant
+    (:class:`robust.synthesis.scaling.PlantScaling`) and the channel scaling of
+    :func:`robust.synthesis.pk.scale_members`, common to every member so that one
+    controller serves them all.
 
     Guarantee (what is and is not claimed): the returned controller has, for
     *every listed member*, a Lyapunov certificate ``P_i > 0`` from the final
@@ -280,8 +249,8 @@ def hinfsyn_multi(
     claimed for plants between the members (members may differ in any
     matrix, so there is no common certificate over their convex hull), and the
     iteration is a local method: ``gamma_bound`` is not the optimum of the
-    (non-convex) multi-model problem.  The worst-member norm never increases
-    from one accepted iteration to the next.
+    (non-convex) multi-model problem.  The certified worst-member level never
+    increases from one accepted step to the next.
 
     Parameters
     ----------
@@ -297,7 +266,8 @@ def hinfsyn_multi(
     rtol : float
         Stop when the worst-member norm decreases by less than this fraction.
     trust : float
-        Trust-region radius of the K-step, relative to ``max(1, ||Omega||_F)``.
+        Initial relative trust-region radius of the K-step
+        (:func:`robust.synthesis.pk.pksyn_multi`).
     verify_rtol : float
         Allowed excess of each verified member norm over ``gamma_bound``.
     solvers : sequence of str
@@ -366,50 +336,27 @@ def hinfsyn_multi(
             f"{np.flatnonzero(~(sa < stability_bound())).tolist()} unstable "
             f"(spectral abscissas {sa.tolist()} rad/s)"
         )
-    common = PlantScaling.fit(PlantBlocks.from_generalized_plant(_mean_plant(gps)))
-    member_blocks = [PlantBlocks.from_generalized_plant(gp) for gp in gps]
-    scalings = [PlantScaling.fit(b, common=common) for b in member_blocks]
-    blocks = [s.apply(b) for s, b in zip(scalings, member_blocks)]
-    margin = MARGIN_FACTOR * SOLVER_TOL.get(solvers[0], 1e-8)
-    nk = K.nstates
-    Om = common.apply_controller(ControllerMatrices.from_statespace(K)).omega()
-    best = float(norms.max())
-    history = [best]
-    solve_time, it = 0.0, 0
-    for it in range(1, max_iter + 1):
-        try:
-            _, Ps, s1 = _p_step(blocks, Om, nk, margin, solvers, verbose)
-            _, Om_new, s2 = _k_step(blocks, Ps, Om, nk, margin, trust, solvers, verbose)
-        except (SolverError, InfeasibleError) as exc:
-            log.append(f"iteration {it}: {exc}")
-            break
-        solve_time += s1.solve_time + s2.solve_time
-        K_new = _controller_from_omega(Om_new, nk, gps[0], common)
-        sa_new, norms_new = _cl_norms(gps, K_new)
-        if not np.all(sa_new < stability_bound()) or norms_new.max() >= best:
-            log.append(
-                f"iteration {it}: no verified improvement "
-                f"(worst norm {norms_new.max():.6g} vs {best:.6g})"
-            )
-            break
-        improvement = (best - norms_new.max()) / best
-        Om, K, best = Om_new, K_new, float(norms_new.max())
-        history.append(best)
-        if improvement < rtol:
-            break
-    notes = []
+    blocks = [PlantBlocks.from_generalized_plant(gp) for gp in gps]
+    w0 = float(PlantScaling.fit(PlantBlocks.from_generalized_plant(_mean_plant(gps))).time.w0)
+    members = [SynthesisMember(region=b, hinf=b, label=f"member {i}") for i, b in enumerate(blocks)]
     try:
-        gamma_bound_s, Ps, s3 = _p_step(blocks, Om, nk, margin, solvers, verbose)
-        gamma_bound = common.invert_gamma(gamma_bound_s)
-        certificates = tuple(s.invert_certificate(P) for s, P in zip(scalings, Ps))
-    except SolverError as exc:
-        # fallback: the same analysis step on the unscaled members (certificates are then
-        # in original coordinates already)
-        notes.append(f"final analysis step failed with the common scaling ({exc}); solved unscaled")
-        Om_raw = ControllerMatrices.from_statespace(K).omega()
-        gamma_bound, Ps, s3 = _p_step(member_blocks, Om_raw, nk, margin, solvers, verbose)
-        certificates = tuple(_sym_np(P) for P in Ps)
-    solve_time += s3.solve_time
+        res = pksyn_multi(
+            members,
+            K,
+            PoleRegion(),
+            w0=w0,
+            max_iter=max_iter,
+            trust=trust,
+            rtol=rtol,
+            solvers=solvers,
+        )
+    except InfeasibleError as exc:
+        # the initial certificates: the members are stable, so only the solver can refuse
+        raise SolverError(f"hinfsyn_multi: {exc}") from None
+    K = control.ss(
+        res.K.A, res.K.B, res.K.C, res.K.D, inputs=list(gps[0].y), outputs=list(gps[0].u), name="K"
+    )
+    gamma_bound = float(res.gamma_bound)
     sa, norms = _cl_norms(gps, K)
     bad = [
         i
@@ -421,29 +368,46 @@ def hinfsyn_multi(
             f"hinfsyn_multi: members {bad} fail the independent check against the certified "
             f"bound {gamma_bound:.6g} (norms {norms[bad]}, spectral abscissas {sa[bad]})"
         )
+    # each member's bounded-real certificate (at its own level, so at the common one)
+    # rebuilt in numpy on the closed loop as GeneralizedPlant.closed_loop orders its states
+    certificates = tuple(c.P for c in res.certificates)
+    for i, (gp, P) in enumerate(zip(gps, certificates)):
+        worst = _brl_max_eig(gp.closed_loop(K), P, gamma_bound)
+        if not (np.linalg.eigvalsh(P).min() > 0 and worst < 0):
+            raise VerificationError(
+                f"hinfsyn_multi: member {i}: the bounded-real certificate fails its re-check "
+                f"(largest eigenvalue {worst:.3g})"
+            )
     return MultiHinfResult(
         K=K,
         gamma_bound=gamma_bound,
         gammas=norms,
         spectral_abscissas=sa,
         certificates=certificates,
-        history=tuple(history),
-        iterations=it,
-        solve_time=solve_time,
+        history=tuple(float(h["gamma"]) for h in res.history),
+        iterations=res.iterations,
+        solve_time=float(sum(res.solve_times)),
         wall_time=time.perf_counter() - t_start,
         method=(
-            "P-K iteration (El Ghaoui & Balakrishnan 1994) "
+            "P-K iteration (El Ghaoui & Balakrishnan 1994; robust.synthesis.pk.pksyn_multi) "
             "with per-member bounded-real certificates"
         ),
-        scaling=common.as_dict(),
-        notes=tuple(notes + log),
+        scaling={"w0": w0},
+        notes=tuple(log) + tuple(res.notes),
     )
 
 
-def _controller_from_omega(Om, nk, gp, sc):
-    """The controller in original coordinates from scaled controller data ``Om``."""
-    Km = sc.invert_controller(ControllerMatrices.from_omega(Om, nk))
-    return control.ss(*Km, inputs=list(gp.y), outputs=list(gp.u), name="K")
+def _brl_max_eig(cl, P, g) -> float:
+    """Largest eigenvalue of the bounded-real matrix of ``cl`` at level ``g`` with ``P``."""
+    A, B, C, D = (np.asarray(m, float) for m in (cl.A, cl.B, cl.C, cl.D))
+    M = np.block(
+        [
+            [A.T @ P + P @ A, P @ B, C.T],
+            [B.T @ P, -g * np.eye(B.shape[1]), D.T],
+            [C, D, -g * np.eye(C.shape[0])],
+        ]
+    )
+    return float(np.linalg.eigvalsh((M + M.T) / 2).max())
 
 
 def _mean_plant(gps):

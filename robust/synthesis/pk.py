@@ -24,8 +24,8 @@ TAC 42(7), 1997), the bounded-real lemma that of Boyd, El Ghaoui, Feron &
 Balakrishnan (SIAM 1994, Sec. 2.7.3).
 
 Method: the P-K iteration (El Ghaoui & Balakrishnan, "Synthesis of fixed-structure
-controllers via numerical optimization", IEEE CDC 1994; the iteration of
-:func:`robust.synthesis.multi.hinfsyn_multi`) made to run on a family. With the
+controllers via numerical optimization", IEEE CDC 1994), the workbench's one (the
+generalized plants of :func:`robust.synthesis.multi.hinfsyn_multi` run through it). With the
 controller fixed, every inequality is an LMI in the Lyapunov matrices (P-step, one
 small SDP per member and objective, at a level ``1 + LEVEL_SLACK`` above the norm
 computed directly, maximising the margin); with the Lyapunov matrices fixed, an LMI in

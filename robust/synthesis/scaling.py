@@ -8,7 +8,6 @@ scaling is a small frozen dataclass with forward maps (``apply`` for the plant,
 cvxpy's ``Reduction.apply`` / ``Reduction.invert``; a stage writes out only the maps it
 changes and inherits identities for the others.  The synthesis uses ``apply`` on
 the plant and the inverse maps on its answers; the other maps exist for warm starts
-(:func:`robust.synthesis.multi.hinfsyn_multi` maps its current controller forward)
 and for round-trip tests.
 
 :class:`PlantScaling` chains four stages, in this order:
