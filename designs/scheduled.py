@@ -835,7 +835,7 @@ def border_check(family, values, cal: Calibrations, *, spec=None, n_jobs: int = 
     spec = spec or Specification()
     rows = np.atleast_2d(np.asarray(values, float))
     n_jobs = check_int("n_jobs", n_jobs, low=1, owner="border_check")
-    size = 10
+    size = 5  # 16 designs per member: small chunks keep both processes busy to the end
     chunks = [(i, min(i + size, len(rows))) for i in range(0, len(rows), size)]
     jobs = [delayed(_border_chunk)(family, rows[a:b], cal[a:b], spec) for a, b in chunks]
     parts = _run(jobs, n_jobs)
@@ -947,7 +947,8 @@ def operator_certificates(
     """
     spec = spec or Specification()
     n_jobs = check_int("n_jobs", n_jobs, low=1, owner="operator_certificates")
-    chunks = [(i, min(i + 2, len(cal))) for i in range(0, len(cal), 2)]
+    # one member per task: the margins take unequal times, and pairs left one process idle
+    chunks = [(i, i + 1) for i in range(len(cal))]
     jobs = [delayed(_certify_chunk)(family, cal[a:b], spec, max_boxes) for a, b in chunks]
     res = [r for part in _run(jobs, n_jobs) for r in part]
     lower = [r["lower"] for r in res]
