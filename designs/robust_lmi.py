@@ -51,7 +51,7 @@ from robust.checks import POSITIVE, Spec, check_int, validate_fields
 from robust.engine import map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
 from robust.synthesis.forcefb import synthesis_member
-from robust.synthesis.pk import pksyn_multi
+from robust.synthesis.pk import certify_regions, pksyn_multi
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.tuning import minimax_start, tune_members
@@ -397,12 +397,14 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
             )
             break
         try:
+            # the region LMIs are solved for the one synthesis kept (_maximise)
             pk = pksyn_multi(
                 members,
                 tuned.K,
                 region,
                 h2_bound=h2 * 1.05 if h2 else None,
                 max_iter=options.pk_iterations,
+                region_certificates=False,
             )
         except (InfeasibleError, BDFTError) as exc:
             outcome["reason"] = f"LMI synthesis failed: {exc}"
@@ -431,7 +433,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
                 f"scale {k:.3g}, round {rnd + 1}: {len(rows)} design members, worst region "
                 f"violation {worst_v:.3g} rad/s, binding {check.binding}"
             )
-        outcome.update(K=K, pk=pk, check=check)
+        outcome.update(K=K, pk=pk, check=check, members=members)
         if worst_v < 0 and check.holds:
             break
         # new design members: the worst one of the search, and the sampled member that
@@ -571,12 +573,13 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
             failed,
         )
     k, outcome, rows = best
+    pk = certify_regions(outcome["members"], outcome["pk"])
     return RobustLMIDesign(
         controller=_loop_controller(outcome["K"], options, "robust_lmi"),
         scale=float(k),
         certified_scale=float(certified),
         levels=tuple(levels),
-        synthesis=outcome["pk"].to_json(),
+        synthesis=pk.to_json(),
         spec=outcome["check"].to_json(),
         design_rows=np.asarray(rows),
         force_budget=options.force_budget(spec),

@@ -94,6 +94,7 @@ __all__ = [
     "MemberCertificates",
     "MultiObjectiveResult",
     "pksyn_multi",
+    "certify_regions",
     "h2_norm",
     "eigen_derivatives",
     "eigen_region_rows",
@@ -380,8 +381,9 @@ class MemberCertificates:
 
     Parameters
     ----------
-    region : RegionCertificate
-        Decay-and-cone certificate of the region plant's closed loop ([CG96]).
+    region : RegionCertificate or None
+        Decay-and-cone certificate of the region plant's closed loop ([CG96]); ``None``
+        until :func:`certify_regions` runs when ``pksyn_multi`` deferred it.
     P : numpy.ndarray
         Bounded-real certificate of the decay-shifted H-infinity closed loop at level
         ``gamma_bound`` (plant states, then controller states).
@@ -406,7 +408,7 @@ class MemberCertificates:
         Largest region violation of the closed-loop poles (negative), rad/s.
     """
 
-    region: RegionCertificate
+    region: RegionCertificate | None
     P: np.ndarray
     Q: np.ndarray | None
     Z: np.ndarray | None
@@ -421,7 +423,7 @@ class MemberCertificates:
     def to_json(self) -> dict:
         """The checks (no matrices)."""
         return {
-            "region": self.region.to_json(),
+            "region": None if self.region is None else self.region.to_json(),
             "lmi_max_eig": dict(self.lmi_max_eig),
             "gamma": self.gamma,
             "gamma_bound": self.gamma_bound,
@@ -463,6 +465,11 @@ class MultiObjectiveResult:
         The method and its guarantee, in words.
     notes : tuple of str
         Rejected steps, why the iteration stopped.
+    w0 : float
+        Time scale of the SDPs, rad/s.
+    omega_scaled : numpy.ndarray or None
+        The controller data in the SDPs' coordinates (what :func:`certify_regions`
+        certifies when the region certificates were deferred).
     """
 
     K: control.StateSpace
@@ -477,6 +484,8 @@ class MultiObjectiveResult:
     wall_time: float
     method: str
     notes: tuple = ()
+    w0: float = 20.0
+    omega_scaled: np.ndarray | None = None
 
     @property
     def gammas(self) -> np.ndarray:
@@ -757,8 +766,13 @@ def _analyse_hinf(cl: _Affine, Om, T_prev, solvers):
     sdp.t.value = None
     for par, val in zip(sdp.data, clt.matrices(Om)):
         par.value = val
+    # afresh (no reuse of the previous solve's workspace): the answer must not depend on
+    # what this process solved before
     sol = solve_problem(
-        sdp.problem, step="pksyn_multi: H-infinity analysis (P) step", solvers=solvers
+        sdp.problem,
+        step="pksyn_multi: H-infinity analysis (P) step",
+        solvers=solvers,
+        warm_start=False,
     )
     P, t = sdp.P, sdp.t
     if t.value is None or not t.value > 0:
@@ -782,7 +796,9 @@ def _analyse_h2(cl: _Affine, Om, T_prev, solvers):
     for par, val in zip(sdp.data, cl.transformed(T_prev).matrices(Om)[:3]):
         par.value = val
     sdp.level.value = z0
-    sol = solve_problem(sdp.problem, step="pksyn_multi: H2 analysis (P) step", solvers=solvers)
+    sol = solve_problem(
+        sdp.problem, step="pksyn_multi: H2 analysis (P) step", solvers=solvers, warm_start=False
+    )
     Q, t = sdp.P, sdp.t
     if t.value is None or not t.value > 0:
         raise InfeasibleError(f"pksyn_multi: no H2 certificate at level {z0:.6g} ({t.value})")
@@ -897,6 +913,7 @@ def pksyn_multi(
     rtol: float = 1e-3,
     solvers=DEFAULT_SOLVERS,
     progress: Callable[[int, dict], None] | None = None,
+    region_certificates: bool = True,
 ) -> MultiObjectiveResult:
     """One controller for every member: poles in ``region``, certified H-infinity and H2 bounds.
 
@@ -934,6 +951,11 @@ def pksyn_multi(
         cvxpy SDP solvers, in order.
     progress : callable, optional
         Called after each accepted step as ``progress(step, entry)``.
+    region_certificates : bool
+        Solve each member's region LMI for the final controller (the costliest part of the
+        final checks). ``False`` defers them (``certificates[i].region`` is ``None``; the
+        closed-loop poles are still checked): for a caller that runs many syntheses and
+        keeps one, which it then certifies with :func:`certify_regions`.
 
     Returns
     -------
@@ -1040,7 +1062,7 @@ def pksyn_multi(
             notes.append(f"stopped after max_iter = {max_iter} steps")
 
     certificates = _final_certificates(
-        members, scaled, pt, nk, w0, channels, region, solvers, solve_times
+        members, scaled, pt, nk, w0, channels, region, solvers, solve_times, region_certificates
     )
     Om_o = from_scaled(pt.Om, nk, w0, channels)
     K = control.ss(Om_o[:nk, :nk], Om_o[:nk, nk:], Om_o[nk:, :nk], Om_o[nk:, nk:])
@@ -1066,6 +1088,79 @@ def pksyn_multi(
             "41(3), 1996)"
         ),
         notes=tuple(notes),
+        w0=float(w0),
+        omega_scaled=np.array(pt.Om, float),
+    )
+
+
+def certify_regions(members, result: MultiObjectiveResult, *, solvers=DEFAULT_SOLVERS):
+    """``result`` with every deferred region certificate solved and checked.
+
+    Parameters
+    ----------
+    members : sequence of SynthesisMember
+        The members ``result`` was synthesised on, in the same order.
+    result : MultiObjectiveResult
+        From :func:`pksyn_multi` (with ``region_certificates=False``, or not: certificates
+        already present are kept).
+    solvers : sequence of str
+        cvxpy SDP solvers, in order.
+
+    Returns
+    -------
+    MultiObjectiveResult
+        The same result, each member's region certificate filled in (its solve times
+        appended), as :func:`pksyn_multi` with ``region_certificates=True`` returns it.
+
+    Raises
+    ------
+    ModelStructureError
+        If ``members`` does not match the result.
+    VerificationError
+        If a member has no region certificate for the controller.
+    """
+    members = list(members)
+    if len(members) != len(result.certificates) or result.omega_scaled is None:
+        raise ModelStructureError(
+            f"certify_regions: expected the {len(result.certificates)} members of the result "
+            f"(and a result of pksyn_multi); got {len(members)}"
+        )
+    if all(c.region is not None for c in result.certificates):
+        return result
+    Om, nk = _controller_data(result.K)
+    _, scaled = scale_members(members, nk, result.w0)
+    times = list(result.solve_times)
+    out = []
+    for i, (m, s, c) in enumerate(zip(members, scaled, result.certificates)):
+        if c.region is None:
+            rc = _region_certificate(
+                m, s, result.omega_scaled, Om, nk, result.w0, result.region, solvers, times, i
+            )
+            c = dataclasses.replace(c, region=rc, region_violation=rc.violation)
+        out.append(c)
+    return dataclasses.replace(result, certificates=tuple(out), solve_times=tuple(times))
+
+
+def _region_certificate(
+    m, s, Om_s, Om, nk, w0, region, solvers, solve_times, i
+) -> RegionCertificate:
+    """The region certificate of one member's closed loop (scaled solve, original ``X``)."""
+    try:
+        t0 = time.perf_counter()
+        rs = certify_region(s.region.matrices(Om_s)[0], region.scaled(w0), solvers=solvers)
+        solve_times.append(time.perf_counter() - t0)
+    except (InfeasibleError, SolverError) as exc:
+        raise VerificationError(
+            f"pksyn_multi: member {m.label or i}: no region certificate for the final "
+            f"controller: {exc}"
+        ) from None
+    # the region inequalities are homogeneous in X and scale with 1/w0 in time tau: the
+    # same X in the original coordinates x = blkdiag(T_state, I) x_s
+    Tr = np.linalg.inv(sla.block_diag(s.region_st.T, np.eye(nk)))
+    return RegionCertificate(
+        sym(Tr.T @ rs.X @ Tr),
+        rs.lmi_max_eig,
+        region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0])),
     )
 
 
@@ -1095,7 +1190,9 @@ def _excess(p: _Point, h2cap: float) -> float:
     return max(max(p.z_member) / h2cap - 1.0, 0.0) if h2cap else 0.0
 
 
-def _final_certificates(members, scaled, pt, nk, w0, channels, region, solvers, solve_times):
+def _final_certificates(
+    members, scaled, pt, nk, w0, channels, region, solvers, solve_times, with_regions=True
+):
     """Certificates of the final point in original coordinates, each checked independently."""
     Om = from_scaled(pt.Om, nk, w0, channels)
     out = []
@@ -1126,22 +1223,15 @@ def _final_certificates(members, scaled, pt, nk, w0, channels, region, solvers, 
             Q, Z = np.eye(cl2.N), Zs
             h2b = math.sqrt(pt.z_member[i] * w0)
             h2 = h2_norm(*_Affine(m.h2, nk).matrices(Om)[:3])
-        try:
-            t0 = time.perf_counter()
-            rs = certify_region(s.region.matrices(pt.Om)[0], region.scaled(w0), solvers=solvers)
-            solve_times.append(time.perf_counter() - t0)
-        except (InfeasibleError, SolverError) as exc:
+        rc = None
+        violation = region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
+        if with_regions:
+            rc = _region_certificate(m, s, pt.Om, Om, nk, w0, region, solvers, solve_times, i)
+        elif not violation < 0:
             raise VerificationError(
-                f"pksyn_multi: member {name}: no region certificate for the final controller: {exc}"
-            ) from None
-        # the region inequalities are homogeneous in X and scale with 1/w0 in time tau: the
-        # same X in the original coordinates x = blkdiag(T_state, I) x_s
-        Tr = np.linalg.inv(sla.block_diag(s.region_st.T, np.eye(nk)))
-        rc = RegionCertificate(
-            sym(Tr.T @ rs.X @ Tr),
-            rs.lmi_max_eig,
-            region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0])),
-        )
+                f"pksyn_multi: member {name}: a closed-loop pole lies outside the region "
+                f"(violation {violation:.3g} rad/s)"
+            )
         failed = {k: e for k, e in eigs.items() if e >= 0}
         if failed:
             raise VerificationError(
@@ -1165,7 +1255,7 @@ def _final_certificates(members, scaled, pt, nk, w0, channels, region, solvers, 
                 gamma_shifted=gamma_sh,
                 h2=h2,
                 h2_bound=h2b,
-                region_violation=rc.violation,
+                region_violation=violation if rc is None else rc.violation,
             )
         )
     return out
