@@ -4,7 +4,9 @@ A design is a :class:`Design`: a name, a one-line description and a ``build``
 function ``build(family, samples, limits) -> DesignResult``. The pipeline of
 :func:`designs.registry.run_design` then validates the result on the family,
 reduces and discretises the controller and writes the artifact, filling in the
-``evaluation`` and ``artifact`` fields of the same :class:`DesignResult`.
+``evaluation``, ``checks`` (:class:`DesignChecks`: held-out validation, specification,
+robust margin, 1 kHz and saturated runs), ``coverage`` and ``artifact`` fields of the same
+:class:`DesignResult`.
 """
 
 from __future__ import annotations
