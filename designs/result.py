@@ -14,6 +14,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
+import numpy as np
+
 from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck, Specification
 from robust.analysis.sampled import SampledDataCheck
@@ -54,31 +56,24 @@ class HeldOutCheck:
 
 @dataclasses.dataclass(frozen=True)
 class SaturatedRun:
-    """A saturated 1 kHz simulation of one member (:class:`SaturationCheck` without the
-    histories) and whether that member's linear 1 kHz loop is stable.
+    """A saturated 1 kHz simulation of one member and whether that member's linear 1 kHz
+    loop is stable (a divergence the saturation causes told apart from a member the
+    controller does not stabilise at all).
 
     Parameters
     ----------
-    diverged, sustained, delayed : bool
-        As in :class:`robust.analysis.saturation.SaturationCheck`.
-    saturated_fraction, peak_request_n, decay_ratio : float
-        As in :class:`robust.analysis.saturation.SaturationCheck`.
+    check : SaturationCheck
+        The simulation's verdicts and figures (:meth:`of` drops its histories).
     linear_stable : bool
-        The member's unsaturated sampled-data loop is stable (a divergence the saturation
-        causes is told apart from a member the controller does not stabilise at all).
+        The member's unsaturated sampled-data loop is stable.
     """
 
-    diverged: bool
-    sustained: bool
-    saturated_fraction: float
-    peak_request_n: float
-    decay_ratio: float
-    delayed: bool
+    check: SaturationCheck
     linear_stable: bool
 
     @classmethod
     def of(cls, check: SaturationCheck, linear_stable: bool) -> SaturatedRun:
-        """The summary of ``check``.
+        """``check`` without its histories, and ``linear_stable``.
 
         Parameters
         ----------
@@ -87,33 +82,12 @@ class SaturatedRun:
         linear_stable : bool
             Whether the member's linear 1 kHz loop is stable.
         """
-        return cls(
-            diverged=check.diverged,
-            sustained=check.sustained,
-            saturated_fraction=check.saturated_fraction,
-            peak_request_n=check.peak_request_n,
-            decay_ratio=check.decay_ratio,
-            delayed=check.delayed,
-            linear_stable=bool(linear_stable),
-        )
-
-    @property
-    def ok(self) -> bool:
-        """Neither diverged nor sustained."""
-        return not (self.diverged or self.sustained)
+        empty = np.zeros(0)
+        return cls(dataclasses.replace(check, t=empty, y=empty, force=empty), bool(linear_stable))
 
     def to_json(self) -> dict:
-        """The verdicts and figures as a JSON-able dict."""
-        return {
-            "diverged": self.diverged,
-            "sustained": self.sustained,
-            "ok": self.ok,
-            "saturated_fraction": self.saturated_fraction,
-            "peak_request_n": self.peak_request_n,
-            "decay_ratio": self.decay_ratio,
-            "delayed": self.delayed,
-            "linear_stable": self.linear_stable,
-        }
+        """The check's JSON and ``linear_stable``."""
+        return dict(self.check.to_json(), linear_stable=self.linear_stable)
 
 
 @dataclasses.dataclass(frozen=True)

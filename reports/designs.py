@@ -459,11 +459,13 @@ def _saturation_section(page: HtmlPage, runs: dict) -> None:
                 [
                     name,
                     label,
-                    "ok" if c.ok else ("diverged" if c.diverged else "sustained oscillation"),
+                    "ok"
+                    if c.check.ok
+                    else ("diverged" if c.check.diverged else "sustained oscillation"),
                     "stable" if c.linear_stable else "unstable",
-                    c.saturated_fraction,
-                    c.peak_request_n,
-                    c.decay_ratio,
+                    c.check.saturated_fraction,
+                    c.check.peak_request_n,
+                    c.check.decay_ratio,
                 ]
             )
     page.table(

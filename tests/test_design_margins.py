@@ -217,7 +217,7 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     # worst sampled member of the whole family lies beyond the scale held: its linear loop is
     # already unstable, so its divergence is not the saturation's doing
     sat = r.checks.saturation
-    assert sat["nominal"].ok and sat["nominal"].linear_stable
+    assert sat["nominal"].check.ok and sat["nominal"].linear_stable
     assert not sat["worst sampled"].linear_stable
     for label in ("nominal", "worst"):
         chk = r.checks.sampled_data[label]

@@ -33,8 +33,6 @@ from robust.errors import VerificationError
 __all__ = [
     "PlantBlocks",
     "ProjectionLMIs",
-    "bounded_real_lmi",
-    "closed_loop_matrices",
     "nullspace",
     "projection_certificate",
     "projection_lmis",
@@ -450,75 +448,6 @@ def _psd_factor(G):
     """``L`` with ``L L' = G`` for a positive semidefinite ``G`` (from its eigenvalues)."""
     w, V = np.linalg.eigh(_sym(G))
     return V * np.sqrt(np.maximum(w, 0.0))
-
-
-def closed_loop_matrices(blocks: PlantBlocks, Omega, nk: int):
-    """Closed-loop ``(Acl, Bcl, Ccl, Dcl)``, affine in the controller data ``Omega``.
-
-    ``Acl = A0 + Bb Omega Cb`` etc. ([GA94] eq. (2.5)), with the plant states first,
-    then the controller states.
-
-    Parameters
-    ----------
-    blocks : PlantBlocks
-        Plant data (``D22 = 0``).
-    Omega : numpy.ndarray or cvxpy expression, shape (nk + nu, nk + ny)
-        Controller data ``[[Ak, Bk], [Ck, Dk]]``.
-    nk : int
-        Controller order.
-    """
-    A, B1, B2, C1, C2, D11, D12, D21 = (
-        getattr(blocks, k) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21")
-    )
-    n, nw, nu, nz, ny = blocks.sizes
-    A0 = sla.block_diag(A, np.zeros((nk, nk)))
-    B0 = np.vstack([B1, np.zeros((nk, nw))])
-    C0 = np.hstack([C1, np.zeros((nz, nk))])
-    Bb = np.block([[np.zeros((n, nk)), B2], [np.eye(nk), np.zeros((nk, nu))]])
-    Cb = np.block([[np.zeros((nk, n)), np.eye(nk)], [C2, np.zeros((ny, nk))]])
-    D12b = np.hstack([np.zeros((nz, nk)), D12])
-    D21b = np.vstack([np.zeros((nk, nw)), D21])
-    return (
-        A0 + Bb @ Omega @ Cb,
-        B0 + Bb @ Omega @ D21b,
-        C0 + D12b @ Omega @ Cb,
-        D11 + D12b @ Omega @ D21b,
-    )
-
-
-def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
-    """Bounded-real-lemma constraint ``||Ccl (sI-Acl)^-1 Bcl + Dcl||_inf < gamma``.
-
-    Either ``P`` or the closed-loop matrices may be cvxpy expressions, but not
-    both (the product must stay affine).  Returns one cvxpy constraint::
-
-        [Acl' P + P Acl   P Bcl    Ccl' ]
-        [Bcl' P          -g I      Dcl' ]  <=  -margin I
-        [Ccl              Dcl     -g I  ]
-
-    Parameters
-    ----------
-    Acl, Bcl, Ccl, Dcl : numpy.ndarray or cvxpy expression
-        Closed-loop state-space matrices (from w to z).
-    P : numpy.ndarray or cvxpy expression, shape (nx, nx)
-        Lyapunov matrix.
-    gamma : float or cvxpy expression
-        The bound ``g``.
-    margin : float
-        Strictness margin.
-    """
-    nx, nw, nz = Acl.shape[0], Bcl.shape[1], Ccl.shape[0]
-    PA = P @ Acl
-    PB = P @ Bcl
-    M = cp.bmat(
-        [
-            [PA + PA.T, PB, Ccl.T],
-            [PB.T, -gamma * np.eye(nw), Dcl.T],
-            [Ccl, Dcl, -gamma * np.eye(nz)],
-        ]
-    )
-    M = _sym(M)
-    return M << -margin * np.eye(nx + nw + nz)
 
 
 def reconstruct_controller(
