@@ -1127,24 +1127,32 @@ def certify_regions(members, result: MultiObjectiveResult, *, solvers=DEFAULT_SO
         )
     if all(c.region is not None for c in result.certificates):
         return result
-    Om, nk = _controller_data(result.K)
+    nk = result.K.nstates
     _, scaled = scale_members(members, nk, result.w0)
     times = list(result.solve_times)
     out = []
     for i, (m, s, c) in enumerate(zip(members, scaled, result.certificates)):
         if c.region is None:
             rc = _region_certificate(
-                m, s, result.omega_scaled, Om, nk, result.w0, result.region, solvers, times, i
+                m,
+                s,
+                result.omega_scaled,
+                nk,
+                result.w0,
+                result.region,
+                solvers,
+                times,
+                i,
+                c.region_violation,
             )
             c = dataclasses.replace(c, region=rc, region_violation=rc.violation)
         out.append(c)
     return dataclasses.replace(result, certificates=tuple(out), solve_times=tuple(times))
 
 
-def _region_certificate(
-    m, s, Om_s, Om, nk, w0, region, solvers, solve_times, i
-) -> RegionCertificate:
-    """The region certificate of one member's closed loop (scaled solve, original ``X``)."""
+def _region_certificate(m, s, Om_s, nk, w0, region, solvers, solve_times, i, violation=math.nan):
+    """The region certificate of one member's closed loop (scaled solve, original ``X``);
+    ``violation``: that of its poles, computed by the caller."""
     try:
         t0 = time.perf_counter()
         rs = certify_region(s.region.matrices(Om_s)[0], region.scaled(w0), solvers=solvers)
@@ -1157,11 +1165,7 @@ def _region_certificate(
     # the region inequalities are homogeneous in X and scale with 1/w0 in time tau: the
     # same X in the original coordinates x = blkdiag(T_state, I) x_s
     Tr = np.linalg.inv(sla.block_diag(s.region_st.T, np.eye(nk)))
-    return RegionCertificate(
-        sym(Tr.T @ rs.X @ Tr),
-        rs.lmi_max_eig,
-        region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0])),
-    )
+    return RegionCertificate(sym(Tr.T @ rs.X @ Tr), rs.lmi_max_eig, violation)
 
 
 def _entry(pt: _Point, h2cap: float, radius: float, response_excess: float) -> dict:
@@ -1226,7 +1230,9 @@ def _final_certificates(
         rc = None
         violation = region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
         if with_regions:
-            rc = _region_certificate(m, s, pt.Om, Om, nk, w0, region, solvers, solve_times, i)
+            rc = _region_certificate(
+                m, s, pt.Om, nk, w0, region, solvers, solve_times, i, violation
+            )
         elif not violation < 0:
             raise VerificationError(
                 f"pksyn_multi: member {name}: a closed-loop pole lies outside the region "
