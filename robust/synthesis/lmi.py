@@ -31,6 +31,7 @@ import scipy.linalg as sla
 from robust.errors import VerificationError
 
 __all__ = [
+    "bounded_real_lmi",
     "PlantBlocks",
     "ProjectionLMIs",
     "nullspace",
@@ -448,6 +449,41 @@ def _psd_factor(G):
     """``L`` with ``L L' = G`` for a positive semidefinite ``G`` (from its eigenvalues)."""
     w, V = np.linalg.eigh(_sym(G))
     return V * np.sqrt(np.maximum(w, 0.0))
+
+
+def bounded_real_lmi(Acl, Bcl, Ccl, Dcl, P, gamma, *, margin: float):
+    """Bounded-real-lemma constraint ``||Ccl (sI-Acl)^-1 Bcl + Dcl||_inf < gamma``.
+
+    Either ``P`` or the closed-loop matrices may be cvxpy expressions, but not
+    both (the product must stay affine).  Returns one cvxpy constraint::
+
+        [Acl' P + P Acl   P Bcl    Ccl' ]
+        [Bcl' P          -g I      Dcl' ]  <=  -margin I
+        [Ccl              Dcl     -g I  ]
+
+    Parameters
+    ----------
+    Acl, Bcl, Ccl, Dcl : numpy.ndarray or cvxpy expression
+        Closed-loop state-space matrices (from w to z).
+    P : numpy.ndarray or cvxpy expression, shape (nx, nx)
+        Lyapunov matrix.
+    gamma : float or cvxpy expression
+        The bound ``g``.
+    margin : float
+        Strictness margin.
+    """
+    nx, nw, nz = Acl.shape[0], Bcl.shape[1], Ccl.shape[0]
+    PA = P @ Acl
+    PB = P @ Bcl
+    M = cp.bmat(
+        [
+            [PA + PA.T, PB, Ccl.T],
+            [PB.T, -gamma * np.eye(nw), Dcl.T],
+            [Ccl, Dcl, -gamma * np.eye(nz)],
+        ]
+    )
+    M = _sym(M)
+    return M << -margin * np.eye(nx + nw + nz)
 
 
 def reconstruct_controller(
