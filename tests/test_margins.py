@@ -99,7 +99,9 @@ def test_enclosure_contains_every_member(family, k):
 @pytest.fixture(scope="module")
 def bounds(family):
     up, crit, search = margin_upper_bound(family, samples=400, seed=0, iterations=6)
-    low, cert = margin_lower_bound(family, k_hint=up, max_boxes=300, ladder=4, iterations=2)
+    low, cert = margin_lower_bound(
+        family, k_hint=up, max_boxes=300, ladder=4, iterations=2, method="eigenvalues"
+    )
     return up, crit, low, cert
 
 
@@ -116,7 +118,9 @@ def test_lower_bound_is_below_the_upper_bound_and_certified(bounds):
 def test_certificate_refuses_a_box_that_holds_a_violating_member(family, bounds):
     up, crit, _, _ = bounds
     # the box scaled past the critical member's scale contains it: no certificate
-    low, cert = margin_lower_bound(family, k_hint=up * 1.02, max_boxes=300, ladder=0, iterations=0)
+    low, cert = margin_lower_bound(
+        family, k_hint=up * 1.02, max_boxes=300, ladder=0, iterations=0, method="eigenvalues"
+    )
     assert low == 0.0
     assert not cert["history"][-1]["certified"]
 

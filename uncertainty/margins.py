@@ -79,6 +79,7 @@ from uncertainty.batched import closed_loop_matrices
 from uncertainty.family import Family
 from uncertainty.loop import INTERVALS, LoopAssembly, fixed_parameters
 from uncertainty.uss import USS
+from uncertainty.valueset import ValueSetLoop, certify_scale_valueset
 
 __all__ = [
     "Region",
@@ -97,9 +98,12 @@ __all__ = [
 
 #: Floor of a scaled linear range, relative to its upper end (keeps parameters physical).
 PHYSICAL_FLOOR = 1e-6
-#: Lower-bound methods: verified eigenvalue enclosures (default) or a quadratic Lyapunov
-#: certificate of the interval matrix.
-LOWER_METHODS = ("eigenvalues", "lyapunov")
+#: Lower-bound methods: ``auto`` (the value-set zero exclusion where it applies, else the
+#: eigenvalue enclosures), verified eigenvalue enclosures, a quadratic Lyapunov certificate
+#: of the interval matrix, or zero exclusion on value sets (:mod:`uncertainty.valueset`).
+LOWER_METHODS = ("auto", "eigenvalues", "lyapunov", "valueset")
+#: Cells of the value-set certificate per sub-box of the budget (``max_boxes``).
+VALUESET_CELLS_PER_BOX = 500
 #: Sub-boxes tried per scale by the lower bound (sets the result on every machine).
 DEFAULT_BOXES = 400
 #: Sub-boxes taken from the search's stack and certified together per step, on every
@@ -1129,7 +1133,63 @@ def _box_task(loop, region, method, box) -> dict:
     return res
 
 
+def _perron_bound(enc) -> float:
+    """Upper bound of every eigenvalue modulus of the interval matrix ``enc``: the Perron
+    root of its entrywise magnitude bound, by the Collatz-Wielandt ratio of a positive
+    vector (the Perron vector, lifted off zero)."""
+    N = np.abs(enc.mid) + enc.rad
+    vals, vecs = np.linalg.eig(N)
+    v = np.abs(vecs[:, int(np.argmax(vals.real))])
+    v = v + 1e-9 * v.max() + np.finfo(float).tiny
+    return float(np.max((N @ v) / v)) * (1 + 1e-9)
+
+
+def _valueset_scale(loop, k, max_boxes, seed=0):
+    """:func:`uncertainty.valueset.certify_scale_valueset` at scale ``k``, the nominal's
+    stability first and seeded members of a certified box re-checked (numpy eigenvalues)."""
+    lo_t, hi_t = _scaled_t(loop, k)
+    centre = loop.matrices(_to_values(loop, (lo_t + hi_t) / 2)[None])[0]
+    if np.linalg.eigvals(centre).real.max() >= 0:
+        return False, {"cells": 0, "centre_violates": True}
+    if getattr(loop, "_valueset", None) is None:
+        loop._valueset = ValueSetLoop(loop.family)
+    enc = loop.enclosure(_to_values(loop, lo_t), _to_values(loop, hi_t), False)
+    w_max = _perron_bound(enc)
+    ok, st = certify_scale_valueset(
+        loop._valueset, lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX
+    )
+    if ok:
+        rng = np.random.default_rng(seed)
+        T = lo_t + rng.random((16, len(lo_t))) * (hi_t - lo_t)
+        T[0], T[1] = lo_t, hi_t
+        worst = np.linalg.eigvals(loop.matrices(_to_values(loop, T))).real.max()
+        if worst >= 0:
+            raise BDFTError(
+                "robust margin: a member of a box certified by zero exclusion is unstable "
+                f"(largest real part {worst:g}); the certificate is wrong"
+            )
+    return ok, dict(st, w_max=w_max)
+
+
+def _resolve_method(loop, region, method: str) -> str:
+    """``auto``: the value-set route for a family's open loop and the open left half-plane
+    (where it applies), else the eigenvalue enclosures."""
+    if method != "auto":
+        return method
+    if (
+        isinstance(loop, _FamilyLoop)
+        and loop.controller is None
+        and region.decay_rate == 0
+        and region.min_damping == 0
+        and ValueSetLoop.applies(loop.family)
+    ):
+        return "valueset"
+    return "eigenvalues"
+
+
 def _certify_scale(loop, k, region, max_boxes, deadline, method, jobs=1, scheduler=None):
+    if method == "valueset":
+        return _valueset_scale(loop, k, max_boxes)
     lo_t, hi_t = _scaled_t(loop, k)
     task = functools.partial(_box_task, loop, region, method)
     count = [0]
@@ -1164,7 +1224,7 @@ def margin_lower_bound(
     iterations: int = 4,
     max_boxes: int = DEFAULT_BOXES,
     time_limit_s: float = 600.0,
-    method: str = "eigenvalues",
+    method: str = "auto",
     progress: Callable[[str], None] | None = None,
     jobs: int = 1,
     scheduler: str | None = None,
@@ -1196,9 +1256,14 @@ def margin_lower_bound(
         tried). The result is set by the box budget and is the same on every machine
         unless this limit is hit, which the history records.
     method : str
+        ``"auto"`` (default: ``"valueset"`` where it applies, else ``"eigenvalues"``),
         ``"eigenvalues"`` (verified eigenvalue enclosures over sub-boxes, see
-        :func:`certify_box`) or ``"lyapunov"`` (a quadratic Lyapunov certificate of the
-        interval matrix, :func:`certify_interval_matrix`; decay rate only).
+        :func:`certify_box`), ``"lyapunov"`` (a quadratic Lyapunov certificate of the
+        interval matrix, :func:`certify_interval_matrix`; decay rate only) or
+        ``"valueset"`` (zero exclusion on value sets, :mod:`uncertainty.valueset`: a family
+        of the physical human without a compensator, the open left half-plane; its budget
+        is :data:`VALUESET_CELLS_PER_BOX` cells per box of ``max_boxes``). The method used
+        is the certificate's ``"method"``.
     progress : callable, optional
         Called with a short message at each scale.
     jobs : int
@@ -1223,13 +1288,23 @@ def margin_lower_bound(
         region = Region(decay_rate=region.decay_rate)
     jobs = check_int("margin_lower_bound: jobs", jobs, low=1)
     loop = _loop(family, controller)
+    method = _resolve_method(loop, region, method)
+    if method == "valueset":
+        why = (
+            "needs a family without a compensator"
+            if not isinstance(loop, _FamilyLoop) or loop.controller is not None
+            else ValueSetLoop.why_not(loop.family)
+            or ("certifies the open left half-plane only" if region != Region() else "")
+        )
+        if why:
+            raise ParameterError(f"margin_lower_bound: method 'valueset' {why}")
     step = progress or (lambda msg: None)
     start = time.perf_counter()
     history = []
     ok0, st0 = _certify_scale(loop, 0.0, region, 1, start + 1e9, method)
     history.append({"scale": 0.0, "certified": ok0, **st0})
     if not ok0:
-        return 0.0, {"history": history, "certified_scale": None}
+        return 0.0, {"history": history, "certified_scale": None, "method": method}
     top = float(k_hint) if math.isfinite(k_hint) and k_hint > 0 else 1.0
     per_scale = time_limit_s / (ladder + iterations + 1)
 
@@ -1261,7 +1336,12 @@ def margin_lower_bound(
             good, good_stats = k, st
         else:
             bad = k
-    return good, {"history": history, "certified_scale": good, "certified_stats": good_stats}
+    return good, {
+        "history": history,
+        "certified_scale": good,
+        "certified_stats": good_stats,
+        "method": method,
+    }
 
 
 _LOWER_TEXT = {
@@ -1271,6 +1351,14 @@ _LOWER_TEXT = {
     "operator in the centre's eigenvector basis (Rump 2001; Krawczyk 1969), the enclosures "
     "disjoint and inside the region; each certified sub-box spot-checked against numpy "
     "eigenvalues of seeded members; box subdivision; bisection on the scale",
+    "valueset": "zero exclusion on value sets (Barmish 1994, ch. 7): the characteristic "
+    "polynomial factored as the blocks' times 1 + L(s), L the product of the tracking loop, "
+    "the structure's and the human's transfer functions (disjoint parameters); over cells of "
+    "frequency x parameter sub-box, each factor's numerator and denominator in log-polar "
+    "mean-value form (interval forward differentiation), their sum a zonotope that must miss "
+    "-1; frequencies up to a Perron bound of every eigenvalue modulus; cell subdivision; "
+    "the nominal member's stability and seeded members of each certified box checked with "
+    "numpy eigenvalues; bisection on the scale",
     "lyapunov": "interval enclosure of the closed-loop matrix over sub-boxes (midpoint-radius "
     "interval arithmetic, Rump 1999) and a quadratic Lyapunov certificate for the "
     "norm-bounded set (Boyd et al. 1994, Sec. 5.1; Patel & Toda 1980), LMIs by cvxpy with "
@@ -1289,7 +1377,7 @@ def robust_margin(
     ladder: int = 8,
     iterations: int = 4,
     time_limit_s: float = 600.0,
-    method: str = "eigenvalues",
+    method: str = "auto",
     progress: Callable[[str], None] | None = None,
     jobs: int = 1,
     scheduler: str | None = None,
@@ -1315,7 +1403,8 @@ def robust_margin(
     time_limit_s : float
         Lower bound: wall-clock safety limit, s.
     method : str
-        Lower bound: ``"eigenvalues"`` or ``"lyapunov"`` (see :func:`margin_lower_bound`).
+        Lower bound: ``"auto"``, ``"eigenvalues"``, ``"lyapunov"`` or ``"valueset"`` (see
+        :func:`margin_lower_bound`).
     progress : callable, optional
         Called with a short message at each step.
     jobs, scheduler
@@ -1372,7 +1461,7 @@ def robust_margin(
         "upper": "worst-case search: seeded Latin hypercube of the scaled box, L-BFGS-B with "
         "eigenvalue gradients from the worst samples, bisection on the scale; the critical "
         "member is re-checked with python-control",
-        "lower": _LOWER_TEXT[method],
+        "lower": _LOWER_TEXT[cert.get("method", method)],
         "lower_region": (
             Region(decay_rate=region.decay_rate) if method == "lyapunov" else region
         ).describe()
