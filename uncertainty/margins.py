@@ -1154,7 +1154,11 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
     if getattr(loop, "_valueset", None) is None:
         loop._valueset = ValueSetLoop(loop.family)
     enc = loop.enclosure(_to_values(loop, lo_t), _to_values(loop, hi_t), False)
-    w_max = _perron_bound(enc)
+    # rounded up to two significant digits: the cells do not hinge on the eigen-solver's
+    # last digits
+    bound = _perron_bound(enc)
+    step = 10.0 ** (math.floor(math.log10(bound)) - 1)
+    w_max = math.ceil(bound / step) * step
     ok, st = certify_scale_valueset(
         loop._valueset, lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX
     )
