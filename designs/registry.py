@@ -207,7 +207,8 @@ def run_design(
         fraction on which the whole specification holds and ``P(failure) <= epsilon``
         with confidence 0.999); 0 skips it.
     n_jobs : int
-        Parallel processes of the coverage check.
+        Parallel processes of the coverage check and of the certified margin's sub-boxes
+        (the same result on any number, :func:`uncertainty.margins.margin_lower_bound`).
     progress : callable, optional
         ``progress(done, total)`` during the coverage check.
     cache : bool
@@ -279,6 +280,7 @@ def _build_design(
             max_boxes=margin_boxes,
             ladder=6,
             iterations=2,
+            jobs=n_jobs,
         )
         checks = dataclasses.replace(checks, margin=margin)
     coverage = None

@@ -623,8 +623,10 @@ def _krawczyk(Ac, J, h, E_rad, inflations):
     # |I - R B| with the perturbation of B (column u of E removed) and rounding
     # (first-order part per parameter, so |R_i J_p| is not overestimated by |R_i| |J_p|)
     Cabs = np.abs(eye[None] - R @ B) + gam * (aR @ np.abs(B))
-    RJ = np.abs(np.einsum("iab,pbc->ipac", R, J))
-    RJ = np.einsum("p,ipac->iac", h, RJ) + gam * np.einsum("iab,pbc,p->iac", aR, np.abs(J), h)
+    # |R_i J_p| by batched products (BLAS), weighted by h; the rounding term sum_p h_p
+    # |R_i| |J_p| is |R_i| (sum_p h_p |J_p|)
+    RJ = np.einsum("p,ipac->iac", h, np.abs(R[:, None] @ J[None]))
+    RJ += gam * (aR @ np.tensordot(h, np.abs(J), axes=1))
     Er = np.repeat(E_rad[None], n, axis=0)
     RJ += aR @ Er
     RJ[np.arange(n), :, u] = 0.0
