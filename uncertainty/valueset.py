@@ -33,12 +33,15 @@ log-polar coordinates is the sum of the hulls): the cell is certified when the s
 excludes ``log|L| = 0`` or every odd multiple of ``pi`` of the argument. A cell that
 fails is split in two along the variable (a parameter or the frequency) whose range
 widens the sum most; the scale is certified when every cell is, within a budget of
-cells. Every step is checked against sampled members (numpy transfer functions and the
-closed-loop eigenvalues) in the tests.
+cells. The factorisation and the enclosures are checked against sampled members (numpy
+transfer functions and closed-loop determinants) in the tests.
 
 The route applies to a family with the physical human and no compensator, for the
-open left half-plane (:meth:`ValueSetLoop.applies`); :func:`uncertainty.margins.robust_margin`
-takes the larger of its bound and the eigenvalue enclosures'.
+open left half-plane (:meth:`ValueSetLoop.applies`); there
+:func:`uncertainty.margins.robust_margin` and ``bdft margin`` take it by default (method
+``"auto"``): on the default family it certifies 0.087 of an upper bound of 0.090, where
+the eigenvalue enclosures reach 0.039. Each scale certified is also checked at run time:
+the nominal member stable, seeded members of the box stable (numpy eigenvalues).
 """
 
 from __future__ import annotations
@@ -54,10 +57,8 @@ from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
 from uncertainty.loop import fixed_parameters
 
-__all__ = ["ValueSetLoop", "certify_scale_valueset", "DEFAULT_CELLS"]
+__all__ = ["ValueSetLoop", "certify_scale_valueset"]
 
-#: Cells (frequency interval x parameter sub-box) evaluated per scale at most.
-DEFAULT_CELLS = 20000
 #: Frequency cells the axis starts with (geometric above :data:`_W_LOW`).
 _W_CELLS = 256
 _W_LOW = 1e-2
@@ -106,7 +107,8 @@ def _safe_reciprocal(x, bad: list):
 
 
 def _human_value(p, w, bad: list):
-    """``H(j w)`` of the physical human (module notes) from its parameters ``p``."""
+    """The physical human's numerator and denominator at ``s = j w`` (module notes), each as
+    real and imaginary parts, from its parameters ``p``."""
     r = p["m_arm"] * _safe_reciprocal(p["m_trunk"], bad)
     big_r = 1.0 + r
     wt, wa = _TAU * p["f_trunk_hz"], _TAU * p["f_arm_hz"]
@@ -126,7 +128,8 @@ def _human_value(p, w, bad: list):
 
 
 def _section_value(zeta, f_hz, w, bad: list):
-    """``(2 zeta w_n s + w_n^2) / (s^2 + 2 zeta w_n s + w_n^2)`` at ``s = j w``."""
+    """Numerator ``2 zeta w_n s + w_n^2`` and denominator ``s^2 + 2 zeta w_n s + w_n^2`` of a
+    structure section at ``s = j w``, each as real and imaginary parts."""
     wn = _TAU * f_hz
     wn2 = wn.square()
     b = 2.0 * zeta * wn * w
@@ -297,6 +300,9 @@ class ValueSetLoop:
     def factors(self, lo_t, hi_t, w_lo, w_hi) -> list:
         """Every factor's log-polar ranges over the cells, and per-cell split scores.
 
+        The zonotope of ``(log|L|, arg L)`` per cell (centre, generators per variable,
+        remainder radius, whether it is valid) is left in :attr:`zonotope`.
+
         Parameters
         ----------
         lo_t, hi_t : numpy.ndarray, shape (n, d)
@@ -454,7 +460,6 @@ def _log_polar(re_lo, re_hi, im_lo, im_hi):
     inside = rmin <= 0
     a_lo = np.where(inside, -math.pi, a_lo)
     a_hi = np.where(inside, math.pi, a_hi)
-    # a rectangle straddling the origin's line may span more than it shows from the corners
     return m_lo, m_hi, a_lo, a_hi
 
 
