@@ -94,6 +94,10 @@ __all__ = [
     "cab_response",
     "cab_truth",
     "identify_cab",
+    "noise_free_estimate",
+    "confidence_points",
+    "response_distance",
+    "region_points",
 ]
 
 #: What the calibration identifies (module notes, step 3).
@@ -224,6 +228,16 @@ class OperatorEstimate:
         The fitted model at ``f_hz``.
     coherence : numpy.ndarray
         The smaller of the two coherences at ``f_hz``.
+    covariance : numpy.ndarray, optional
+        Covariance of the estimate in the fit coordinates (logarithms of the positive
+        parameters), the quantities' order: the joint error region
+        (:func:`confidence_points`).
+    weights : numpy.ndarray, optional
+        The fit's weight at each of ``f_hz`` (inverse standard deviation of the estimate's
+        logarithm).
+    residual_variance : float, optional
+        The weighted residual's variance per degree of freedom, at least 1 (the factor of
+        the covariance; a model error raises it).
     """
 
     values: dict
@@ -234,6 +248,9 @@ class OperatorEstimate:
     measured: np.ndarray
     fitted: np.ndarray
     coherence: np.ndarray
+    covariance: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    residual_variance: float | None = None
 
     def contains(self, truth: dict) -> dict:
         """Per identified quantity: whether ``truth`` lies within the bound."""
@@ -247,6 +264,7 @@ class OperatorEstimate:
             "sigma": dict(self.sigma),
             "bound_sigmas": BOUND_SIGMAS,
             "residual_rms": self.residual_rms,
+            "covariance": None if self.covariance is None else self.covariance.tolist(),
         }
 
 
@@ -477,6 +495,34 @@ def identify_operator(
     good = _coherent(coh, pr, "identify_operator")
     f, H, var, coh_g = f[good], H[good], var[good], coh[good]
     w = 1.0 / np.sqrt(var)
+    z, cov, half, best, s2 = _operator_fit(family, f, H, w, handle_gain)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    vals, b_lo, b_hi = _values(z), _values(z - half), _values(z + half)
+    return OperatorEstimate(
+        values={k: float(v) for k, v in zip(IDENTIFIED, vals)},
+        bounds={k: (float(a), float(b)) for k, a, b in zip(IDENTIFIED, b_lo, b_hi)},
+        sigma={k: float(v) for k, v in zip(IDENTIFIED, sd)},
+        residual_rms=float(math.sqrt(2.0 * best.cost / (2 * f.size))),
+        f_hz=f,
+        measured=H,
+        fitted=human_response(family, vals[None, :], f, handle_gain)[0],
+        coherence=coh_g,
+        covariance=cov,
+        weights=w,
+        residual_variance=s2,
+    )
+
+
+def _operator_fit(family, f, H, w, handle_gain):
+    """The weighted fit of :func:`identify_operator` (module notes, steps 3-4).
+
+    Returns
+    -------
+    (z, covariance, half, result, s2)
+        The estimate in the fit coordinates (:data:`IDENTIFIED`, ordered by frequency),
+        its covariance there, the error bound's half-widths, the least-squares result, the
+        residual variance per degree of freedom (at least 1).
+    """
     lo, hi, ratio = identified_ranges(family)
     zlo, zhi = _coords(lo), _coords(hi)
 
@@ -495,7 +541,7 @@ def identify_operator(
             z0 = 0.5 * (zlo + zhi)
             z0[0], z0[2] = math.log(fa), math.log(ft)
             starts.append(np.clip(z0, zlo, zhi))
-    best, J, JtJ_inv, sd = _fit(resid_rows, starts, zlo, zhi, f.size)
+    best, J, JtJ_inv, cov, s2 = _fit(resid_rows, starts, zlo, zhi, f.size)
     z = best.x
     # the held mass ratio: the estimate's shift if the ratio were at either end of its range
     r0 = resid_rows(z[None, :])[0]
@@ -503,20 +549,226 @@ def identify_operator(
     for mu in ratio:
         dr = resid_rows(z[None, :], mu)[0] - r0
         shift = np.maximum(shift, np.abs(JtJ_inv @ (J.T @ dr)))
-    half = BOUND_SIGMAS * sd + shift
+    half = BOUND_SIGMAS * np.sqrt(np.maximum(np.diag(cov), 0.0)) + shift
     order = [0, 1, 2, 3] if _values(z)[0] <= _values(z)[2] else [2, 3, 0, 1]
-    z, sd, half = z[order], sd[order], half[order]
-    vals, b_lo, b_hi = _values(z), _values(z - half), _values(z + half)
-    return OperatorEstimate(
-        values={k: float(v) for k, v in zip(IDENTIFIED, vals)},
-        bounds={k: (float(a), float(b)) for k, a, b in zip(IDENTIFIED, b_lo, b_hi)},
-        sigma={k: float(v) for k, v in zip(IDENTIFIED, sd)},
-        residual_rms=float(math.sqrt(2.0 * best.cost / (2 * f.size))),
-        f_hz=f,
-        measured=H,
-        fitted=human_response(family, vals[None, :], f, handle_gain)[0],
-        coherence=coh_g,
+    return z[order], cov[np.ix_(order, order)], half[order], best, s2
+
+
+def noise_free_estimate(
+    loop,
+    family,
+    estimate: OperatorEstimate,
+    protocol: CalibrationProtocol | None = None,
+    *,
+    seed: int,
+) -> np.ndarray:
+    """What the calibration would identify from the same record without its noise.
+
+    The record of ``loop`` is simulated again with the same excitation (``seed``) but
+    without the operator's involuntary motion, the encoder's quantisation and the
+    accelerometer's noise, and its ratio of H1 estimates fitted exactly as ``estimate``
+    was (its frequencies and weights, :func:`identify_operator`). The estimate's distance
+    to it is the calibration's statistical error, which the estimate's covariance
+    describes. Its own distance to the member's true modes is the fit's bias: the mass
+    ratio held at the nominal and the spectral estimate's leakage, which move the modes but
+    leave the fitted hand response (what a cancellation is built from) close to the
+    member's. A simulation's quantity: a rig has no noise-free record.
+
+    Parameters
+    ----------
+    loop : robust.model.loop.BDFTLoop
+        The member the record was taken on.
+    family : uncertainty.Family
+        The family ``estimate`` was fitted within.
+    estimate : OperatorEstimate
+        :func:`identify_operator`'s estimate from the noisy record (with its weights).
+    protocol : CalibrationProtocol, optional
+        The record's protocol.
+    seed : int
+        The record's seed.
+
+    Returns
+    -------
+    numpy.ndarray, shape (4,)
+        :data:`IDENTIFIED`, ordered by frequency.
+    """
+    pr = protocol or CalibrationProtocol()
+    if estimate.weights is None:
+        raise ParameterError(
+            "noise_free_estimate: estimate must carry the fit's weights (an estimate of "
+            "identify_operator); got weights=None"
+        )
+    quiet = dataclasses.replace(pr, remnant_fraction=0.0, encoder_mm=0.0, accel_rms=0.0)
+    ex, ec, band = _excitation_responses(
+        simulate_calibration(loop, quiet, seed=seed), quiet, "noise_free_estimate"
     )
+    keep = np.isin(ex.f_hz[band], estimate.f_hz)
+    if keep.sum() != estimate.f_hz.size:  # pragma: no cover - the same grid by construction
+        raise ParameterError("noise_free_estimate: estimate.f_hz is not the protocol's grid")
+    H0 = (ex.g_uy[band] / ec.g_uy[band])[keep]
+    z = _operator_fit(family, estimate.f_hz, H0, estimate.weights, loop.handle_gain)[0]
+    return _values(z)
+
+
+def confidence_points(values, covariance, radius: float = BOUND_SIGMAS, log_axes=LOG_AXES):
+    """Points of the joint error region's boundary along its principal axes.
+
+    The region ``{z : (z - z0)' C^-1 (z - z0) <= radius^2}`` in the fit coordinates
+    (logarithms where ``log_axes``): with ``radius`` :data:`BOUND_SIGMAS` it is the set of
+    points within ``radius`` standard deviations in every direction (whose projections are
+    the marginal bounds ``z0 +- radius sigma``), the region an estimate's correlated
+    errors span. Its ``2 n`` points ``z0 +- radius sqrt(lambda_k) v_k`` (eigenpairs of ``C``
+    from the largest, each vector's largest entry positive) are returned as values, damping
+    ratios at least 0.01.
+
+    Parameters
+    ----------
+    values : array_like, shape (n,)
+        The region's centre, in the quantities' own units.
+    covariance : array_like, shape (n, n)
+        Covariance in the fit coordinates.
+    radius : float
+        In standard deviations.
+    log_axes : sequence of bool
+        Which quantities are fitted in logarithms.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2 n, n)
+        Rows ``+axis 1, -axis 1, +axis 2, ...``.
+    """
+    C = np.asarray(covariance, float)
+    v0 = np.asarray(values, float)
+    if C.shape != (v0.size, v0.size) or not np.all(np.isfinite(C)):
+        raise ParameterError(
+            f"confidence_points: covariance must be a finite {v0.size}x{v0.size} matrix; "
+            f"got shape {C.shape}"
+        )
+    lam, V = np.linalg.eigh(0.5 * (C + C.T))
+    lam, V = lam[::-1], V[:, ::-1]
+    V = V * np.where(V[np.abs(V).argmax(axis=0), np.arange(V.shape[1])] < 0, -1.0, 1.0)
+    z0 = _coords(v0, log_axes)
+    steps = radius * np.sqrt(np.maximum(lam, 0.0))[None, :] * V  # column k: axis k
+    rows = [z0 + g * steps[:, k] for k in range(v0.size) for g in (1.0, -1.0)]
+    out = _values(np.array(rows), log_axes)
+    lin = ~np.asarray(log_axes, bool)
+    out[:, lin] = np.maximum(out[:, lin], 0.01)
+    return out
+
+
+def response_distance(family, estimate: OperatorEstimate, a, b, handle_gain: float) -> np.ndarray:
+    """How far apart two humans' hand responses are, in the calibration's standard deviations.
+
+    ``|| W log(R_a / R_b) || / sqrt(s2)``: the responses (:func:`human_response`, masses
+    nominal, as the fit models them) at the estimate's frequencies, the log-ratio's real
+    part and phase (wrapped) weighted by the fit's weights, over the residual's standard
+    deviation: the distance the fit itself measures, so that a model linear in its
+    parameters has it equal to the covariance's distance (:func:`confidence_points`).
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+    estimate : OperatorEstimate
+        Whose frequencies, weights and residual variance are used.
+    a, b : array_like, shape (m, 4) or (4,)
+        Rows of :data:`IDENTIFIED` (either pair order: the response is symmetric).
+    handle_gain : float
+        ``sigma * kappa`` of the loop.
+
+    Returns
+    -------
+    numpy.ndarray, shape (m,)
+    """
+    if estimate.weights is None or estimate.residual_variance is None:
+        raise ParameterError(
+            "response_distance: estimate must carry the fit's weights and residual variance "
+            "(an estimate of identify_operator)"
+        )
+    ra = human_response(family, np.atleast_2d(np.asarray(a, float)), estimate.f_hz, handle_gain)
+    rb = human_response(family, np.atleast_2d(np.asarray(b, float)), estimate.f_hz, handle_gain)
+    d = np.log(ra / rb)
+    w = estimate.weights[None, :]
+    sq = (d.real * w) ** 2 + (np.angle(np.exp(1j * d.imag)) * w) ** 2
+    return np.sqrt(sq.sum(axis=1) / estimate.residual_variance)
+
+
+def region_points(
+    family,
+    estimate: OperatorEstimate,
+    centre,
+    handle_gain: float,
+    radius: float = BOUND_SIGMAS,
+    *,
+    reach: float = 4.0,
+    grid: int = 48,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points of the calibration's joint error region around ``centre``, on its principal axes.
+
+    The directions are the principal axes of the estimate's covariance
+    (:func:`confidence_points`); along each, both ways, the point is where the hand's
+    response has moved ``radius`` standard deviations from the centre's as the fit measures
+    it (:func:`response_distance`): the boundary of the nonlinear fit's likelihood region
+    (Bates & Watts, *Nonlinear Regression Analysis and Its Applications*, Wiley 1988, Sec.
+    6.1), which the covariance's ellipsoid linearises. The two agree where the response is
+    nearly linear in the modes (measured: the ellipsoid's points move it by 3.0-3.4
+    standard deviations at radius 3); where the two modes nearly coincide the ellipsoid's
+    points move it by tens of standard deviations, estimates no record of that operator
+    returns. The first crossing along each axis is found on ``grid`` steps up to ``reach``
+    times the ellipsoid's distance, then by bisection (to 1e-6 of the step); an axis that
+    never reaches the radius ends at ``reach``.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+    estimate : OperatorEstimate
+        :func:`identify_operator`'s estimate (covariance, weights, residual variance).
+    centre : array_like, shape (4,)
+        The region's centre (:data:`IDENTIFIED`).
+    handle_gain : float
+        ``sigma * kappa`` of the loop.
+    radius : float
+        In standard deviations.
+    reach : float
+        Longest step, in multiples of the ellipsoid's.
+    grid : int
+        Steps of the first search.
+
+    Returns
+    -------
+    (points, factors)
+        ``points`` shape (8, 4), in :func:`confidence_points`' order; ``factors`` shape
+        (8,): each point's distance from the centre over the ellipsoid's.
+    """
+    if estimate.covariance is None:
+        raise ParameterError("region_points: estimate must carry its covariance")
+    c0 = np.asarray(centre, float)
+    z0 = _coords(c0)
+    lin = _coords(confidence_points(c0, estimate.covariance, radius)) - z0[None, :]
+
+    def at(t):  # t shape (8, k): the points z0 + t * lin, as values
+        v = _values(z0[None, None, :] + t[:, :, None] * lin[:, None, :])
+        v[..., 1::2] = np.maximum(v[..., 1::2], 0.01)
+        return v
+
+    def dist(t):
+        v = at(t)
+        d = response_distance(family, estimate, v.reshape(-1, 4), c0, handle_gain)
+        return d.reshape(t.shape)
+
+    ts = np.linspace(0.0, reach, grid + 1)[1:]
+    g = dist(np.broadcast_to(ts, (lin.shape[0], ts.size)).copy())
+    over = g >= radius
+    j = np.where(over.any(axis=1), over.argmax(axis=1), ts.size - 1)
+    hi = ts[j]
+    lo = np.where(j > 0, ts[np.maximum(j - 1, 0)], 0.0)
+    crossed = over.any(axis=1)
+    step = reach / grid
+    while np.max(hi - lo) > 1e-6 * step:
+        mid = 0.5 * (lo + hi)
+        up = dist(mid[:, None])[:, 0] >= radius
+        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
+    t = np.where(crossed, hi, reach)
+    return at(t[:, None])[:, 0, :], t
 
 
 def excitation_responses(
@@ -577,6 +829,9 @@ def _coherent(coh, pr, where, n_params: int = 4):
 def _fit(resid_rows, starts, zlo, zhi, n_freq):
     """Weighted least squares from the three best of ``starts``; covariance (module notes).
 
+    Returns ``(result, jacobian, (J'J)^-1, covariance, s2)``, the covariance in the fit
+    coordinates, ``s2`` the residual variance per degree of freedom (at least 1).
+
     The finite-difference Jacobian's perturbed points go through ``resid_rows`` in one
     batched call (scipy's ``workers`` map): the residual is computed row by row, so the
     numbers are those of one call per point, in a fraction of the time.
@@ -605,8 +860,7 @@ def _fit(resid_rows, starts, zlo, zhi, n_freq):
         JtJ_inv = np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
         JtJ_inv = np.full((z.size, z.size), np.inf)
-    sd = np.sqrt(np.maximum(np.diag(s2 * JtJ_inv), 0.0))
-    return best, J, JtJ_inv, sd
+    return best, J, JtJ_inv, s2 * JtJ_inv, s2
 
 
 #: The family's parameter carrying each identified quantity of the operator (the lower pair
@@ -780,8 +1034,9 @@ def identify_cab(
             z0 = 0.5 * (zlo + zhi)
             z0[1], z0[3] = math.log(fa), math.log(fb)
             starts.append(np.clip(z0, zlo, zhi))
-    best, _, _, sd = _fit(resid_rows, starts, zlo, zhi, f.size)
+    best, _, _, cov, _ = _fit(resid_rows, starts, zlo, zhi, f.size)
     z = best.x
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     # the spectral estimate's resolution: leakage at a lightly damped mode biases its
     # frequency by up to about a bin (bound: two bins) and its half-power bandwidth 2 zeta f
     # by about one (bound: zeta +- df / 2f); the noise's 3 sigma alone missed the truth for
@@ -791,7 +1046,7 @@ def identify_cab(
     res = np.array([0.0, 2 * df / v[1], df / (2 * v[1]), 2 * df / v[3], df / (2 * v[3])])
     half = BOUND_SIGMAS * sd + res
     order = [0, 1, 2, 3, 4] if _values(z, log)[1] <= _values(z, log)[3] else [0, 3, 4, 1, 2]
-    z, sd, half = z[order], sd[order], half[order]
+    z, sd, half, cov = z[order], sd[order], half[order], cov[np.ix_(order, order)]
     vals, b_lo, b_hi = _values(z, log), _values(z - half, log), _values(z + half, log)
     return OperatorEstimate(
         values={k: float(v) for k, v in zip(CAB_IDENTIFIED, vals)},
@@ -802,4 +1057,6 @@ def identify_cab(
         measured=H,
         fitted=cab_response(vals[None, :], f)[0],
         coherence=coh,
+        covariance=cov,
+        weights=w,
     )

@@ -60,6 +60,7 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from designs.calibration import (
+    BOUND_SIGMAS,
     CAB_IDENTIFIED,
     CAB_LOG_AXES,
     IDENTIFIED,
@@ -71,8 +72,11 @@ from designs.calibration import (
     identified_ranges,
     identify_cab,
     identify_operator,
+    noise_free_estimate,
     operator_row,
     operator_truth,
+    region_points,
+    response_distance,
     simulate_calibration,
 )
 from designs.cancellation import cancellation_controller
@@ -290,6 +294,16 @@ class Calibrations:
         The cabs' estimates and true values of :data:`designs.calibration.CAB_IDENTIFIED`.
     cab_bounds : numpy.ndarray, shape (n, 5, 2)
         Their error bounds.
+    noise_free : numpy.ndarray, shape (n, 4)
+        What each record without its noise identifies
+        (:func:`designs.calibration.noise_free_estimate`).
+    region_points : numpy.ndarray, shape (n, 8, 4)
+        The joint error region's principal points around each noise-free estimate
+        (:func:`designs.calibration.region_points`, radius
+        :data:`designs.calibration.BOUND_SIGMAS`).
+    region_distance : numpy.ndarray, shape (n,)
+        Each estimate's distance from its noise-free estimate, in standard deviations of
+        the hand's response (:func:`designs.calibration.response_distance`).
     """
 
     estimates: np.ndarray
@@ -298,11 +312,20 @@ class Calibrations:
     cabs: np.ndarray
     cab_truth: np.ndarray
     cab_bounds: np.ndarray
+    noise_free: np.ndarray
+    region_points: np.ndarray
+    region_distance: np.ndarray
 
     @property
     def operator_inside(self) -> np.ndarray:
         """Per member: every quantity of the operator within its bound."""
         return _within(self.truth, self.bounds)
+
+    @property
+    def within_confidence_region(self) -> np.ndarray:
+        """Per member: the estimate within the joint error region (radius
+        :data:`designs.calibration.BOUND_SIGMAS`) around the noise-free estimate."""
+        return self.region_distance <= BOUND_SIGMAS
 
     @property
     def cab_inside(self) -> np.ndarray:
@@ -335,15 +358,20 @@ def _calibrate_chunk(family, rows, seeds, protocol):
             e = identify_operator(rec, family, loop.handle_gain, protocol, responses=resp)
             t = operator_truth(family, row)
             c = identify_cab(rec, loop, protocol, family, responses=resp)
+            nf = noise_free_estimate(loop, family, e, protocol, seed=int(s))
+            ev = [e.values[k] for k in IDENTIFIED]
             ct_ = cab_truth(family, row)
             for j, v in enumerate(
                 (
-                    [e.values[k] for k in IDENTIFIED],
+                    ev,
                     [t[k] for k in IDENTIFIED],
                     [e.bounds[k] for k in IDENTIFIED],
                     [c.values[k] for k in CAB_IDENTIFIED],
                     [ct_[k] for k in CAB_IDENTIFIED],
                     [c.bounds[k] for k in CAB_IDENTIFIED],
+                    nf,
+                    region_points(family, e, nf, loop.handle_gain)[0],
+                    response_distance(family, e, ev, nf, loop.handle_gain)[0],
                 )
             ):
                 out[j].append(v)
@@ -775,25 +803,35 @@ def _displaced(values: np.ndarray, bounds: np.ndarray, log_axes, j: int, sign: i
     return out
 
 
-def _border_cases(cal: Calibrations, i: int) -> list:
+#: How :func:`border_check` builds its wrong estimates.
+BORDER_CONSTRUCTIONS = ("confidence", "box")
+
+
+def _border_cases(cal: Calibrations, i: int, construction: str = "confidence") -> list:
     """``(label, operator, cab)``: the 16 wrong estimates of member ``i`` (:func:`border_check`)."""
     t, tc = cal.truth[i], cal.cab_truth[i]
     out = []
-    for j, g in itertools.product(range(len(IDENTIFIED)), (-1, 1)):
-        out.append(
-            (f"{IDENTIFIED[j]}{'-+'[g > 0]}", _displaced(t, cal.bounds[i], LOG_AXES, j, g), tc)
-        )
+    if construction == "confidence":
+        pts = cal.region_points[i]
+        for k, p in enumerate(pts):
+            out.append((f"axis{k // 2 + 1}{'+-'[k % 2]}", p, tc))
+        t = cal.noise_free[i]  # the cab's cases with the operator a noise-free record tells
+    else:
+        for j, g in itertools.product(range(len(IDENTIFIED)), (-1, 1)):
+            out.append(
+                (f"{IDENTIFIED[j]}{'-+'[g > 0]}", _displaced(t, cal.bounds[i], LOG_AXES, j, g), tc)
+            )
     for j, g in itertools.product(range(1, len(CAB_IDENTIFIED)), (-1, 1)):
         d = _displaced(tc, cal.cab_bounds[i], CAB_LOG_AXES, j, g)
         out.append((f"{CAB_IDENTIFIED[j]}{'-+'[g > 0]}", t, d))
     return out
 
 
-def _border_chunk(family, rows, cal: Calibrations, spec):
+def _border_chunk(family, rows, cal: Calibrations, spec, construction):
     with deterministic_solvers():
         labels, stable, holds = [], [], []
         for i, row in enumerate(rows):
-            for label, h, c in _border_cases(cal, i):
+            for label, h, c in _border_cases(cal, i, construction):
                 K = damped_cancellation(
                     family, dict(zip(IDENTIFIED, h)), dict(zip(CAB_IDENTIFIED, c)), spec
                 )
@@ -803,16 +841,40 @@ def _border_chunk(family, rows, cal: Calibrations, spec):
         return labels, np.array(stable), np.array(holds)
 
 
-def border_check(family, values, cal: Calibrations, *, spec=None, n_jobs: int = 1) -> dict:
+def border_check(
+    family,
+    values,
+    cal: Calibrations,
+    *,
+    spec=None,
+    n_jobs: int = 1,
+    construction="confidence",
+) -> dict:
     """Designs from a wrong estimate within the error bound, checked on the true member.
 
-    Per member, the compensator (:func:`damped_cancellation`) is designed from the member's
-    true operator and cab with one identified quantity moved to the edge of the member's
-    error bound (each of the operator's four and the cab's two modes' four, each way: 16
-    designs per member; the half-width of the bound, a factor for the frequencies): the
-    estimates a calibration may return while the truth lies within its bound. On the true
-    member: is the loop stable (every pole in the open left half-plane), does the whole
-    specification hold?
+    Per member, 16 compensators (:func:`damped_cancellation`) are designed from estimates a
+    calibration may return while being wrong, and checked on the true member: is the loop
+    stable (every pole in the open left half-plane), does the whole specification hold?
+
+    ``construction="confidence"`` (the default): the operator's estimate on the boundary of
+    the calibration's joint error region around the noise-free estimate
+    (:attr:`Calibrations.region_points`: along each principal axis of the estimate's
+    covariance, both ways, where the hand's response has moved
+    :data:`designs.calibration.BOUND_SIGMAS` standard deviations as the fit measures it,
+    :func:`designs.calibration.region_points`; 8 designs): the statistical error a record
+    can have. The noise-free estimate (:func:`designs.calibration.noise_free_estimate`)
+    carries the fit's bias, which the same record would carry without its noise. The cab's
+    true modes moved as in the other construction, with the noise-free operator (8
+    designs).
+
+    ``construction="box"``: the member's true modes with one identified quantity moved to
+    the edge of the member's marginal error bound (each of the operator's four and the cab's
+    two modes' four, each way; the half-width of the bound, a factor for the frequencies),
+    masses nominal as in every design. The true modes paired with nominal masses are not an
+    estimate the fit returns (it compensates the held mass ratio by moving the modes, the
+    bound's mass term), and one quantity moved alone to its marginal edge ignores the
+    estimate's correlations, so this construction lies outside what a record can tell; it
+    is kept as the harsher check it was.
 
     Parameters
     ----------
@@ -820,24 +882,36 @@ def border_check(family, values, cal: Calibrations, *, spec=None, n_jobs: int = 
     values : array_like, shape (n, d)
         The members.
     cal : Calibrations
-        Their calibrations (the bounds' widths are taken from them).
+        Their calibrations (the bounds' widths, the region points, the noise-free
+        estimates).
     spec : Specification, optional
     n_jobs : int
         Parallel processes.
+    construction : {"confidence", "box"}
+        How the wrong estimates are built (above).
 
     Returns
     -------
     dict
-        ``members``, ``designs``, ``stable`` (fraction of the designs), ``specification``
-        (fraction meeting the whole specification), ``unstable_by_case`` (per moved quantity
-        and direction, e.g. ``"f_low_hz-"``, the members whose loop it destabilised).
+        ``members``, ``designs``, ``construction``, ``radius`` (standard deviations of the
+        region; None for the box), ``stable`` (fraction of the designs),
+        ``specification`` (fraction meeting the whole specification), ``unstable_by_case``
+        (per case, e.g. ``"axis1+"`` or ``"f_low_hz-"``, the members whose loop it
+        destabilised).
     """
     spec = spec or Specification()
     rows = np.atleast_2d(np.asarray(values, float))
     n_jobs = check_int("n_jobs", n_jobs, low=1, owner="border_check")
+    if construction not in BORDER_CONSTRUCTIONS:
+        raise ParameterError(
+            f"border_check: construction must be one of {BORDER_CONSTRUCTIONS}; "
+            f"got {construction!r}"
+        )
     size = 5  # 16 designs per member: small chunks keep both processes busy to the end
     chunks = [(i, min(i + size, len(rows))) for i in range(0, len(rows), size)]
-    jobs = [delayed(_border_chunk)(family, rows[a:b], cal[a:b], spec) for a, b in chunks]
+    jobs = [
+        delayed(_border_chunk)(family, rows[a:b], cal[a:b], spec, construction) for a, b in chunks
+    ]
     parts = _run(jobs, n_jobs)
     labels = [lab for p in parts for lab in p[0]]
     stable = np.concatenate([p[1] for p in parts])
@@ -848,6 +922,8 @@ def border_check(family, values, cal: Calibrations, *, spec=None, n_jobs: int = 
     return {
         "members": len(rows),
         "designs": int(stable.size),
+        "construction": construction,
+        "radius": BOUND_SIGMAS if construction == "confidence" else None,
         "stable": float(stable.mean()),
         "specification": float(holds.mean()),
         "unstable_by_case": unstable,
@@ -1106,7 +1182,9 @@ def scheduled_design(
     sweep_samples : int
         Members of the comparison.
     border_samples : int
-        Members (the first of the coverage members) of :func:`border_check` (0 skips it).
+        Members (the first of the coverage members) of :func:`border_check`, both
+        constructions (``wrong_within_bound``: the joint error region, ``wrong_within_box``:
+        the marginal box around the true modes; 0 skips it).
     certify_samples : int
         Members (the first of the coverage members) whose design's robust margin over the
         box its calibration bounds is computed (:func:`operator_certificates`, about 6
@@ -1125,7 +1203,7 @@ def scheduled_design(
     -------
     (ScheduledBank, dict)
         The bank and the JSON-ready result (``coverage``, ``bank``, ``coverage_by_cells``,
-        ``wrong_within_bound``, ``limit``...).
+        ``wrong_within_bound``, ``wrong_within_box``, ``limit``...).
     """
     samples = check_int("samples", samples, low=1, owner="scheduled_design")
     border_samples = check_int("border_samples", border_samples, low=0, owner="scheduled_design")
@@ -1149,6 +1227,7 @@ def scheduled_design(
         bound.to_json(),
         failures_by_constraint=dict(sorted(failures.items())),
         operator_within_error_bound=float(np.mean(inside)),
+        estimate_within_confidence_region=float(np.mean(cal.within_confidence_region)),
         cab_within_error_bound=float(np.mean(cal.cab_inside)),
     )
     m = min(sweep_samples, samples)
@@ -1188,6 +1267,11 @@ def scheduled_design(
         )
     nb = min(border_samples, samples)
     border = border_check(family, rows[:nb], cal[:nb], spec=spec, n_jobs=n_jobs) if nb else None
+    box = (
+        border_check(family, rows[:nb], cal[:nb], spec=spec, n_jobs=n_jobs, construction="box")
+        if nb
+        else None
+    )
     nc = min(certify_samples, samples)
     certified = operator_certificates(family, cal[:nc], spec=spec, n_jobs=n_jobs) if nc else None
     pr = protocol or CalibrationProtocol()
@@ -1214,6 +1298,7 @@ def scheduled_design(
         "limit": limit,
         "coverage": coverage,
         "wrong_within_bound": border,
+        "wrong_within_box": box,
         "certified_over_bound": certified,
         "bank": dict(bank_cov.to_json(), cells_per_axis=cells_per_axis),
         "coverage_by_cells": sweep,

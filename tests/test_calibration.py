@@ -1,5 +1,6 @@
 """The operator's calibration: simulated records, the identified modes and their error bound."""
 
+import dataclasses
 import math
 
 import control as ct
@@ -8,16 +9,21 @@ import pytest
 import scipy.signal as sig
 
 from designs.calibration import (
+    BOUND_SIGMAS,
     CAB_IDENTIFIED,
     IDENTIFIED,
     CalibrationProtocol,
     CalibrationRecord,
     cab_response,
     cab_truth,
+    confidence_points,
     human_response,
     identify_cab,
     identify_operator,
+    noise_free_estimate,
     operator_truth,
+    region_points,
+    response_distance,
     simulate_calibration,
 )
 from designs.scheduled import cancellation_gap
@@ -212,3 +218,61 @@ def test_seeded_cabs_lie_within_their_error_bounds(records):
     assert np.all(np.median(errs, axis=0) < 0.03)
     # the frequencies to better than a percent: what a damper at the cab's mode needs
     assert np.median(np.array(errs)[:, [1, 3]]) < 0.01
+
+
+def test_noise_free_estimate_and_the_joint_error_region(records):
+    # the estimate's statistical error, measured against what the same record without its
+    # noise identifies, in standard deviations of the hand's response as the fit weighs it:
+    # within 3 for 18 of these 20 (a Gaussian estimate of four quantities: 94 %)
+    inside = 0
+    for i, (_, loop, rec) in enumerate(records):
+        est = identify_operator(rec, FAM, loop.handle_gain)
+        np.testing.assert_allclose(
+            np.sqrt(np.diag(est.covariance)), [est.sigma[k] for k in IDENTIFIED], rtol=1e-12
+        )
+        nf = noise_free_estimate(loop, FAM, est, seed=100 + i)
+        v = np.array([est.values[k] for k in IDENTIFIED])
+        d = response_distance(FAM, est, v, nf, loop.handle_gain)[0]
+        # by hand: the weighted log-ratio of the two responses (phase wrapped)
+        r = human_response(FAM, np.array([v, nf]), est.f_hz, loop.handle_gain)
+        q = np.log(r[0] / r[1])
+        ref = np.sum(est.weights**2 * (q.real**2 + np.angle(np.exp(1j * q.imag)) ** 2))
+        assert d == pytest.approx(math.sqrt(ref / est.residual_variance), rel=1e-9)
+        inside += d <= BOUND_SIGMAS
+    assert inside >= 16
+    # the covariance's ellipsoid: each pair of points symmetric about the centre, at the
+    # radius, within the marginal bound radius * sigma in every quantity, the largest axis
+    # first
+    row, loop, rec = records[0]
+    est = identify_operator(rec, FAM, loop.handle_gain)
+    v0 = np.array([est.values[k] for k in IDENTIFIED])
+    pts = confidence_points(v0, est.covariance)
+    assert pts.shape == (8, 4)
+
+    def coords(p):
+        return np.column_stack([np.log(p[:, 0]), p[:, 1], np.log(p[:, 2]), p[:, 3]])
+
+    z, z0 = coords(pts), coords(v0[None, :])[0]
+    np.testing.assert_allclose(z[0::2] + z[1::2], np.tile(2 * z0, (4, 1)), atol=1e-12)
+    Ci = np.linalg.inv(est.covariance)
+    np.testing.assert_allclose(np.einsum("ki,ij,kj->k", z - z0, Ci, z - z0), 9.0, rtol=1e-8)
+    sd = np.sqrt(np.diag(est.covariance))
+    assert np.all(np.abs(z - z0) <= BOUND_SIGMAS * sd * (1 + 1e-9))
+    lam = np.linalg.eigvalsh(est.covariance)
+    assert np.sum((z[0] - z0) ** 2) == pytest.approx(9.0 * lam[-1], rel=1e-8)
+    # the likelihood region's points: on the same axes, each moving the response by the
+    # radius (to the bisection's precision); where the response is nearly linear in the
+    # modes, close to the ellipsoid's (measured here: factors 0.94-1.06)
+    rp, fac = region_points(FAM, est, v0, loop.handle_gain)
+    np.testing.assert_allclose(
+        response_distance(FAM, est, rp, v0, loop.handle_gain), BOUND_SIGMAS, rtol=1e-4
+    )
+    zr = coords(rp)
+    np.testing.assert_allclose(zr - z0, fac[:, None] * (z - z0), rtol=1e-9, atol=1e-12)
+    assert np.all((fac > 0.8) & (fac < 1.25))
+    with pytest.raises(ParameterError, match="covariance"):
+        confidence_points(v0, np.full((4, 4), np.nan))
+    with pytest.raises(ParameterError, match="weights"):
+        noise_free_estimate(loop, FAM, dataclasses.replace(est, weights=None), seed=100)
+    with pytest.raises(ParameterError, match="residual variance"):
+        response_distance(FAM, dataclasses.replace(est, residual_variance=None), v0, v0, 1.0)
