@@ -153,12 +153,20 @@ def _run_scheduled(args) -> int:
             f"{cov['samples']}; P(failure) <= {cov['epsilon']:.4f} at {cov['confidence']})"
         )
         print(f"{'within error bound':20s} {cov['operator_within_error_bound']:.4f} (operator)")
-        if obj["wrong_within_bound"]:
-            wb = obj["wrong_within_bound"]
-            print(
-                f"{'wrong by the bound':20s} stable {wb['stable']:.4f}, specification "
-                f"{wb['specification']:.4f} ({wb['designs']} designs)"
-            )
+        print(
+            f"{'within the region':20s} {cov['estimate_within_confidence_region']:.4f} "
+            "(estimate within 3 sd of the noise-free estimate)"
+        )
+        for key, label in (
+            ("wrong_within_bound", "wrong in the region"),
+            ("wrong_within_box", "wrong in the box"),
+        ):
+            if obj.get(key):
+                wb = obj[key]
+                print(
+                    f"{label:20s} stable {wb['stable']:.4f}, specification "
+                    f"{wb['specification']:.4f} ({wb['designs']} designs)"
+                )
         if obj["certified_over_bound"]:
             cb = obj["certified_over_bound"]
             print(
