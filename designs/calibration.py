@@ -61,6 +61,7 @@ import math
 import numpy as np
 import scipy.optimize as sopt
 import scipy.signal as sig
+from scipy.stats import chi2
 
 from designs.limit import ACCEL_NOISE_RMS, ENCODER_MM
 from designs.spec import Specification
@@ -77,6 +78,7 @@ from uncertainty import default_family
 __all__ = [
     "IDENTIFIED",
     "BOUND_SIGMAS",
+    "REGION_RADIUS",
     "CalibrationProtocol",
     "CalibrationRecord",
     "OperatorEstimate",
@@ -106,6 +108,10 @@ IDENTIFIED = ("f_low_hz", "zeta_low", "f_high_hz", "zeta_high")
 LOG_AXES = (True, False, True, False)
 #: Standard deviations of the error bound.
 BOUND_SIGMAS = 3.0
+#: Radius of the joint error region (:func:`region_points`), in standard deviations: the
+#: region that holds four Gaussian quantities with the probability of one within
+#: :data:`BOUND_SIGMAS` (99.73 %), 4.03.
+REGION_RADIUS = float(math.sqrt(chi2.ppf(chi2.cdf(BOUND_SIGMAS**2, 1), 4)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -610,16 +616,17 @@ def noise_free_estimate(
     return _values(z)
 
 
-def confidence_points(values, covariance, radius: float = BOUND_SIGMAS, log_axes=LOG_AXES):
+def confidence_points(values, covariance, radius: float = REGION_RADIUS, log_axes=LOG_AXES):
     """Points of the joint error region's boundary along its principal axes.
 
     The region ``{z : (z - z0)' C^-1 (z - z0) <= radius^2}`` in the fit coordinates
-    (logarithms where ``log_axes``): with ``radius`` :data:`BOUND_SIGMAS` it is the set of
-    points within ``radius`` standard deviations in every direction (whose projections are
-    the marginal bounds ``z0 +- radius sigma``), the region an estimate's correlated
-    errors span. Its ``2 n`` points ``z0 +- radius sqrt(lambda_k) v_k`` (eigenpairs of ``C``
-    from the largest, each vector's largest entry positive) are returned as values, damping
-    ratios at least 0.01.
+    (logarithms where ``log_axes``): the points within ``radius`` standard deviations in
+    every direction (its projections are the marginal bounds ``z0 +- radius sigma``), the
+    region an estimate's correlated errors span; with :data:`REGION_RADIUS` it holds a
+    Gaussian estimate with the probability of the marginal :data:`BOUND_SIGMAS`. Its
+    ``2 n`` points ``z0 +- radius sqrt(lambda_k) v_k`` (eigenpairs of ``C`` from the
+    largest, each vector's largest entry positive) are returned as values, damping ratios
+    at least 0.01.
 
     Parameters
     ----------
@@ -697,7 +704,7 @@ def region_points(
     estimate: OperatorEstimate,
     centre,
     handle_gain: float,
-    radius: float = BOUND_SIGMAS,
+    radius: float = REGION_RADIUS,
     *,
     reach: float = 4.0,
     grid: int = 48,

@@ -41,11 +41,11 @@ What it does and does not do (measured, see the tests, ``benchmarks/bench_calibr
 and ``bdft design scheduled``): a cancellation needs the hand's response to within a few
 percent (only about 9 % of the family's uncompensated loops are stable), so coarse cells
 cover almost nobody. Built from the record's own estimate, the design is stable for every
-estimate on the boundary of the calibration's joint error region (3 standard deviations of
-the hand's response around what the record without its noise identifies: 3200 of 3200
-designs on 200 members, 1600 of 1600 at 4.03). It is not robust to errors the record rules
-out: the true modes paired with the nominal masses, or one mode moved alone to its marginal
-bound, destabilise about one design in ten (the box construction of
+estimate on the boundary of the calibration's joint error region (4.03 standard deviations
+of the hand's response around what the record without its noise identifies, the 99.73 %
+region; :func:`border_check`, measured on 200 members). It is not robust to errors the
+record rules out: the true modes paired with the nominal masses, or one mode moved alone to
+its marginal bound, destabilise about one design in ten (the box construction of
 :func:`border_check`). Over the marginal box its calibration bounds no design is certified
 (:func:`operator_certificates`: margins of a few hundredths of the bound, members breaking
 the region within a third of it): the box holds hand responses no record of the operator
@@ -66,12 +66,12 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from designs.calibration import (
-    BOUND_SIGMAS,
     CAB_IDENTIFIED,
     CAB_LOG_AXES,
     IDENTIFIED,
     LOG_AXES,
     OPERATOR_NAMES,
+    REGION_RADIUS,
     CalibrationProtocol,
     cab_truth,
     excitation_responses,
@@ -306,7 +306,7 @@ class Calibrations:
     region_points : numpy.ndarray, shape (n, 8, 4)
         The joint error region's principal points around each noise-free estimate
         (:func:`designs.calibration.region_points`, radius
-        :data:`designs.calibration.BOUND_SIGMAS`).
+        :data:`designs.calibration.REGION_RADIUS`).
     region_distance : numpy.ndarray, shape (n,)
         Each estimate's distance from its noise-free estimate, in standard deviations of
         the hand's response (:func:`designs.calibration.response_distance`).
@@ -330,8 +330,8 @@ class Calibrations:
     @property
     def within_confidence_region(self) -> np.ndarray:
         """Per member: the estimate within the joint error region (radius
-        :data:`designs.calibration.BOUND_SIGMAS`) around the noise-free estimate."""
-        return self.region_distance <= BOUND_SIGMAS
+        :data:`designs.calibration.REGION_RADIUS`) around the noise-free estimate."""
+        return self.region_distance <= REGION_RADIUS
 
     @property
     def cab_inside(self) -> np.ndarray:
@@ -866,7 +866,7 @@ def border_check(
     the calibration's joint error region around the noise-free estimate
     (:attr:`Calibrations.region_points`: along each principal axis of the estimate's
     covariance, both ways, where the hand's response has moved
-    :data:`designs.calibration.BOUND_SIGMAS` standard deviations as the fit measures it,
+    :data:`designs.calibration.REGION_RADIUS` standard deviations as the fit measures it,
     :func:`designs.calibration.region_points`; 8 designs): the statistical error a record
     can have. The noise-free estimate (:func:`designs.calibration.noise_free_estimate`)
     carries the fit's bias, which the same record would carry without its noise. The cab's
@@ -929,7 +929,7 @@ def border_check(
         "members": len(rows),
         "designs": int(stable.size),
         "construction": construction,
-        "radius": BOUND_SIGMAS if construction == "confidence" else None,
+        "radius": REGION_RADIUS if construction == "confidence" else None,
         "stable": float(stable.mean()),
         "specification": float(holds.mean()),
         "unstable_by_case": unstable,

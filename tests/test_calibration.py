@@ -9,9 +9,9 @@ import pytest
 import scipy.signal as sig
 
 from designs.calibration import (
-    BOUND_SIGMAS,
     CAB_IDENTIFIED,
     IDENTIFIED,
+    REGION_RADIUS,
     CalibrationProtocol,
     CalibrationRecord,
     cab_response,
@@ -223,8 +223,10 @@ def test_seeded_cabs_lie_within_their_error_bounds(records):
 def test_noise_free_estimate_and_the_joint_error_region(records):
     # the estimate's statistical error, measured against what the same record without its
     # noise identifies, in standard deviations of the hand's response as the fit weighs it:
-    # within 3 for 18 of these 20 (a Gaussian estimate of four quantities: 94 %)
-    inside = 0
+    # within the region's 4.03 for 20 of these 20 (18 within 3; a Gaussian estimate of
+    # four quantities: 99.73 % and 94 %)
+    assert REGION_RADIUS == pytest.approx(4.0313, abs=1e-4)  # chi-square, 4 dof, 99.73 %
+    inside = inside3 = 0
     for i, (_, loop, rec) in enumerate(records):
         est = identify_operator(rec, FAM, loop.handle_gain)
         np.testing.assert_allclose(
@@ -238,8 +240,9 @@ def test_noise_free_estimate_and_the_joint_error_region(records):
         q = np.log(r[0] / r[1])
         ref = np.sum(est.weights**2 * (q.real**2 + np.angle(np.exp(1j * q.imag)) ** 2))
         assert d == pytest.approx(math.sqrt(ref / est.residual_variance), rel=1e-9)
-        inside += d <= BOUND_SIGMAS
-    assert inside >= 16
+        inside += d <= REGION_RADIUS
+        inside3 += d <= 3.0
+    assert inside >= 18 and inside3 >= 16
     # the covariance's ellipsoid: each pair of points symmetric about the centre, at the
     # radius, within the marginal bound radius * sigma in every quantity, the largest axis
     # first
@@ -255,17 +258,18 @@ def test_noise_free_estimate_and_the_joint_error_region(records):
     z, z0 = coords(pts), coords(v0[None, :])[0]
     np.testing.assert_allclose(z[0::2] + z[1::2], np.tile(2 * z0, (4, 1)), atol=1e-12)
     Ci = np.linalg.inv(est.covariance)
-    np.testing.assert_allclose(np.einsum("ki,ij,kj->k", z - z0, Ci, z - z0), 9.0, rtol=1e-8)
+    r2 = REGION_RADIUS**2
+    np.testing.assert_allclose(np.einsum("ki,ij,kj->k", z - z0, Ci, z - z0), r2, rtol=1e-8)
     sd = np.sqrt(np.diag(est.covariance))
-    assert np.all(np.abs(z - z0) <= BOUND_SIGMAS * sd * (1 + 1e-9))
+    assert np.all(np.abs(z - z0) <= REGION_RADIUS * sd * (1 + 1e-9))
     lam = np.linalg.eigvalsh(est.covariance)
-    assert np.sum((z[0] - z0) ** 2) == pytest.approx(9.0 * lam[-1], rel=1e-8)
+    assert np.sum((z[0] - z0) ** 2) == pytest.approx(r2 * lam[-1], rel=1e-8)
     # the likelihood region's points: on the same axes, each moving the response by the
     # radius (to the bisection's precision); where the response is nearly linear in the
-    # modes, close to the ellipsoid's (measured here: factors 0.94-1.06)
+    # modes, close to the ellipsoid's (measured here: factors 0.92-1.08)
     rp, fac = region_points(FAM, est, v0, loop.handle_gain)
     np.testing.assert_allclose(
-        response_distance(FAM, est, rp, v0, loop.handle_gain), BOUND_SIGMAS, rtol=1e-4
+        response_distance(FAM, est, rp, v0, loop.handle_gain), REGION_RADIUS, rtol=1e-4
     )
     zr = coords(rp)
     np.testing.assert_allclose(zr - z0, fac[:, None] * (z - z0), rtol=1e-9, atol=1e-12)
