@@ -519,8 +519,10 @@ def identify_operator(
     )
 
 
-def _operator_fit(family, f, H, w, handle_gain):
+def _operator_fit(family, f, H, w, handle_gain, start=None):
     """The weighted fit of :func:`identify_operator` (module notes, steps 3-4).
+
+    From the grid of starts, or from ``start`` alone (values of :data:`IDENTIFIED`).
 
     Returns
     -------
@@ -538,9 +540,9 @@ def _operator_fit(family, f, H, w, handle_gain):
         d = np.concatenate([d.real, np.angle(np.exp(1j * d.imag))], axis=1)
         return d * np.concatenate([w, w])[None, :]
 
-    # starts: the family's nominal human and a grid over the two natural frequencies
-    starts = []
-    for fa in np.geomspace(lo[0], hi[0], 4):
+    # starts: a grid over the two natural frequencies (or the one given)
+    starts = [] if start is None else [np.clip(_coords(np.asarray(start, float)), zlo, zhi)]
+    for fa in np.geomspace(lo[0], hi[0], 4) if start is None else ():
         for ft in np.geomspace(lo[2], hi[2], 4):
             if ft < fa:
                 continue
@@ -572,8 +574,8 @@ def noise_free_estimate(
 
     The record of ``loop`` is simulated again with the same excitation (``seed``) but
     without the operator's involuntary motion, the encoder's quantisation and the
-    accelerometer's noise, and its ratio of H1 estimates fitted exactly as ``estimate``
-    was (its frequencies and weights, :func:`identify_operator`). The estimate's distance
+    accelerometer's noise, and its ratio of H1 estimates fitted as ``estimate`` was (its
+    frequencies and weights, :func:`identify_operator`), from ``estimate``. The estimate's distance
     to it is the calibration's statistical error, which the estimate's covariance
     describes. Its own distance to the member's true modes is the fit's bias: the mass
     ratio held at the nominal and the spectral estimate's leakage, which move the modes but
@@ -612,7 +614,8 @@ def noise_free_estimate(
     if keep.sum() != estimate.f_hz.size:  # pragma: no cover - the same grid by construction
         raise ParameterError("noise_free_estimate: estimate.f_hz is not the protocol's grid")
     H0 = (ex.g_uy[band] / ec.g_uy[band])[keep]
-    z = _operator_fit(family, estimate.f_hz, H0, estimate.weights, loop.handle_gain)[0]
+    start = [estimate.values[k] for k in IDENTIFIED]
+    z = _operator_fit(family, estimate.f_hz, H0, estimate.weights, loop.handle_gain, start)[0]
     return _values(z)
 
 
@@ -707,7 +710,7 @@ def region_points(
     radius: float = REGION_RADIUS,
     *,
     reach: float = 4.0,
-    grid: int = 48,
+    grid: int = 16,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Points of the calibration's joint error region around ``centre``, on its principal axes.
 
@@ -721,7 +724,7 @@ def region_points(
     standard deviations at radius 3); where the two modes nearly coincide the ellipsoid's
     points move it by tens of standard deviations, estimates no record of that operator
     returns. The first crossing along each axis is found on ``grid`` steps up to ``reach``
-    times the ellipsoid's distance, then by bisection (to 1e-6 of the step); an axis that
+    times the ellipsoid's distance, then by bisection (to 1e-4 of the step); an axis that
     never reaches the radius ends at ``reach``.
 
     Parameters
@@ -770,7 +773,7 @@ def region_points(
     lo = np.where(j > 0, ts[np.maximum(j - 1, 0)], 0.0)
     crossed = over.any(axis=1)
     step = reach / grid
-    while np.max(hi - lo) > 1e-6 * step:
+    while np.max(hi - lo) > 1e-4 * step:
         mid = 0.5 * (lo + hi)
         up = dist(mid[:, None])[:, 0] >= radius
         hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)

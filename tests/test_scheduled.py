@@ -105,6 +105,11 @@ def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     assert obj["bank"]["cells"] == 1 and obj["bank"]["samples"] == 8
     assert obj["wrong_within_bound"]["members"] == 1
     assert obj["wrong_within_bound"]["designs"] == 16
+    assert obj["wrong_within_bound"]["construction"] == "confidence"
+    assert obj["wrong_within_box"]["construction"] == "box"
+    assert obj["wrong_within_box"]["designs"] == 16
+    assert 0.0 <= cov["estimate_within_confidence_region"] <= 1.0
+    assert cov["confidence_region_samples"] == 8
     assert "damped_cancellation" in obj["design"]
     cert = obj["certified_over_bound"]
     assert cert["members"] == 1 and 0.0 <= cert["lower"][0] <= cert["upper"][0]
@@ -256,6 +261,14 @@ def test_border_check_on_the_joint_error_region_keeps_the_loop_stable(calibrated
     assert member_metrics(FAM, rows[13:14], controller=K)[0][0] > 0
     with pytest.raises(ParameterError, match="construction"):
         border_check(FAM, rows[:1], cal[:1], construction="corners")
+    # without the regions (computed for the first member only) the check says so
+    part = calibrate_members(FAM, rows[:2], seed=1002, regions=1)
+    assert np.isnan(part.noise_free[1]).all() and np.isfinite(part.noise_free[0]).all()
+    np.testing.assert_array_equal(part.region_points[0], cal.region_points[0])
+    assert part.within_confidence_region.shape == (1,)
+    with pytest.raises(ParameterError, match="error region"):
+        border_check(FAM, rows[:2], part)
+    border_check(FAM, rows[:1], part[:1])  # the member with its region
 
 
 def test_operator_family_is_the_calibrations_box(calibrated):
