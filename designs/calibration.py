@@ -51,6 +51,20 @@ operator it can tell, with an error bound:
 5. **The cab** (:func:`identify_cab`). The same record tells the machine too: the cab's
    acceleration per excitation, divided by the known cylinder loop, is the structure's
    response, fitted for its gain and its two modes (:data:`CAB_IDENTIFIED`).
+6. **Joint error region** (:func:`region_points`, :func:`response_distance`). The
+   marginal bounds of step 4 take each quantity alone; the estimate's errors are
+   correlated (the two modes trade damping for frequency), and the bounds' mass term
+   moves the modes without moving the hand's response (the fit compensates the held
+   ratio). What a compensator built from the estimate has to withstand is the region of
+   estimates the record allows: along each principal axis of the covariance, as far as
+   the fitted hand response moves :data:`REGION_RADIUS` standard deviations (4.03, the
+   99.73 % region of four quantities: the probability of the marginal 3 sigma), the
+   likelihood region of the nonlinear fit. Its centre, in simulation, is what the same
+   record without its noise identifies (:func:`noise_free_estimate`): the estimate lies
+   within 4.03 of it for 98 % of 200 seeded operators (within 3 for 93 %; a Gaussian
+   estimate: 99.73 % and 94 %). Where the two modes nearly coincide, the covariance's
+   ellipsoid reaches estimates whose responses lie tens of standard deviations from the
+   record's, which the likelihood region excludes.
 """
 
 from __future__ import annotations
