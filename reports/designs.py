@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from designs import design_names, run_design
+from designs.calibration import REGION_RADIUS
 from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
 from designs.limit import design_set, limit_coverage_of
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
@@ -347,9 +348,11 @@ def _scheduled_section(page: HtmlPage, sched: dict, limit: dict | None) -> None:
     )
     if "estimate_within_confidence_region" in c:
         text += (
-            f" The estimate lies within 3 standard deviations of the hand's response from what "
-            f"the same record without its noise identifies for "
-            f"{100 * c['estimate_within_confidence_region']:.1f} % (a Gaussian estimate: 94 %)."
+            f" The estimate lies within the calibration's joint error region ({REGION_RADIUS:.2f} "
+            f"standard deviations of the hand's response, the 99.73 % region of four "
+            f"quantities) around what the same record without its noise identifies for "
+            f"{100 * c['estimate_within_confidence_region']:.1f} % of the first "
+            f"{c['confidence_region_samples']}."
         )
     if wb:
         text += (

@@ -97,6 +97,11 @@ def test_per_operator_design_beside_its_limit(tmp_path):
     assert f"{100 * sched['coverage']['fraction']:.1f} % of the population" in html
     assert "continuous with the cab damper" in html
     assert "certified on the whole bound" in html
+    # both checks of a wrong estimate: the calibration's joint error region and the box
+    wb, wx = sched["wrong_within_bound"], sched["wrong_within_box"]
+    assert "boundary of that joint error region" in html and "The harsher box" in html
+    assert f"stable in {100 * wx['stable']:.1f} %" in html
+    assert f"stays stable in {100 * wb['stable']:.1f} %" in html
 
 
 def test_designs_in_two_processes_equal_the_serial_run(serial_runs):

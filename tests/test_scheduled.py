@@ -235,6 +235,16 @@ def test_border_check_counts_what_a_hand_built_design_shows(calibrated):
     assert out["unstable_by_case"]["f_low_hz-"] >= 1
 
 
+def test_the_calibration_bounds_the_operator_for_95_percent_of_seeded_operators():
+    # the design's cell is the box its calibration bounds: 200 seeded operators, each with
+    # its own record; the true modes inside the bound for 196 of them (measured), the
+    # issue's floor 95 % (190)
+    rows = sample(FAM.parameters, 200, method="mc", seed=2).values
+    cal = calibrate_members(FAM, rows, seed=1002, n_jobs=2, regions=0)
+    assert cal.operator_inside.sum() >= 190
+    assert np.isnan(cal.region_distance).all() and cal.within_confidence_region.size == 0
+
+
 def test_border_check_on_the_joint_error_region_keeps_the_loop_stable(calibrated):
     # the estimates a record can return: the noise-free estimate moved along each principal
     # axis of the estimate's covariance until the hand's response has moved 4.03 standard
