@@ -83,8 +83,7 @@ from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError
 from robust.model.components import structure
-from robust.model.modal import modal_to_physical, physical_to_modal
-from robust.model.physical import physical_human_matrices
+from robust.model.modal import physical_to_modal
 from robust.model.wiring import connect
 from robust.sysid.spectral import estimate_frequency_responses
 from uncertainty import default_family
@@ -325,6 +324,14 @@ def human_response(
 ) -> np.ndarray:
     """The hand's response to the cab ``x / c`` for rows of modal parameters.
 
+    In closed form: the seated chain's transfer function from seat acceleration to hand
+    motion is ``-c_u g (s^2 + d_3 s + R (w_a^2 + w_t^2)) / D(s)``, ``D`` its characteristic
+    quartic with ``d_3 = R (s_a + s_t)``, ``d_2 = R (w_a^2 + w_t^2 + s_a s_t)``, ``d_1 = R
+    (s_a w_t^2 + s_t w_a^2)``, ``d_0 = R w_a^2 w_t^2`` (``s_i = 2 zeta_i w_i``, ``R = 1 +``
+    the mass ratio; :mod:`uncertainty.valueset`), equal to the state-space model of
+    :func:`robust.model.physical.physical_human_matrices` to rounding (tested) and a tenth
+    of its cost.
+
     Parameters
     ----------
     family : uncertainty.Family
@@ -344,15 +351,18 @@ def human_response(
     """
     th = np.atleast_2d(np.asarray(theta, float))
     p = family.physical
-    m_t = np.full(th.shape[0], p.m_trunk)
-    ratio = p.m_arm / p.m_trunk if mass_ratio is None else float(mass_ratio)
-    m_a = np.full(th.shape[0], ratio * p.m_trunk)
-    k_t, c_t, k_a, c_a = modal_to_physical(m_t, m_a, th[:, 2], th[:, 3], th[:, 0], th[:, 1])
-    A, B, C, _ = physical_human_matrices(m_t, m_a, k_t, c_t, k_a, c_a, p.h_gain, p.c_unit)
-    s = 2j * np.pi * np.asarray(f_hz, float)
-    M = s[None, :, None, None] * np.eye(4)[None, None] - A[:, None]
-    X = np.linalg.solve(M, np.broadcast_to(B[:, None, :, [0]], M.shape[:2] + (4, 1)))
-    return handle_gain * np.einsum("nij,nfjk->nf", C, X)
+    big_r = 1.0 + (p.m_arm / p.m_trunk if mass_ratio is None else float(mass_ratio))
+    wa, wt = 2 * np.pi * th[:, 0:1], 2 * np.pi * th[:, 2:3]
+    sa, st = 2 * th[:, 1:2] * wa, 2 * th[:, 3:4] * wt
+    wa2, wt2 = wa * wa, wt * wt
+    d3 = big_r * (sa + st)
+    d2 = big_r * (wa2 + wt2 + sa * st)
+    d1 = big_r * (sa * wt2 + st * wa2)
+    d0 = big_r * wa2 * wt2
+    s = 2j * np.pi * np.asarray(f_hz, float)[None, :]
+    den = (((s + d3) * s + d2) * s + d1) * s + d0
+    num = (s + d3) * s + big_r * (wa2 + wt2)
+    return (-handle_gain * p.c_unit * p.h_gain) * num / den
 
 
 def _band_noise(rng, n, fs, band, rms):

@@ -29,10 +29,39 @@ from designs.calibration import (
 from designs.scheduled import cancellation_gap
 from robust.errors import DataError, ParameterError
 from robust.model.components import StructureParams, structure
+from robust.model.modal import modal_to_physical
+from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
 from uncertainty import default_family, sample
 
 FAM = default_family()
+
+
+def test_the_closed_form_response_is_the_state_space_model():
+    # human_response evaluates the seated chain's transfer function in closed form; the
+    # state-space model (physical_human_matrices of the masses, stiffnesses and dampings the
+    # modal parameters give) at seeded rows, ratios and frequencies is the reference
+    rng = np.random.default_rng(5)
+    th = np.column_stack(
+        [rng.uniform(1, 5, 40), rng.uniform(0.05, 0.6, 40), rng.uniform(1, 5, 40)]
+        + [rng.uniform(0.05, 0.6, 40)]
+    )
+    f = np.geomspace(0.2, 30, 60)
+    p = FAM.physical
+    for mu in (None, 0.004, 0.12):
+        ratio = p.m_arm / p.m_trunk if mu is None else mu
+        m_t = np.full(40, p.m_trunk)
+        m_a = ratio * m_t
+        k_t, c_t, k_a, c_a = modal_to_physical(m_t, m_a, th[:, 2], th[:, 3], th[:, 0], th[:, 1])
+        A, B, C, _ = physical_human_matrices(m_t, m_a, k_t, c_t, k_a, c_a, p.h_gain, p.c_unit)
+        s = 2j * np.pi * f
+        ref = np.array(
+            [
+                [(C[i] @ np.linalg.solve(x * np.eye(4) - A[i], B[i][:, 0]))[0] for x in s]
+                for i in range(40)
+            ]
+        )
+        np.testing.assert_allclose(human_response(FAM, th, f, 0.7, mu), 0.7 * ref, rtol=1e-11)
 
 
 def test_the_response_is_symmetric_in_the_two_modes():
