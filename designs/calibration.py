@@ -1044,7 +1044,7 @@ def identify_cab(
         outputs=["y"],
         name="cylinder",
     )
-    Tf = np.array([complex(T(2j * np.pi * x)[0, 1]) for x in f])
+    Tf = np.asarray(T(2j * np.pi * f, squeeze=False))[0, 1]
     H = ec.h1[band] / Tf
     g = ec.coherence[band]
     var = (1 - g) / (2 * ec.n_effective * np.maximum(g, 1e-6))
