@@ -19,6 +19,7 @@ from bdft.common import (
     member_progress,
     print_json,
 )
+from designs.calibration import REGION_RADIUS
 from designs.registry import design_names, run_design
 from designs.scheduled import CELLS_PER_AXIS, scheduled_design
 from robust.jsonio import atomic_write_json
@@ -155,7 +156,8 @@ def _run_scheduled(args) -> int:
         print(f"{'within error bound':20s} {cov['operator_within_error_bound']:.4f} (operator)")
         print(
             f"{'within the region':20s} {cov['estimate_within_confidence_region']:.4f} "
-            "(estimate within 3 sd of the noise-free estimate)"
+            f"(estimate within {REGION_RADIUS:.2f} sd of the noise-free estimate, first "
+            f"{cov['confidence_region_samples']})"
         )
         for key, label in (
             ("wrong_within_bound", "wrong in the region"),
