@@ -902,8 +902,10 @@ def border_check(
     masses nominal as in every design. The true modes paired with nominal masses are not an
     estimate the fit returns (it compensates the held mass ratio by moving the modes, the
     bound's mass term), and one quantity moved alone to its marginal edge ignores the
-    estimate's correlations, so this construction lies outside what a record can tell; it
-    is kept as the harsher check it was.
+    estimate's correlations, so this construction lies outside what a record can tell (the
+    hand responses of its estimates lie a median 12 standard deviations from the noise-free
+    estimate's, up to 180, on the first 50 members of ``bdft design scheduled``, against the
+    region's 4.03); it is kept as the harsher check it was.
 
     Parameters
     ----------
