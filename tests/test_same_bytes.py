@@ -53,11 +53,24 @@ def _hash(args, extra_env, tmp_path):
         ["validate", "--samples", "20000", "--jobs", "1", "--json"],
         ["design", "cancellation", "--samples", "40", "--coverage-samples", "50"]
         + ["--margin-boxes", "0", "--no-cache", "--json"],
+        # the per-operator design: simulated records, fits, the joint error regions (an
+        # eigendecomposition and a search along each axis) and the border checks
+        ["design", "scheduled", "--coverage-samples", "20", "--border-samples", "3"]
+        + ["--certify-samples", "0", "--limit-samples", "0", "--cells", "1", "--jobs", "1"]
+        + ["--json"],
     ],
-    ids=["validate", "design"],
+    ids=["validate", "design", "scheduled"],
 )
 def test_the_json_hashes_alike_across_threads_and_kernels(args, tmp_path):
     if args[0] == "design":
         args = [*args, "--out", str(tmp_path / "art")]
+    if args[1] == "scheduled":  # its artifact holds no timings: the same bytes too
+        hashes = set()
+        for i, env in enumerate(ENVS):
+            out = [*args[:-1], str(tmp_path / f"art{i}")]
+            hashes.add(_hash(out, env, tmp_path))
+        arts = {(tmp_path / f"art{i}" / "scheduled.json").read_bytes() for i in range(len(ENVS))}
+        assert len(hashes) == 1 and len(arts) == 1
+        return
     hashes = {_hash(args, env, tmp_path) for env in ENVS}
     assert len(hashes) == 1
