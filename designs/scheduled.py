@@ -422,7 +422,7 @@ def calibrate_members(
         ``progress(done, total)``.
     regions : int, optional
         For the first ``regions`` members (default: all) also the noise-free estimate and
-        the joint error region (:attr:`Calibrations.noise_free`, about 0.09 s each); NaN for
+        the joint error region (:attr:`Calibrations.noise_free`, about 0.06 s each); NaN for
         the others.
 
     Returns
