@@ -70,6 +70,7 @@ operator it can tell, with an error bound:
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -564,15 +565,16 @@ def _operator_fit(family, f, H, w, handle_gain, start=None):
         d = np.concatenate([d.real, np.angle(np.exp(1j * d.imag))], axis=1)
         return d * np.concatenate([w, w])[None, :]
 
-    # starts: a grid over the two natural frequencies (or the one given)
-    starts = [] if start is None else [np.clip(_coords(np.asarray(start, float)), zlo, zhi)]
-    for fa in np.geomspace(lo[0], hi[0], 4) if start is None else ():
-        for ft in np.geomspace(lo[2], hi[2], 4):
-            if ft < fa:
-                continue
-            z0 = 0.5 * (zlo + zhi)
-            z0[0], z0[2] = math.log(fa), math.log(ft)
-            starts.append(np.clip(z0, zlo, zhi))
+    if start is not None:
+        starts = [np.clip(_coords(np.asarray(start, float)), zlo, zhi)]
+    else:  # a grid over the two natural frequencies, the lower pair's below the upper's
+        starts = []
+        grid = itertools.product(np.geomspace(lo[0], hi[0], 4), np.geomspace(lo[2], hi[2], 4))
+        for fa, ft in grid:
+            if ft >= fa:
+                z0 = 0.5 * (zlo + zhi)
+                z0[0], z0[2] = math.log(fa), math.log(ft)
+                starts.append(np.clip(z0, zlo, zhi))
     best, J, JtJ_inv, cov, s2 = _fit(resid_rows, starts, zlo, zhi, f.size)
     z = best.x
     # the held mass ratio: the estimate's shift if the ratio were at either end of its range
