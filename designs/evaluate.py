@@ -19,7 +19,7 @@ import control as ct
 import numpy as np
 
 from robust.analysis.loops import frequency_response, loop_poles
-from robust.analysis.simulation import SweptSine, simulate
+from robust.analysis.simulation import SweptSine, foh_response, simulate
 from robust.errors import ModelStructureError
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits, check_force
@@ -129,7 +129,7 @@ def intended_motion(
     Parameters
     ----------
     t : ndarray, shape (n,)
-        Time grid, s (equally spaced, as :func:`control.forced_response` needs).
+        Time grid, s (equally spaced; the noise is interpolated linearly between samples).
     amplitude : float
         Amplitude of the equivalent sine, in the loop's handle units.
     bandwidth_hz : float
@@ -145,8 +145,9 @@ def intended_motion(
     """
     rng = np.random.default_rng(seed)
     w = rng.standard_normal(t.size)
-    resp = ct.forced_response(intent_filter(bandwidth_hz, 1.0), T=t, U=w)
-    u = np.asarray(resp.outputs).ravel()
+    filt = intent_filter(bandwidth_hz, 1.0)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    u = foh_response(filt.A, filt.B[:, 0], filt.C, filt.D[:, 0], dt, w)[0]
     return u * (amplitude / math.sqrt(2) / max(np.sqrt(np.mean(u**2)), 1e-300))
 
 

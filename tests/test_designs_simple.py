@@ -74,3 +74,12 @@ def test_intended_motion_is_seeded_and_scaled():
     np.testing.assert_array_equal(a, b)
     assert not np.allclose(a, c)
     assert np.sqrt(np.mean(a**2)) == pytest.approx(2.0 / np.sqrt(2), rel=1e-12)
+    # the noise through the intent filter, as control.forced_response computes it
+    import control as ct
+
+    from robust.synthesis.forcefb import intent_filter
+
+    w = np.random.default_rng(3).standard_normal(t.size)
+    ref = np.ravel(ct.forced_response(intent_filter(2.0, 1.0), T=t, U=w).outputs)
+    ref *= 2.0 / np.sqrt(2) / np.sqrt(np.mean(ref**2))
+    np.testing.assert_allclose(a, ref, rtol=0, atol=1e-12 * np.abs(ref).max())

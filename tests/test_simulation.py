@@ -11,7 +11,7 @@ from robust import (
     simulate,
     simulate_swept_sine,
 )
-from robust.analysis.simulation import lifted_response
+from robust.analysis.simulation import foh_response, lifted_response
 
 CAL = DEFAULT_CALIBRATION
 
@@ -77,3 +77,28 @@ def test_lifted_simulation_equals_dlsim():
     y = lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
     _, ref, _ = ss.dlsim((Ad, Bd, Cd, Dd, 1e-3), u)
     np.testing.assert_allclose(y, ref[:, 0], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+def test_first_order_hold_response_equals_control_forced_response():
+    # the loop's own realisation, with and without feedthrough, input not starting at zero
+    import control as ct
+
+    rng = np.random.default_rng(7)
+    sys = BDFTLoop(k_psf=K_PSF_STABLE).system()
+    iu = sys.input_labels.index("u")
+    A, B, C, D = sys.A, sys.B[:, iu], sys.C, sys.D[:, iu]
+    t = np.arange(7001) / 1000.0
+    u = 0.4 + np.sin(2 * np.pi * 2.1 * t) + 0.2 * rng.normal(size=t.size)
+    ref = np.atleast_2d(ct.forced_response(ct.ss(A, B[:, None], C, D[:, None]), T=t, U=u).outputs)
+    for block in (1, 37, 200, 10_000):
+        y = foh_response(A, B, C, D, 1e-3, u, block=block)
+        assert y.shape == ref.shape
+        np.testing.assert_allclose(y, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+    # a feedthrough-only system, and the loop's outputs through simulate
+    none = (np.zeros((0, 0)), np.zeros(0), np.zeros((2, 0)))
+    y = foh_response(*none, np.array([2.0, -1.0]), 1e-3, u)
+    np.testing.assert_array_equal(y, np.vstack([2.0 * u, -u]))
+    resp = simulate(BDFTLoop(k_psf=K_PSF_STABLE), t, u)
+    for name in sys.output_labels:
+        i = sys.output_labels.index(name)
+        np.testing.assert_allclose(resp[name], ref[i], rtol=0, atol=1e-9 * np.abs(ref).max())

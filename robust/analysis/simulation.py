@@ -1,16 +1,17 @@
 """Time responses of the Figure 5 loop (the paper's Figures 11 and 12).
 
-Responses are computed on a minimal realisation of the loop with
-``control.forced_response``; nothing is clipped or saturated, so an unstable
-loop shows as a growing response.
+Responses are computed on a minimal realisation of the loop, discretised exactly with the
+input interpolated linearly between samples (the method of ``control.forced_response``)
+and stepped block by block (:func:`foh_response`); nothing is clipped or saturated, so an
+unstable loop shows as a growing response.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
-import control as ct
 import numpy as np
+from scipy.linalg import expm
 from scipy.signal import chirp
 
 from robust.analysis.realization import minimal_realization
@@ -25,6 +26,7 @@ __all__ = [
     "simulate_swept_sine",
     "simulate",
     "lifted_response",
+    "foh_response",
 ]
 
 
@@ -191,9 +193,7 @@ def simulate(
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
     # only the input u is driven here
     iu = sys.input_labels.index("u")
-    red = ct.ss(m.A, m.B[:, [iu]], m.C, m.D[:, [iu]])
-    resp = ct.forced_response(red, T=t, U=u)
-    y = np.atleast_2d(resp.outputs)
+    y = foh_response(m.A, m.B[:, iu], m.C, m.D[:, iu], (t[-1] - t[0]) / (t.size - 1), u)
     outs = {name: y[i] for i, name in enumerate(sys.output_labels)}
     return TimeResponse(t=np.asarray(t), u=np.asarray(u), outputs=outs, bdft=bdft, k_psf=loop.k_psf)
 
@@ -298,3 +298,91 @@ def lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200) -> np.ndarray:
         y[b] = obs @ x + T @ U[b]
         x = AdM @ x + G @ U[b]
     return y.ravel()[:N]
+
+
+def foh_response(A, B, C, D, dt: float, u, block: int = 200) -> np.ndarray:
+    """Outputs of ``x' = A x + B u``, ``y = C x + D u`` from rest, ``u`` linear between samples.
+
+    The continuous system is discretised exactly for a first-order hold (the input
+    interpolated linearly between samples, as :func:`control.forced_response` does; Franklin,
+    Powell & Workman, *Digital Control of Dynamic Systems*, 3rd ed., Sec. 6.3.2): with
+    ``exp([[A dt, B dt, 0], [0, 0, I], [0, 0, 0]])`` giving ``Ad``, ``Bd0`` and ``Bd1``,
+    ``x[k+1] = Ad x[k] + Bd0 u[k] + Bd1 u[k+1]``. The state ``z = x - Bd1 u`` turns this into
+    ``z[k+1] = Ad z[k] + (Ad Bd1 + Bd0) u[k]``, ``y = C z + (D + C Bd1) u``, which is stepped
+    block-lifted like :func:`lifted_response`: the state at each block's start by
+    ``Ad^block`` and ``G u_block``, every output within the block by ``O z0 + T u_block``,
+    all outputs at once. A test compares it with :func:`control.forced_response`; it takes
+    milliseconds where the step-by-step loop takes about 70 ms for 20 000 samples.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        State matrix.
+    B : numpy.ndarray, shape (n,)
+        Input vector (one input).
+    C : numpy.ndarray, shape (p, n)
+        Output matrix.
+    D : numpy.ndarray, shape (p,)
+        Feedthrough of the input.
+    dt : float
+        Sample interval, s.
+    u : numpy.ndarray, shape (N,)
+        Input samples.
+    block : int
+        Samples per block.
+
+    Returns
+    -------
+    numpy.ndarray, shape (p, N)
+        Every output at every sample.
+    """
+    A = np.asarray(A, float)
+    n = A.shape[0]
+    C = np.atleast_2d(np.asarray(C, float)).reshape(-1, n) if n else np.zeros((len(D), 0))
+    D = np.asarray(D, float).reshape(-1)
+    u = np.asarray(u, float)
+    N = u.size
+    if n == 0:
+        return D[:, None] * u[None, :]
+    B = np.asarray(B, float).reshape(n)
+    M = np.zeros((n + 2, n + 2))
+    M[:n, :n] = A * dt
+    M[:n, n] = B * dt
+    M[n, n + 1] = 1.0
+    E = expm(M)
+    Ad = E[:n, :n]
+    Bd1 = E[:n, n + 1]
+    Bd0 = E[:n, n] - Bd1
+    Bz = Ad @ Bd1 + Bd0
+    Dz = D + C @ Bd1
+    L = max(1, min(int(block), N))
+    # O[i] = C Ad^i (p x n), markov h_0 = Dz, h_i = C Ad^(i-1) Bz
+    obs = np.empty((L, C.shape[0], n))
+    P = np.eye(n)
+    for i in range(L):
+        obs[i] = C @ P
+        P = Ad @ P
+    AdL = P
+    markov = np.empty((L, C.shape[0]))
+    markov[0] = Dz
+    markov[1:] = obs[:-1] @ Bz
+    # T[j, i, k] = h_{i-k} for k <= i (output j)
+    idx = np.arange(L)[:, None] - np.arange(L)[None, :]
+    T = np.where(idx >= 0, markov[np.clip(idx, 0, None)].transpose(2, 0, 1), 0.0)
+    G = np.empty((n, L))
+    v = Bz.copy()
+    for j in range(L - 1, -1, -1):
+        G[:, j] = v
+        v = Ad @ v
+    nblk = -(-N // L)
+    U = np.zeros(nblk * L)
+    U[:N] = u
+    U = U.reshape(nblk, L)
+    Z = np.empty((nblk, n))
+    z = -Bd1 * u[0]
+    for b in range(nblk):
+        Z[b] = z
+        z = AdL @ z + G @ U[b]
+    # y[j, b, i] = O[i] z_b + (T_j u_b)[i]
+    Y = (obs.transpose(1, 0, 2) @ Z.T).transpose(0, 2, 1) + U @ T.transpose(0, 2, 1)
+    return Y.reshape(C.shape[0], nblk * L)[:, :N]
