@@ -5,7 +5,9 @@ Each sub-command lives in its own module of this package and exposes
 taking the parsed arguments and returning the process exit code. Every command
 that reports numbers has ``--json``, which prints exactly one JSON object on
 standard output (progress, timings and log lines go to standard error, so the
-same options and seed give the same bytes).
+same options and seed give the same bytes, on any x86-64 CPU with AVX2 and FMA: the
+package fixes OpenBLAS's and NumPy's kernels before NumPy is imported,
+:mod:`bdft.kernels`).
 
 Options are checked before any work by one argument layer, :mod:`bdft.args`.
 Exit codes:
@@ -28,10 +30,15 @@ import sys
 import tempfile
 import traceback
 
-from bdft import design, identify, limit, margin, report, reproduce, sweep, validate
-from bdft.args import ArgumentParser, UsageError
-from robust.errors import BDFTError
-from robust.version import __version__
+# before anything imports NumPy: the same kernels on every x86-64 CPU (bdft.kernels)
+from bdft.kernels import pin_numeric_kernels
+
+pin_numeric_kernels()
+
+from bdft import design, identify, limit, margin, report, reproduce, sweep, validate  # noqa: E402
+from bdft.args import ArgumentParser, UsageError  # noqa: E402
+from robust.errors import BDFTError  # noqa: E402
+from robust.version import __version__  # noqa: E402
 
 __all__ = ["main", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
 

@@ -2,8 +2,9 @@
 
 A result is stored under the hash of everything it depends on: the caller's inputs (the
 design's name, sample sizes, seeds, limits...) and :func:`code_version`, a hash of the
-workbench's own source files and of the numerical libraries' versions. Change any input,
-any line of the model, the families or the designs, or upgrade numpy, and the key changes:
+workbench's own source files, of the numerical libraries' versions and of the kernels they
+run (:func:`numeric_kernels`). Change any input, any line of the model, the families or
+the designs, upgrade numpy or run other kernels, and the key changes:
 a stale result is never returned, it is simply not found. Nothing is ever invalidated by
 hand; old entries can be deleted at any time (``rm -r`` the folder).
 
@@ -26,8 +27,24 @@ from collections.abc import Callable
 from pathlib import Path
 
 import control as ct
+from threadpoolctl import threadpool_info
 
-__all__ = ["cache_dir", "code_version", "cache_key", "cached", "CACHE_ENV"]
+try:  # NumPy's vector-loop dispatch (what this CPU and NPY_DISABLE_CPU_FEATURES left on)
+    from numpy._core._multiarray_umath import __cpu_dispatch__ as _NPY_DISPATCH
+    from numpy._core._multiarray_umath import __cpu_features__ as _NPY_FEATURES
+except ImportError:  # pragma: no cover - another NumPy layout
+    _NPY_DISPATCH, _NPY_FEATURES = (), {}
+
+__all__ = [
+    "cache_dir",
+    "code_version",
+    "numeric_kernels",
+    "cache_key",
+    "cached",
+    "lookup",
+    "store",
+    "CACHE_ENV",
+]
 
 #: Environment variable naming the cache folder.
 CACHE_ENV = "BDFT_CACHE_DIR"
@@ -80,7 +97,7 @@ def cache_dir() -> Path:
 
 
 def code_version() -> str:
-    """Hash of the workbench's source files and the numerical libraries' versions."""
+    """Hash of the workbench's source files, the numerical libraries' versions and kernels."""
     global _VERSION
     if _VERSION is None:
         h = hashlib.sha256()
@@ -96,8 +113,27 @@ def code_version() -> str:
                 h.update(f"{lib}={importlib.metadata.version(lib)}".encode())
             except importlib.metadata.PackageNotFoundError:
                 h.update(f"{lib}=absent".encode())
+        h.update(numeric_kernels().encode())
         _VERSION = h.hexdigest()
     return _VERSION
+
+
+def numeric_kernels() -> str:
+    """The kernels this process computes with: OpenBLAS's and NumPy's vector loops.
+
+    Results differ in their last digits between kernels (and the robust designs more),
+    so a result computed with other kernels (another CPU sharing the cache folder, or a
+    process that did not fix them, see ``bdft.kernels``) has another key.
+    """
+    arch = sorted(
+        {
+            str(i.get("architecture"))
+            for i in threadpool_info()
+            if i.get("internal_api") == "openblas"
+        }
+    )
+    simd = [f for f in _NPY_DISPATCH if _NPY_FEATURES.get(f)] if _NPY_DISPATCH else ["unknown"]
+    return f"openblas={','.join(arch)};numpy={','.join(simd)}"
 
 
 def cache_key(kind: str, inputs: dict) -> str:
@@ -114,6 +150,64 @@ def cache_key(kind: str, inputs: dict) -> str:
         {"kind": kind, "inputs": inputs, "code": code_version()}, sort_keys=True, default=repr
     )
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _entry(kind: str, inputs: dict) -> Path:
+    return cache_dir() / kind / f"{cache_key(kind, inputs)}.pkl"
+
+
+def lookup(kind: str, inputs: dict) -> tuple[bool, object]:
+    """The stored result for ``inputs`` and this code, if there is one.
+
+    Parameters
+    ----------
+    kind : str
+        What the result is (see :func:`cache_key`).
+    inputs : dict
+        Everything the result depends on besides the code.
+
+    Returns
+    -------
+    found : bool
+        Whether a readable entry exists (a damaged or foreign one counts as none).
+    value
+        The result, or None.
+    """
+    path = _entry(kind, inputs)
+    if path.is_file():
+        try:
+            with path.open("rb") as fh:
+                return True, pickle.load(fh)
+        except Exception:  # a damaged or foreign entry: recompute and replace it
+            pass
+    return False, None
+
+
+def store(kind: str, inputs: dict, value) -> None:
+    """Store ``value`` for ``inputs`` and this code (atomically; a failure only costs time).
+
+    Parameters
+    ----------
+    kind : str
+        What the result is (see :func:`cache_key`).
+    inputs : dict
+        Everything the result depends on besides the code.
+    value : object
+        The result (picklable; state-space systems by their data).
+    """
+    path = _entry(kind, inputs)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pkl")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                _Pickler(fh, protocol=pickle.HIGHEST_PROTOCOL).dump(value)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        pass  # a cache that cannot be written only costs time
 
 
 def cached(kind: str, inputs: dict, compute: Callable[[], object], *, enabled: bool = True):
@@ -139,24 +233,9 @@ def cached(kind: str, inputs: dict, compute: Callable[[], object], *, enabled: b
     """
     if not enabled:
         return compute(), False
-    path = cache_dir() / kind / f"{cache_key(kind, inputs)}.pkl"
-    if path.is_file():
-        try:
-            with path.open("rb") as fh:
-                return pickle.load(fh), True
-        except Exception:  # a damaged or foreign entry: recompute and replace it
-            pass
+    found, value = lookup(kind, inputs)
+    if found:
+        return value, True
     value = compute()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pkl")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                _Pickler(fh, protocol=pickle.HIGHEST_PROTOCOL).dump(value)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-    except (OSError, pickle.PicklingError, TypeError, AttributeError):
-        pass  # a cache that cannot be written only costs time
+    store(kind, inputs, value)
     return value, False

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 
 from bdft import main
+from bdft.kernels import _cpu_flags
 from robust import cache
 from robust.cache import CACHE_ENV, cache_dir, cache_key, cached, code_version
 
@@ -52,6 +56,24 @@ def test_the_key_holds_the_inputs_and_the_code(monkeypatch, store):
     assert len(code_version()) == 64
     monkeypatch.setattr(cache, "_VERSION", "another code version")
     assert cache_key("design", {"seed": 0}) != k
+
+
+def test_the_code_version_holds_the_kernels(monkeypatch):
+    # this process's kernels, and those of a bdft process (fixed by bdft.kernels)
+    here = cache.numeric_kernels()
+    assert here.startswith("openblas=") and ";numpy=" in here
+    code = "import bdft\nfrom robust.cache import numeric_kernels\nprint(numeric_kernels())"
+    env = {k: v for k, v in os.environ.items() if k != "BDFT_NATIVE_KERNELS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    if {"avx2", "fma"} <= _cpu_flags():
+        assert out.stdout.strip() == "openblas=Haswell;numpy=X86_V3"
+    # other kernels, another key
+    monkeypatch.setattr(cache, "_VERSION", None)
+    k = cache_key("design", {"seed": 0})
+    monkeypatch.setattr(cache, "_VERSION", None)
+    monkeypatch.setattr(cache, "numeric_kernels", lambda: "openblas=Sandybridge;numpy=X86_V3")
+    assert cache_key("design", {"seed": 0}) != k
+    monkeypatch.setattr(cache, "_VERSION", None)
 
 
 def test_the_folder_comes_from_the_environment(monkeypatch, tmp_path):

@@ -90,7 +90,7 @@ def test_first_order_hold_response_equals_control_forced_response():
     t = np.arange(7001) / 1000.0
     u = 0.4 + np.sin(2 * np.pi * 2.1 * t) + 0.2 * rng.normal(size=t.size)
     ref = np.atleast_2d(ct.forced_response(ct.ss(A, B[:, None], C, D[:, None]), T=t, U=u).outputs)
-    for block in (1, 37, 200, 10_000):
+    for block in (1, 37, 200, 1000):
         y = foh_response(A, B, C, D, 1e-3, u, block=block)
         assert y.shape == ref.shape
         np.testing.assert_allclose(y, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
