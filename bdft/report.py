@@ -25,12 +25,12 @@ from bdft.common import (
 from bdft.design import SCHEDULED
 from designs.limit import limit_map
 from designs.registry import design_names
-from designs.robust_lmi import force_tradeoff
+from designs.robust_lmi import tradeoff_point, tradeoff_tasks
 from designs.scheduled import scheduled_design
 from reports.coverage import family_coverage
-from reports.designs import run_all_designs, write_design_report
+from reports.designs import run_designs_with, write_design_report
 from reports.limit import limit_conclusions
-from robust.cache import cached
+from robust.cache import cached, lookup, store
 from robust.jsonio import atomic_write_json
 from uncertainty import default_family
 
@@ -94,7 +94,7 @@ def register(sub) -> None:
         default=(0.5, 1.0, 2.0, 4.0),
         help="multiples of the Omni's force limits at which the robust handle-force LMI design "
         "is rerun for the force-budget trade-off (Pareto curve), comma-separated, or 'none' "
-        "(default: 0.5,1,2,4; half a minute to three minutes each, run in parallel over --jobs)",
+        "(default: 0.5,1,2,4; one to three minutes each, run with the designs over --jobs)",
     )
     add_cache_argument(p)
     p.add_argument(
@@ -134,14 +134,30 @@ def run(args) -> int:
         standard error.
     """
 
-    def progress(name):
-        print(f"[bdft report] design {name} ...", file=sys.stderr, flush=True)
+    designs = set(design_names())
+
+    def progress(msg):
+        name = msg[: -len(" done")] if msg.endswith(" done") else msg
+        what = "design " if name in designs else ""
+        print(f"[bdft report] {what}{msg} ...", file=sys.stderr, flush=True)
 
     use_cache = not args.no_cache
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
     check_artifact_targets("--out", art_dir, [*design_names(), SCHEDULED])
-    runs = run_all_designs(
+    # the trade-off's points (each a robust LMI design) share the designs' pool of processes
+    tradeoff = None
+    trade_inputs = {"factors": list(args.tradeoff or [])}
+    extra = []
+    if args.tradeoff:
+        found, tradeoff = lookup("force-tradeoff", trade_inputs) if use_cache else (False, None)
+        if not found:
+            tasks = tradeoff_tasks(default_family(), args.tradeoff)
+            extra = [
+                (f"force-budget trade-off, force x{f:g}", tradeoff_point, t)
+                for f, t in zip(args.tradeoff, tasks)
+            ]
+    runs, points = run_designs_with(
         samples=args.samples,
         seed=args.seed,
         out_dir=art_dir,
@@ -152,20 +168,18 @@ def run(args) -> int:
         member_progress=member_progress("coverage"),
         cache=use_cache,
         design_jobs=args.jobs,
+        extra_tasks=extra,
     )
-    tradeoff = None
-    if args.tradeoff:
-        print("[bdft report] force-budget trade-off ...", file=sys.stderr, flush=True)
-        tradeoff, _ = cached(
-            "force-tradeoff",
-            {"factors": list(args.tradeoff)},
-            lambda: force_tradeoff(
-                default_family(),
-                args.tradeoff,
-                jobs=args.jobs,
-                progress=lambda m: print(f"[bdft report]   {m}", file=sys.stderr, flush=True),
-            ),
-            enabled=use_cache,
+    if extra:
+        tradeoff = points
+        if use_cache:
+            store("force-tradeoff", trade_inputs, tradeoff)
+    for f, pt in zip(args.tradeoff or [], tradeoff or []):
+        print(
+            f"[bdft report] force x{f:g}: scale {pt.scale:.3g} reached, certified margin "
+            f"{pt.certified_scale:.3g}",
+            file=sys.stderr,
+            flush=True,
         )
     limit = None
     if args.limit_samples:

@@ -64,6 +64,8 @@ __all__ = [
     "maximise_margin",
     "TradeoffPoint",
     "force_tradeoff",
+    "tradeoff_tasks",
+    "tradeoff_point",
     "build",
     "build_cylinder",
     "build_workspace_force",
@@ -621,8 +623,14 @@ class TradeoffPoint:
     seconds: float
 
 
-def _tradeoff_point(task) -> TradeoffPoint:
-    """One point of :func:`force_tradeoff` (a module-level function: it runs in workers)."""
+def tradeoff_point(task) -> TradeoffPoint:
+    """One point of :func:`force_tradeoff` (a module-level function: it runs in workers).
+
+    Parameters
+    ----------
+    task : tuple
+        One of :func:`tradeoff_tasks`.
+    """
     family, spec, options, margin_boxes = task
     t0 = time.perf_counter()
     d = maximise_margin(family, spec=spec, options=options)
@@ -648,6 +656,47 @@ def _tradeoff_point(task) -> TradeoffPoint:
         failed_scale=d.failed.scale if d.failed else math.nan,
         seconds=time.perf_counter() - t0,
     )
+
+
+def tradeoff_tasks(
+    family,
+    factors=(0.5, 1.0, 2.0, 4.0),
+    *,
+    spec: Specification | None = None,
+    options: RobustOptions | None = None,
+    margin_boxes: int = 100,
+) -> list[tuple]:
+    """The independent points of :func:`force_tradeoff`, for :func:`tradeoff_point`.
+
+    A caller with other work to run (``bdft report``: the designs) runs them in the same
+    pool of processes, so that no core waits for the slowest task of one batch.
+
+    Parameters
+    ----------
+    family, factors, spec, options, margin_boxes
+        As for :func:`force_tradeoff`.
+
+    Returns
+    -------
+    list of tuple
+        One task per factor, in order.
+
+    Raises
+    ------
+    ParameterError
+        If a factor is not a positive finite number.
+    """
+    spec = spec or Specification()
+    options = options or RobustOptions(bisection=0, margin_boxes=30)
+    tasks = []
+    for f in factors:
+        if not (math.isfinite(f) and f > 0):
+            raise ParameterError(f"force_tradeoff: factors must be positive; got {f!r}")
+        sp = dataclasses.replace(
+            spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
+        )
+        tasks.append((family, sp, options, margin_boxes))
+    return tasks
 
 
 def force_tradeoff(
@@ -698,16 +747,7 @@ def force_tradeoff(
     list of TradeoffPoint
         In the order of ``factors``.
     """
-    spec = spec or Specification()
-    options = options or RobustOptions(bisection=0, margin_boxes=30)
-    tasks = []
-    for f in factors:
-        if not (math.isfinite(f) and f > 0):
-            raise ParameterError(f"force_tradeoff: factors must be positive; got {f!r}")
-        sp = dataclasses.replace(
-            spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
-        )
-        tasks.append((family, sp, options, margin_boxes))
+    tasks = tradeoff_tasks(family, factors, spec=spec, options=options, margin_boxes=margin_boxes)
     done = []
 
     def finished(i):
@@ -715,7 +755,7 @@ def force_tradeoff(
         if progress:
             progress(f"force x{factors[i]:g} done ({len(done)} of {len(tasks)})")
 
-    out = map_tasks(_tradeoff_point, tasks, jobs=jobs, scheduler=scheduler, progress=finished)
+    out = map_tasks(tradeoff_point, tasks, jobs=jobs, scheduler=scheduler, progress=finished)
     if progress:
         for f, pt in zip(factors, out):
             progress(

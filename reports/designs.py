@@ -25,7 +25,7 @@ from robust.model.device import DeviceLimits
 from uncertainty import batched_poles, default_family, sample
 from uncertainty.randomized import coverage_consistent
 
-__all__ = ["run_all_designs", "verdict", "write_design_report"]
+__all__ = ["run_all_designs", "run_designs_with", "verdict", "write_design_report"]
 
 
 #: The designs that take minutes (robust synthesis), started first when designs run in
@@ -39,7 +39,35 @@ _LONG_DESIGNS = (
 )
 
 
-def run_all_designs(
+def run_all_designs(**kwargs):
+    """Run every design (or ``names``); a design that fails is kept with its error, not dropped.
+
+    :func:`run_designs_with` without other tasks; the keywords are its.
+
+    Parameters
+    ----------
+    **kwargs
+        As for :func:`run_designs_with` (``extra_tasks`` aside).
+
+    Returns
+    -------
+    dict
+        Design name to its evaluated :class:`designs.DesignResult`, or to the
+        :class:`robust.errors.BDFTError` it raised.
+    """
+    return run_designs_with(**kwargs)[0]
+
+
+def _pool_task(item):
+    """One task of :func:`run_designs_with`'s pool: a design, or another ``(fn, arg)``."""
+    kind, payload = item
+    if kind == "design":
+        return _design_task(payload)
+    fn, arg = payload
+    return fn(arg)
+
+
+def run_designs_with(
     *,
     samples: int = 2000,
     seed: int = 0,
@@ -53,14 +81,18 @@ def run_all_designs(
     cache: bool = False,
     design_jobs: int = 1,
     scheduler: str | None = None,
+    extra_tasks=(),
 ):
-    """Run every design (or ``names``); a design that fails is kept with its error, not dropped.
+    """Run every design (or ``names``) and other long tasks in one pool of processes.
 
-    Each design runs through :func:`designs.run_design` on the default family. With
-    ``design_jobs`` above 1 (or a Dask ``scheduler``) the designs themselves run in
-    parallel processes (:func:`robust.engine.map_tasks`), each with its coverage checks in
-    one process; every design is deterministic in its process (the robust designs run
-    their BLAS on one thread), so the results are those of the serial run.
+    Each design runs through :func:`designs.run_design` on the default family; a design
+    that fails is kept with its error, not dropped. With ``design_jobs`` above 1 (or a
+    Dask ``scheduler``) the designs themselves run in parallel processes
+    (:func:`robust.engine.map_tasks`), each with its coverage checks in one process; every
+    design is deterministic in its process (the robust designs run their BLAS on one
+    thread), so the results are those of the serial run. ``extra_tasks`` (``bdft report``:
+    the points of the force trade-off) run in the same pool, ahead of the designs, so that
+    no core waits for the slowest task of one batch before the next batch starts.
 
     Parameters
     ----------
@@ -89,14 +121,20 @@ def run_all_designs(
         with ``n_jobs`` processes for each coverage check).
     scheduler : str, optional
         Address of a Dask scheduler to run the designs on instead of local processes.
+    extra_tasks : sequence of (str, callable, object)
+        Other tasks: a label (for ``progress``), a module-level function and its one
+        argument. Run after the designs when ``design_jobs`` is 1.
 
     Returns
     -------
-    dict
+    runs : dict
         Design name to its evaluated :class:`designs.DesignResult`, or to the
         :class:`robust.errors.BDFTError` it raised.
+    extra : list
+        The results of ``extra_tasks``, in order (an exception they raise is raised).
     """
     names = list(names or design_names())
+    extra_tasks = list(extra_tasks)
     options = dict(
         samples=samples,
         seed=seed,
@@ -113,24 +151,27 @@ def run_all_designs(
             runs[name] = _design_task(
                 (name, dict(options, n_jobs=n_jobs, progress=member_progress))
             )
-        return runs
-    # the longest designs first, so that the last to start is a short one
+        extra = []
+        for label, fn, arg in extra_tasks:
+            extra.append(fn(arg))
+            if progress:
+                progress(f"{label} done")
+        return runs, extra
+    # the other tasks and the longest designs first, so that the last to start is short
     rank = {n: i for i, n in enumerate(_LONG_DESIGNS)}
     order = sorted(names, key=lambda n: (rank.get(n, len(rank)), names.index(n)))
+    items = [("task", (fn, arg)) for _, fn, arg in extra_tasks]
+    items += [("design", (n, dict(options, n_jobs=1))) for n in order]
+    labels = [label for label, _, _ in extra_tasks] + list(order)
 
     def finished(i):
         if progress:
-            progress(f"{order[i]} done")
+            progress(f"{labels[i]} done")
 
-    results = map_tasks(
-        _design_task,
-        [(n, dict(options, n_jobs=1)) for n in order],
-        jobs=design_jobs,
-        scheduler=scheduler,
-        progress=finished,
-    )
-    by_name = dict(zip(order, results))
-    return {n: by_name[n] for n in names}
+    results = map_tasks(_pool_task, items, jobs=design_jobs, scheduler=scheduler, progress=finished)
+    k = len(extra_tasks)
+    by_name = dict(zip(order, results[k:]))
+    return {n: by_name[n] for n in names}, list(results[:k])
 
 
 def _design_task(task):

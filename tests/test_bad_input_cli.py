@@ -330,7 +330,7 @@ def test_design_out_is_checked_before_the_computation(tmp_path, capsys, monkeypa
 
 def test_report_checks_its_artifact_folder_before_the_computation(tmp_path, capsys, monkeypatch):
     calls = []
-    monkeypatch.setattr(bdft.report, "run_all_designs", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(bdft.report, "run_designs_with", lambda *a, **k: calls.append(a))
     (tmp_path / "page-artifacts").write_text("not a folder")
     before = _listing(tmp_path)
     assert main(["report", "--out", str(tmp_path / "page")]) == 2

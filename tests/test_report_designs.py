@@ -1,11 +1,12 @@
 """The design comparison page: table, verdict and figures from real design runs."""
 
 import json
+import operator
 
 import pytest
 
 from designs.limit import design_set, limit_coverage_of, limit_map
-from reports.designs import run_all_designs, verdict, write_design_report
+from reports.designs import run_all_designs, run_designs_with, verdict, write_design_report
 from reports.limit import limit_conclusions
 from robust.jsonio import to_jsonable
 from uncertainty import default_family
@@ -85,7 +86,10 @@ def test_per_operator_design_beside_its_limit(tmp_path):
     )
     lm = limit_map(fam, samples=4, seed=0, sets=(LIMIT_SET,), critical=False)
     limit = dict(lm.to_json(), conclusions=limit_conclusions(lm))
-    runs = run_all_designs(samples=50, seed=0, names=["workspace"])
+    runs, done = run_designs_with(
+        samples=50, seed=0, names=["workspace"], extra_tasks=[("neg", operator.neg, 1.5)]
+    )
+    assert done == [-1.5]  # one process: the other tasks after the designs
     index = write_design_report(
         runs, tmp_path / "d", samples=50, seed=0, limit=limit, scheduled=sched
     )
@@ -107,7 +111,10 @@ def test_per_operator_design_beside_its_limit(tmp_path):
 def test_designs_in_two_processes_equal_the_serial_run(serial_runs):
     # the report runs its designs two at a time (bdft report --jobs 2); each design is the
     # one the serial run gives, numbers and order alike
-    parallel = run_all_designs(**RUNS, n_jobs=2, design_jobs=2)
+    # other tasks (the report's trade-off points) share the pool and come back in order
+    extra = [("neg", operator.neg, 2.5), ("abs", abs, -3), ("float", float, "7")]
+    parallel, done = run_designs_with(**RUNS, n_jobs=2, design_jobs=2, extra_tasks=extra)
+    assert done == [-2.5, 3, 7.0]
     assert list(parallel) == list(serial_runs) == RUNS["names"]
     for n in RUNS["names"]:
         a, b = serial_runs[n], parallel[n]
