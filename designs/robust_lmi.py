@@ -125,6 +125,8 @@ class RobustOptions:
         round. Measured (``minimax-bfgs``, scale reached; the README has the table): with
         three rounds per scale 0.075, 0.05 and 0.035 on the SkylakeX, Haswell and
         Sandybridge BLAS kernels; with four (``rounds``' default) 0.075 on all three.
+        The ``bdft`` command fixes the kernels (:mod:`bdft.kernels`), so from the command
+        line the path is the same on every x86-64 CPU with AVX2 and FMA.
     tune_iterations : int
         Iterations of the start (linear programs; BFGS iterations per run).
     tune_restarts : int

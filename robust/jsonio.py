@@ -47,7 +47,9 @@ def round_significant(obj, digits: int = JSON_DIGITS):
     to 6 digits, the printed numbers are the same on every x86-64 CPU and thread count
     unless a value lies within that error of a rounding boundary (measured: none of the
     validation's and a design's outputs under the Haswell and Sandybridge kernels and 1,
-    2 or 4 threads).
+    2 or 4 threads). Where a computation amplifies the last bits (the LMI designs), the
+    rounding cannot help: the ``bdft`` command fixes the kernels instead
+    (:mod:`bdft.kernels`).
 
     Parameters
     ----------
