@@ -192,3 +192,40 @@ def test_subdivision_verdict_does_not_depend_on_the_wave(bad):
             assert not runs[0][0]
         assert all(st["boxes"] <= budget for _, st in runs)
     assert max(calls) == 8
+
+
+@pytest.mark.parametrize("wave", [1, 3, 8])
+def test_subdivision_stops_when_the_tree_cannot_fit_the_budget(wave):
+    # the tree of the unit square down to boxes of width 1/8 holds 127 boxes: a budget of
+    # 127 certifies, 126 cannot, and the search gives up once the boxes tried and those
+    # waiting exceed the budget
+    def certify(a, b, limit=0.125):
+        w = b - a
+        small = bool(np.all(w <= limit + 1e-12))
+        return {
+            "certified": small,
+            "centre_violates": False,
+            "check": -1.0,
+            "split": int(np.argmax(w)),
+        }
+
+    def run(budget, limit=0.125):
+        return subdivide(
+            lambda a, b: certify(a, b, limit),
+            np.zeros(2),
+            np.ones(2),
+            max_boxes=budget,
+            wave=wave,
+        )
+
+    ok, st = run(127)
+    assert ok and st["boxes"] == 127 and st["certified_boxes"] == 64
+    for budget in (126, 100, 40):
+        ok, st = run(budget)
+        assert not ok and st["reason"] == "box budget"
+        assert st["boxes"] <= budget and st["boxes"] + st["pending"] > budget
+    # no box certifies: each failed box leaves one more waiting, so about half the budget
+    # is tried before the verdict (all of it before the early stop)
+    ok, st = run(400, limit=-1.0)
+    assert not ok and st["certified_boxes"] == 0
+    assert 200 <= st["boxes"] <= 200 + wave

@@ -122,3 +122,33 @@ def test_recentring_floors_a_singular_matrix():
     assert np.all(np.isfinite(T)) and abs(np.linalg.det(T)) > 0
     with pytest.raises(VerificationError, match="positive definite"):
         recentring(-np.eye(2))
+
+
+def test_modal_certificate_for_a_diagonalisable_matrix():
+    # well-conditioned eigenvectors: X = (V V^H)^-1 from them, no SDP; for a normal
+    # matrix that is a multiple of the identity
+    poles = [_pair(0.2, 2 * math.pi * 6), _pair(0.5, 3.0), -0.5, -300.0]
+    A = _modal(poles, seed=3)
+    region = PoleRegion(decay_rate=0.1, min_damping=0.15)
+    cert = certify_region(A, region)
+    assert cert.method == "modal" and cert.to_json()["method"] == "modal"
+    checks = check_region_certificate(A, cert.X, region)
+    assert checks["decay"] < 0 and checks["cone"] < 0 and checks["X_min"] > 0
+    lam = _pair(0.2, 5.0)
+    N = np.array([[lam.real, lam.imag], [-lam.imag, lam.real]])
+    Xn = certify_region(N, PoleRegion(0.0, 0.15)).X
+    assert np.allclose(Xn / Xn[0, 0], np.eye(2), atol=1e-12)
+
+
+def test_nearly_defective_matrix_falls_back_to_the_sdp():
+    # two copies of a damped pair 1e-9 apart, coupled strongly: the eigenvectors are nearly
+    # parallel, the modal certificate's margin is below rounding, the SDP certifies
+    lam = _pair(0.3, 4.0)
+    R = np.array([[lam.real, lam.imag], [-lam.imag, lam.real]])
+    A = np.block([[R, 50.0 * np.eye(2)], [np.zeros((2, 2)), R * (1 + 1e-9)]])
+    assert np.linalg.cond(np.linalg.eig(A)[1]) > 1e6
+    region = PoleRegion(decay_rate=0.5, min_damping=0.2)
+    cert = certify_region(A, region)
+    assert cert.method == "sdp"
+    checks = check_region_certificate(A, cert.X, region)
+    assert checks["decay"] < 0 and checks["cone"] < 0 and checks["X_min"] > 0

@@ -736,7 +736,9 @@ def subdivide(
     ``wave``: every sub-box's answer and split depend on that sub-box alone, so the tree
     of sub-boxes is the same, and the box is certified exactly when that tree holds at most
     ``max_boxes`` boxes and none whose centre violates; only the statistics of a failure
-    (boxes tried, the reason met first) do.
+    (boxes tried, the reason met first) do. The search stops as soon as the boxes tried
+    plus those waiting exceed ``max_boxes``: each waiting box is a box of the tree, so the
+    tree cannot fit, and the boxes it would still try cannot change the verdict.
 
     Parameters
     ----------
@@ -762,14 +764,18 @@ def subdivide(
     certified : bool
     stats : dict
         ``boxes`` tried, ``certified_boxes``, ``worst_check`` over the certified boxes,
-        ``reason``, and ``routes`` (certified boxes per ``route`` named by ``certify``).
+        ``reason``, ``routes`` (certified boxes per ``route`` named by ``certify``) and,
+        when the budget is exceeded, ``pending`` (boxes left waiting).
     """
     many = certify_many or (lambda boxes: [certify(a, b) for a, b in boxes])
     queue = [(np.asarray(lo, float), np.asarray(hi, float))]
     stats = {"boxes": 0, "certified_boxes": 0, "worst_check": -math.inf}
     while queue:
-        if stats["boxes"] >= max_boxes:
-            return False, dict(stats, reason="box budget")
+        # every box waiting on the stack is one more box of the tree: once the boxes tried
+        # and those waiting exceed the budget, the tree cannot fit in it (the same verdict as
+        # trying them, at about half the cost of a failure)
+        if stats["boxes"] + len(queue) > max_boxes:
+            return False, dict(stats, reason="box budget", pending=len(queue))
         if time.perf_counter() > deadline:
             return False, dict(stats, reason="time limit (result depends on the machine)")
         batch = [queue.pop() for _ in range(min(wave, len(queue), max_boxes - stats["boxes"]))]

@@ -1165,7 +1165,7 @@ def _region_certificate(m, s, Om_s, nk, w0, region, solvers, solve_times, i, vio
     # the region inequalities are homogeneous in X and scale with 1/w0 in time tau: the
     # same X in the original coordinates x = blkdiag(T_state, I) x_s
     Tr = np.linalg.inv(sla.block_diag(s.region_st.T, np.eye(nk)))
-    return RegionCertificate(sym(Tr.T @ rs.X @ Tr), rs.lmi_max_eig, violation)
+    return RegionCertificate(sym(Tr.T @ rs.X @ Tr), rs.lmi_max_eig, violation, rs.method)
 
 
 def _entry(pt: _Point, h2cap: float, radius: float, response_excess: float) -> dict:

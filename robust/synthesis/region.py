@@ -15,11 +15,17 @@ of the block-diagonal characteristic function, Property 2.2)::
 with ``theta = arccos(zeta)`` the half-angle of the cone about the negative real axis
 (the characteristic function ``L = 0``, ``M = [[s, c], [-c, s]]``).
 
-:func:`certify_region` finds such an ``X`` for a given ``A`` by a small SDP, solved in
-coordinates where the decay Lyapunov matrix is the identity (the data of lightly damped
-loops spread over decades; recentring keeps the SDP well conditioned), and checks the
-answer in numpy: the LMI matrices rebuilt from ``X`` and their largest eigenvalues,
-and the eigenvalues of ``A`` themselves.
+:func:`certify_region` first tries the modal certificate: for a diagonalisable
+``A = V diag(lambda) V^-1``, ``X = (V V^H)^-1`` (real for a real ``A``, its conjugate
+eigenvectors paired) turns every LMI into ``V^-H (.) V^-1`` of a block-diagonal matrix
+whose blocks are the characteristic function at one eigenvalue, ``2 (Re lambda + alpha)``
+and ``2 (s Re lambda +- c |Im lambda|)``: negative exactly when that eigenvalue is in the
+region (the argument of [CG96] for normal matrices, in modal coordinates). Its margin
+shrinks with ``cond(V)^2``; when it does not clear rounding (a nearly defective ``A``),
+a small SDP finds ``X``, solved in coordinates where the decay Lyapunov matrix is the
+identity (the data of lightly damped loops spread over decades; recentring keeps the SDP
+well conditioned). Either answer is checked in numpy: the LMI matrices rebuilt from
+``X`` and their largest eigenvalues, and the eigenvalues of ``A`` themselves.
 
 References
 ----------
@@ -54,6 +60,10 @@ __all__ = [
 #: Normalisation of the analysis SDP: ``I <= X``, ``trace X <= TRACE_BOUND n`` in the
 #: recentred coordinates (room for a certificate far from the decay Lyapunov matrix).
 TRACE_BOUND = 1e4
+
+#: The modal certificate is kept when its checks clear ``n eps`` (times ``||A||`` for the
+#: LMIs) by this factor; below it, rounding could decide the sign, and the SDP is solved.
+MODAL_ROUNDING_FACTOR = 1e3
 
 
 def sym(M):
@@ -203,15 +213,22 @@ class RegionCertificate:
         relative to its largest (positive).
     violation : float
         :meth:`PoleRegion.violation` of the matrix's eigenvalues (negative).
+    method : str
+        How ``X`` was found: ``"modal"`` (from the eigenvectors) or ``"sdp"``.
     """
 
     X: np.ndarray
     lmi_max_eig: dict
     violation: float
+    method: str = "sdp"
 
     def to_json(self) -> dict:
-        """The checks of the certificate (no matrix)."""
-        return {"lmi_max_eig": dict(self.lmi_max_eig), "violation": self.violation}
+        """The checks of the certificate (no matrix) and how it was found."""
+        return {
+            "lmi_max_eig": dict(self.lmi_max_eig),
+            "violation": self.violation,
+            "method": self.method,
+        }
 
 
 def check_region_certificate(A, X, region: PoleRegion) -> dict:
@@ -234,10 +251,34 @@ def check_region_certificate(A, X, region: PoleRegion) -> dict:
     return out
 
 
+def _modal_certificate(A, region: PoleRegion):
+    """``X = (V V^H)^-1`` from the eigenvectors of ``A`` and its numpy checks, if every check
+    clears rounding by a wide factor (else ``None``)."""
+    try:
+        _, V = np.linalg.eig(A)
+        X = sym(np.linalg.inv(sym((V @ V.conj().T).real)))
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(X)):
+        return None
+    checks = check_region_certificate(A, X, region)
+    # the rebuilt LMIs carry rounding of about n eps ||A|| (relative to ||X||)
+    n = A.shape[0]
+    tol = MODAL_ROUNDING_FACTOR * n * np.finfo(float).eps
+    lmi_tol = tol * max(float(np.linalg.norm(A, 2)), region.decay_rate, 1.0)
+    for k, e in checks.items():
+        if (e < tol) if k == "X_min" else (e > -lmi_tol):
+            return None
+    return X, checks
+
+
 def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionCertificate:
     """One Lyapunov matrix proving every eigenvalue of ``A`` lies in ``region`` ([CG96]).
 
-    The SDP maximises the margin ``t`` of ``region_lmis(A, X) <= -t I`` over
+    First the modal certificate ``X = (V V^H)^-1`` (module notes), kept when each rebuilt
+    LMI's largest eigenvalue is below ``-MODAL_ROUNDING_FACTOR n eps max(||A||, alpha, 1)``
+    and ``X``'s smallest above ``MODAL_ROUNDING_FACTOR n eps`` (relative to ``||X||``).
+    Otherwise an SDP maximises the margin ``t`` of ``region_lmis(A, X) <= -t I`` over
     ``I <= X``, ``trace X <= TRACE_BOUND n`` in coordinates ``x = T xt`` where the decay
     Lyapunov matrix (from ``(A + alpha I)' X0 + X0 (A + alpha I) = -I``) is the
     identity; the certificate is mapped back and checked in numpy.
@@ -282,6 +323,9 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
             f"certify_region: an eigenvalue lies outside the region ({region.describe()}): "
             f"violation {v:.3g} rad/s"
         )
+    modal = _modal_certificate(A, region)
+    if modal is not None:
+        return RegionCertificate(modal[0], modal[1], v, method="modal")
     Ash = A + region.decay_rate * np.eye(n)
     T = recentring(sla.solve_continuous_lyapunov(Ash.T, -np.eye(n)))
     At = np.linalg.solve(T, A @ T)
