@@ -32,6 +32,7 @@ from designs.spec import SpecCheck, Specification, check_specification
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
 from robust.cache import cached
+from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
 from robust.model.device import DeviceLimits
@@ -207,8 +208,9 @@ def run_design(
         fraction on which the whole specification holds and ``P(failure) <= epsilon``
         with confidence 0.999); 0 skips it.
     n_jobs : int
-        Parallel processes of the coverage check and of the certified margin's sub-boxes
-        (the same result on any number, :func:`uncertainty.margins.margin_lower_bound`).
+        Parallel processes of the coverage check, of the certified margin's sub-boxes
+        and of the design's own independent solves (granted through
+        :func:`robust.engine.nested_jobs`); the same result on any number.
     progress : callable, optional
         ``progress(done, total)`` during the coverage check.
     cache : bool
@@ -261,7 +263,9 @@ def _build_design(
     design = get_design(name)
     family = default_family()
     members = sample(family.parameters, samples, method=method, seed=seed)
-    res = design.build(family, members, lim)
+    # a design that splits its own work (the LMI designs' P-steps) may use the processes
+    with nested_jobs(n_jobs):
+        res = design.build(family, members, lim)
     fam, K = res.family, res.controller
     ev = evaluate_design(name, fam, members, K, limits=lim, notes=res.notes)
     spec = Specification(peak_force_n=lim.peak_force_n, continuous_force_n=lim.continuous_force_n)

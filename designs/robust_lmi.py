@@ -20,14 +20,22 @@ The design, top to bottom (the same steps serve the three designs of this module
      :func:`robust.synthesis.pk.pksyn_multi`, the LMI synthesis: the P-K iteration with
      a certificate per design member (bounded-real with decay rate, H2 for the RMS
      force, Chilali-Gahinet region);
-   * checks: no member of the scaled box found outside the region, the specification on
-     the design members and on seeded samples of the scaled box
-     (:func:`designs.spec.check_specification`), and the pole region certified over the
-     whole scaled box (:func:`uncertainty.margins.margin_lower_bound` at ``k``);
+   * checks: no member of the scaled box found outside the region, and the
+     specification on the design members and on seeded samples of the scaled box
+     (:func:`designs.spec.check_specification`);
 
 4. bisection between the last scale reached and the first that failed;
-5. result: the controller of the largest certified scale, its certificates, and the
-   constraint that binds at the first scale not reached.
+5. the pole region certified over the whole scaled box of every scale reached, with the
+   controller found there (:func:`uncertainty.margins.margin_lower_bound` at ``k``). The
+   path never depends on it, so the scales are certified after the ladder, together
+   (in the processes :func:`robust.engine.nested_jobs` grants);
+6. result: the controller of the largest scale reached, its certificates, the largest
+   scale certified, and the constraint that binds at the first scale not reached.
+
+Within a synthesis the members' P-step SDPs are independent, and run in the processes
+granted the same way; ``bdft design`` grants its ``--jobs``, a design in the report's
+pool of designs none. Every split is combined in order, so the controller is the same
+to the bit on any number of processes.
 
 The force budget of the synthesis is the RMS force ``min(budget_fraction * continuous,
 peak / crest_factor)``: the peak force of a realistic motion is about ``crest_factor``
@@ -48,7 +56,7 @@ from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
 from robust.analysis.reduction import balanced_truncation
 from robust.checks import POSITIVE, Spec, check_int, validate_fields
-from robust.engine import map_tasks
+from robust.engine import jobs_available, map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import certify_regions, pksyn_multi
@@ -224,7 +232,7 @@ class ScaleLevel:
     reason : str
         Why the scale was not reached (empty if it was).
     seconds : float
-        Time spent at this scale.
+        Time spent at this scale (its certification, run after the ladder, aside).
     starts : dict
         Rounds started by each method (``minimax``: the linear programs; ``bfgs``: the
         nonsmooth tuning, run when the linear programs end outside the region).
@@ -455,16 +463,8 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
             f"{worst_v:.3g} rad/s, specification {'holds' if check and check.holds else 'fails'}"
         )
     if check is not None and worst_v < 0 and check.holds:
-        lower, _ = margin_lower_bound(
-            family,
-            controller=_loop_controller(outcome["K"], options, "K"),
-            region=mregion,
-            k_hint=k,
-            ladder=0,
-            iterations=0,
-            max_boxes=options.margin_boxes,
-        )
-        outcome["certified"] = lower >= k
+        # whether the region holds over the whole scaled box: _maximise certifies the
+        # rungs reached once the ladder is done (the path never depends on it)
         outcome["reached"] = True
     bad = max(check.constraints, key=lambda c: c.utilisation) if check else None
     level = ScaleLevel(
@@ -532,37 +532,73 @@ def maximise_margin(
         return _maximise(family, spec, options, limits, progress, start)
 
 
+def _certify_rung(task) -> bool:
+    """Whether the region holds over the whole box scaled to ``k`` for a rung's controller
+    (:func:`uncertainty.margins.margin_lower_bound`, ``margin_boxes`` sub-boxes); module
+    level, so that the rungs can be certified in worker processes."""
+    family, controller, region, k, boxes = task
+    with deterministic_solvers():
+        lower, _ = margin_lower_bound(
+            family,
+            controller=controller,
+            region=region,
+            k_hint=k,
+            ladder=0,
+            iterations=0,
+            max_boxes=boxes,
+        )
+    return lower >= k
+
+
+def _certify_rungs(family, levels, controllers, spec, options) -> tuple[list, float]:
+    """The levels with ``certified`` filled in for every rung reached, and the largest
+    scale certified; the rungs are independent, so they run in the processes granted by
+    :func:`robust.engine.nested_jobs` (combined in order: the same answer on any number)."""
+    tasks = [
+        (family, controllers[i], spec.region(), levels[i].scale, options.margin_boxes)
+        for i in sorted(controllers)
+    ]
+    jobs = min(jobs_available(), len(tasks)) if tasks else 1
+    done = dict(zip(sorted(controllers), map_tasks(_certify_rung, tasks, jobs=jobs)))
+    out = [dataclasses.replace(lv, certified=done.get(i, False)) for i, lv in enumerate(levels)]
+    certified = max((lv.scale for lv in out if lv.certified), default=0.0)
+    return out, float(certified)
+
+
 def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMIDesign:
     K = _start(family, options, limits) if start is None else _given_start(start, options)
     rows = [family.nominal_values()]
     levels = []
+    controllers = {}  # level index -> the controller of a rung reached
     best = None  # (scale, outcome, rows) of the largest scale reached
-    certified = 0.0
     failed = None
+
+    def attempt(k, K, rows):
+        level, outcome, new_rows = _try_scale(family, k, K, rows, spec, options, limits, progress)
+        if level.reached:
+            controllers[len(levels)] = _loop_controller(outcome["K"], options, "K")
+        levels.append(level)
+        return level, outcome, new_rows
+
     # the nominal member first (scale 0), then the ladder
     for k in (0.0, *options.ladder):
-        level, outcome, new_rows = _try_scale(family, k, K, rows, spec, options, limits, progress)
-        levels.append(level)
+        level, outcome, new_rows = attempt(k, K, rows)
         if not level.reached:
             failed = level
             break
         best, K, rows = (k, outcome, new_rows), outcome["K"], new_rows
-        if level.certified:
-            certified = max(certified, k)
     if failed is not None and best is not None and options.bisection:
         lo, hi = best[0], failed.scale
         for _ in range(options.bisection):
             k = 0.5 * (lo + hi)
-            level, outcome, new_rows = _try_scale(
-                family, k, best[1]["K"], best[2], spec, options, limits, progress
-            )
-            levels.append(level)
+            level, outcome, new_rows = attempt(k, best[1]["K"], best[2])
             if level.reached:
                 best, lo = (k, outcome, new_rows), k
-                if level.certified:
-                    certified = max(certified, k)
             else:
                 hi = k
+    if progress and controllers:
+        progress(f"certifying the region over the {len(controllers)} scales reached")
+    levels, certified = _certify_rungs(family, levels, controllers, spec, options)
     if best is None:
         return RobustLMIDesign(
             None,

@@ -21,17 +21,49 @@ says so.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 from collections.abc import Callable, Sequence
 
 from robust.errors import BDFTError, ParameterError
 
-__all__ = ["map_tasks", "scheduler_address", "SCHEDULER_ENV"]
+__all__ = ["map_tasks", "scheduler_address", "SCHEDULER_ENV", "jobs_available", "nested_jobs"]
 
 #: Environment variable that names a Dask scheduler when no address is given (Dask's own).
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 #: Seconds to wait for the scheduler before giving up.
 CONNECT_TIMEOUT_S = 20.0
+
+#: Local processes the work inside a block may use (:func:`nested_jobs`); 1 outside.
+_NESTED: contextvars.ContextVar[int] = contextvars.ContextVar("bdft_nested_jobs", default=1)
+
+
+@contextlib.contextmanager
+def nested_jobs(jobs: int):
+    """Within the block, work that can split itself (a design's independent solves) may use
+    ``jobs`` local processes (:func:`jobs_available`).
+
+    A command that runs one design at a time grants its ``--jobs``; a design running in a
+    pool's worker is granted nothing (the pool already fills the cores). What is computed
+    never depends on it: the split work is combined in order.
+
+    Parameters
+    ----------
+    jobs : int
+        Local processes, >= 1.
+    """
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ParameterError(f"nested_jobs: jobs must be a positive integer; got {jobs!r}")
+    token = _NESTED.set(jobs)
+    try:
+        yield
+    finally:
+        _NESTED.reset(token)
+
+
+def jobs_available() -> int:
+    """Local processes granted by the innermost :func:`nested_jobs` block (1 outside one)."""
+    return _NESTED.get()
 
 
 def scheduler_address(address: str | None = None) -> str | None:

@@ -10,7 +10,13 @@ import pytest
 
 from bdft import main
 from robust import engine
-from robust.engine import SCHEDULER_ENV, map_tasks, scheduler_address
+from robust.engine import (
+    SCHEDULER_ENV,
+    jobs_available,
+    map_tasks,
+    nested_jobs,
+    scheduler_address,
+)
 from robust.errors import BDFTError, ParameterError
 from uncertainty import default_family, sample, validate_family
 from uncertainty.batched import TASK_MEMBERS
@@ -154,3 +160,17 @@ def test_margin_is_the_same_on_every_engine(cluster):
     # tried needed several waves of sub-boxes
     assert 0 < obj["lower"] < obj["upper"] < 0.2
     assert max(h["boxes"] for h in obj["certificate"]["history"]) > 8
+
+
+def test_nested_jobs_grant_and_refuse():
+    assert jobs_available() == 1
+    with nested_jobs(3):
+        assert jobs_available() == 3
+        with nested_jobs(1):
+            assert jobs_available() == 1
+        assert jobs_available() == 3
+    assert jobs_available() == 1
+    for bad in (0, -2, 1.5, True, "2"):
+        with pytest.raises(ParameterError, match="nested_jobs: jobs"):
+            with nested_jobs(bad):
+                pass

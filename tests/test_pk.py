@@ -17,6 +17,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from designs.spec import Specification, check_specification, rms_force
 from designs.virtual_damping import virtual_damping_controller
 from robust.analysis.loops import loop_poles
+from robust.engine import nested_jobs
 from robust.errors import InfeasibleError, ModelStructureError, ParameterError
 from robust.model.device import DeviceLimits
 from robust.synthesis.forcefb import synthesis_member
@@ -30,6 +31,7 @@ from robust.synthesis.pk import (
     to_scaled,
 )
 from robust.synthesis.region import PoleRegion
+from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.tuning import _Terms, minimax_start, region_start, tune_members
 from uncertainty import default_family
 from uncertainty.margins import scaled_bounds
@@ -220,6 +222,31 @@ def test_deferred_region_certificates_equal_the_immediate_ones(members, tuned, d
     assert certify_regions(members, done) is done
     with pytest.raises(ModelStructureError, match="certify_regions"):
         certify_regions(members[:1], late)
+
+
+def test_p_steps_in_two_processes_give_the_same_synthesis(members, tuned):
+    # the members' P-step SDPs split over two worker processes (what `bdft design` grants):
+    # the same controller and the same levels to the bit as in this process
+    runs = []
+    with deterministic_solvers():
+        for jobs in (1, 2):
+            with nested_jobs(jobs):
+                runs.append(
+                    pksyn_multi(
+                        members,
+                        tuned.K,
+                        REGION,
+                        h2_bound=0.85,
+                        max_iter=2,
+                        region_certificates=False,
+                    )
+                )
+    one, two = runs
+    for m in "ABCD":
+        np.testing.assert_array_equal(getattr(one.K, m), getattr(two.K, m))
+    np.testing.assert_array_equal(one.gammas, two.gammas)
+    np.testing.assert_array_equal(one.h2s, two.h2s)
+    assert len(one.solve_times) == len(two.solve_times)
 
 
 def test_pk_design_meets_the_spec_on_its_members(loops, design):

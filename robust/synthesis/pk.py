@@ -52,6 +52,7 @@ rebuilt in numpy, each member's closed-loop eigenvalues, its H-infinity norm
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
@@ -65,6 +66,7 @@ import scipy.linalg as sla
 
 from robust.analysis.norms import hinf_norm
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
+from robust.engine import jobs_available, map_tasks
 from robust.errors import (
     InfeasibleError,
     ModelStructureError,
@@ -86,7 +88,13 @@ from robust.synthesis.scaling import (
     StateScaling,
     TimeScaling,
 )
-from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers, solve_problem
+from robust.synthesis.solve import (
+    DEFAULT_SOLVERS,
+    check_solvers,
+    deterministic_solvers,
+    solve_problem,
+    solver_threads,
+)
 
 __all__ = [
     "ResponseBound",
@@ -805,22 +813,48 @@ def _analyse_h2(cl: _Affine, Om, T_prev, solvers):
     return T_prev @ recentring(sym(Q.value)), z0, sol.solve_time
 
 
+def _analyse_member(task):
+    """One member's P-step, both certificates (module level: it runs in worker processes).
+
+    ``task = (hinf, h2, Om, T_hinf_prev, T_h2_prev, solvers, threads)``; ``threads == 1``
+    solves on one thread (:func:`deterministic_solvers`), as the caller did.
+    """
+    hinf, h2, Om, T_h_prev, T_2_prev, solvers, threads = task
+    with deterministic_solvers() if threads == 1 else contextlib.nullcontext():
+        T, g, st = _analyse_hinf(hinf, Om, T_h_prev, solvers)
+        times = [st]
+        if h2 is not None:
+            T2, z, st2 = _analyse_h2(h2, Om, T_2_prev, solvers)
+            times.append(st2)
+        else:
+            T2, z = None, 0.0
+    return T, g, T2, z, times
+
+
 def _p_step(members, Om, prev: _Point | None, solvers, times) -> _Point:
-    T_h, g_m, T_2, z_m = [], [], [], []
-    for i, m in enumerate(members):
-        T, g, st = _analyse_hinf(
-            m.hinf_shifted, Om, None if prev is None else prev.T_hinf[i], solvers
+    """The members' certificates for ``Om``: independent SDPs, in the processes granted by
+    :func:`robust.engine.nested_jobs` (the same answers in any of them, combined in order)."""
+    threads = solver_threads()
+    tasks = [
+        (
+            m.hinf_shifted,
+            m.h2,
+            Om,
+            None if prev is None else prev.T_hinf[i],
+            None if prev is None else prev.T_h2[i],
+            solvers,
+            threads,
         )
+        for i, m in enumerate(members)
+    ]
+    jobs = min(jobs_available(), len(tasks))
+    T_h, g_m, T_2, z_m = [], [], [], []
+    for T, g, T2, z, st in map_tasks(_analyse_member, tasks, jobs=jobs, scheduler=None):
         T_h.append(T)
         g_m.append(g)
-        times.append(st)
-        if m.h2 is not None:
-            T, z, st = _analyse_h2(m.h2, Om, None if prev is None else prev.T_h2[i], solvers)
-            times.append(st)
-        else:
-            T, z = None, 0.0
-        T_2.append(T)
+        T_2.append(T2)
         z_m.append(z)
+        times.extend(st)
     return _Point(Om, T_h, g_m, T_2, z_m)
 
 

@@ -30,6 +30,7 @@ __all__ = [
     "check_solvers",
     "deterministic_solvers",
     "solve_problem",
+    "solver_threads",
 ]
 
 DEFAULT_SOLVERS = ("CLARABEL", "SCS")
@@ -71,6 +72,12 @@ def deterministic_solvers():
             yield
     finally:
         _THREADS.reset(token)
+
+
+def solver_threads() -> int:
+    """Clarabel's thread count in this context: 1 inside :func:`deterministic_solvers`, else 0
+    (its own choice)."""
+    return _THREADS.get()
 
 
 def _sdp_capable() -> set[str]:
