@@ -813,48 +813,43 @@ def _analyse_h2(cl: _Affine, Om, T_prev, solvers):
     return T_prev @ recentring(sym(Q.value)), z0, sol.solve_time
 
 
-def _analyse_member(task):
-    """One member's P-step, both certificates (module level: it runs in worker processes).
+def _analyse_task(task):
+    """One certificate of a P-step (module level: it runs in worker processes).
 
-    ``task = (hinf, h2, Om, T_hinf_prev, T_h2_prev, solvers, threads)``; ``threads == 1``
-    solves on one thread (:func:`deterministic_solvers`), as the caller did.
+    ``task = (kind, cl, Om, T_prev, solvers, threads)``, ``kind`` ``"hinf"`` or ``"h2"``;
+    ``threads == 1`` solves on one thread (:func:`deterministic_solvers`), as the caller did.
     """
-    hinf, h2, Om, T_h_prev, T_2_prev, solvers, threads = task
+    kind, cl, Om, T_prev, solvers, threads = task
     with deterministic_solvers() if threads == 1 else contextlib.nullcontext():
-        T, g, st = _analyse_hinf(hinf, Om, T_h_prev, solvers)
-        times = [st]
-        if h2 is not None:
-            T2, z, st2 = _analyse_h2(h2, Om, T_2_prev, solvers)
-            times.append(st2)
-        else:
-            T2, z = None, 0.0
-    return T, g, T2, z, times
+        return (_analyse_hinf if kind == "hinf" else _analyse_h2)(cl, Om, T_prev, solvers)
 
 
 def _p_step(members, Om, prev: _Point | None, solvers, times) -> _Point:
     """The members' certificates for ``Om``: independent SDPs, in the processes granted by
     :func:`robust.engine.nested_jobs` (the same answers in any of them, combined in order)."""
     threads = solver_threads()
-    tasks = [
-        (
-            m.hinf_shifted,
-            m.h2,
-            Om,
-            None if prev is None else prev.T_hinf[i],
-            None if prev is None else prev.T_h2[i],
-            solvers,
-            threads,
+    tasks = []
+    for i, m in enumerate(members):
+        tasks.append(
+            ("hinf", m.hinf_shifted, Om, None if prev is None else prev.T_hinf[i], solvers, threads)
         )
-        for i, m in enumerate(members)
-    ]
+        if m.h2 is not None:
+            tasks.append(("h2", m.h2, Om, None if prev is None else prev.T_h2[i], solvers, threads))
     jobs = min(jobs_available(), len(tasks))
+    answers = iter(map_tasks(_analyse_task, tasks, jobs=jobs, scheduler=None))
     T_h, g_m, T_2, z_m = [], [], [], []
-    for T, g, T2, z, st in map_tasks(_analyse_member, tasks, jobs=jobs, scheduler=None):
+    for m in members:
+        T, g, st = next(answers)
         T_h.append(T)
         g_m.append(g)
-        T_2.append(T2)
+        times.append(st)
+        if m.h2 is not None:
+            T, z, st = next(answers)
+            times.append(st)
+        else:
+            T, z = None, 0.0
+        T_2.append(T)
         z_m.append(z)
-        times.extend(st)
     return _Point(Om, T_h, g_m, T_2, z_m)
 
 
