@@ -30,11 +30,28 @@ from designs.scheduled import scheduled_design
 from reports.coverage import family_coverage
 from reports.designs import run_designs_with, write_design_report
 from reports.limit import limit_conclusions
-from robust.cache import cached, lookup, store
+from robust.cache import lookup, store
 from robust.jsonio import atomic_write_json
 from uncertainty import default_family
 
 __all__ = ["register", "run"]
+
+_LIMIT = "achievable-limit map"
+_SCHEDULED = "per-operator design"
+
+
+def _limit_task(task) -> dict:
+    """The report's achievable-limit map (a task of the designs' pool): ``(samples, seed)``."""
+    samples, seed = task
+    lm = limit_map(default_family(), samples=samples, seed=seed)
+    return dict(lm.to_json(), conclusions=limit_conclusions(lm))
+
+
+def _scheduled_task(task):
+    """The report's per-operator design (a task of the designs' pool): ``(samples, seed)``;
+    its bank of controllers and its result."""
+    samples, seed = task
+    return scheduled_design(default_family(), samples=samples, seed=seed, limit_samples=0)
 
 
 def register(sub) -> None:
@@ -120,8 +137,8 @@ def run(args) -> int:
         0 skips it), ``tradeoff`` (force-limit multiples of the Pareto sweep, empty skips
         it), ``coverage_samples`` (each design's coverage certificate), ``jobs`` (local
         processes: the designs run that many at once, each with its coverage checks in
-        its own process; the trade-off's points, the map and the calibrations are split
-        over them),
+        its own process, and beside them the trade-off's points, the map and the
+        per-operator design, the longest first),
         ``limit_samples`` (members of the achievable-limit map shown beside the designs'
         coverage, 0 skips it), ``scheduled_samples`` (members of the per-operator design's
         coverage, :func:`designs.scheduled.scheduled_design`, 0 skips it) and ``json``.
@@ -145,19 +162,35 @@ def run(args) -> int:
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
     check_artifact_targets("--out", art_dir, [*design_names(), SCHEDULED])
-    # the trade-off's points (each a robust LMI design) share the designs' pool of processes
-    tradeoff = None
-    trade_inputs = {"factors": list(args.tradeoff or [])}
+    # the trade-off's points (each a robust LMI design), the achievable-limit map and the
+    # per-operator design share the designs' pool of processes (what the cache holds is not
+    # run again)
     extra = []
+    scheduled_inputs = {"samples": args.scheduled_samples, "seed": args.seed}
+    scheduled_pair = None
+    if args.scheduled_samples:
+        found, scheduled_pair = (
+            lookup("scheduled-design", scheduled_inputs) if use_cache else (False, None)
+        )
+        if not found:
+            extra.insert(0, (_SCHEDULED, _scheduled_task, (args.scheduled_samples, args.seed)))
+    trade_inputs = {"factors": list(args.tradeoff or [])}
+    tradeoff = None
     if args.tradeoff:
         found, tradeoff = lookup("force-tradeoff", trade_inputs) if use_cache else (False, None)
         if not found:
             tasks = tradeoff_tasks(default_family(), args.tradeoff)
-            extra = [
+            extra += [
                 (f"force-budget trade-off, force x{f:g}", tradeoff_point, t)
                 for f, t in zip(args.tradeoff, tasks)
             ]
-    runs, points = run_designs_with(
+    limit_inputs = {"samples": args.limit_samples, "seed": args.seed}
+    limit = None
+    if args.limit_samples:
+        found, limit = lookup("limit-map", limit_inputs) if use_cache else (False, None)
+        if not found:
+            extra.append((_LIMIT, _limit_task, (args.limit_samples, args.seed)))
+    runs, answers = run_designs_with(
         samples=args.samples,
         seed=args.seed,
         out_dir=art_dir,
@@ -170,7 +203,19 @@ def run(args) -> int:
         design_jobs=args.jobs,
         extra_tasks=extra,
     )
-    if extra:
+    points = []
+    for (label, _, _), answer in zip(extra, answers):
+        if label == _LIMIT:
+            limit = answer
+            if use_cache:
+                store("limit-map", limit_inputs, limit)
+        elif label == _SCHEDULED:
+            scheduled_pair = answer
+            if use_cache:
+                store("scheduled-design", scheduled_inputs, scheduled_pair)
+        else:
+            points.append(answer)
+    if points:
         tradeoff = points
         if use_cache:
             store("force-tradeoff", trade_inputs, tradeoff)
@@ -181,42 +226,9 @@ def run(args) -> int:
             file=sys.stderr,
             flush=True,
         )
-    limit = None
-    if args.limit_samples:
-        print("[bdft report] achievable-limit map ...", file=sys.stderr, flush=True)
-
-        def _limit():
-            lm = limit_map(
-                default_family(),
-                samples=args.limit_samples,
-                seed=args.seed,
-                n_jobs=args.jobs,
-                progress=member_progress("limit map"),
-            )
-            return dict(lm.to_json(), conclusions=limit_conclusions(lm))
-
-        limit, _ = cached(
-            "limit-map",
-            {"samples": args.limit_samples, "seed": args.seed},
-            _limit,
-            enabled=use_cache,
-        )
     scheduled = None
-    if args.scheduled_samples:
-        print("[bdft report] per-operator design ...", file=sys.stderr, flush=True)
-        (bank, scheduled), _ = cached(
-            "scheduled-design",
-            {"samples": args.scheduled_samples, "seed": args.seed},
-            lambda: scheduled_design(
-                default_family(),
-                samples=args.scheduled_samples,
-                seed=args.seed,
-                limit_samples=0,
-                n_jobs=args.jobs,
-                progress=member_progress("calibrations"),
-            ),
-            enabled=use_cache,
-        )
+    if scheduled_pair is not None:
+        bank, scheduled = scheduled_pair
         scheduled = dict(scheduled)
         art = dict(bank.to_json(), kind="bdft-controller-bank", name=SCHEDULED, result=scheduled)
         scheduled["artifact"] = str(atomic_write_json(art_dir / f"{SCHEDULED}.json", art))
