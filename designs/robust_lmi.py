@@ -50,6 +50,7 @@ import time
 
 import control as ct
 import numpy as np
+from joblib.externals.loky import ProcessPoolExecutor
 
 from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
@@ -565,6 +566,46 @@ def _certify_rungs(family, levels, controllers, spec, options) -> tuple[list, fl
     return out, float(certified)
 
 
+def _rung_task(task):
+    """One scale of the ladder in a worker process (:class:`_Ahead`): ``_try_scale``'s
+    arguments but ``progress``; solved on one thread, as :func:`maximise_margin` does."""
+    with deterministic_solvers():
+        return _try_scale(*task, None)
+
+
+class _Ahead:
+    """A worker process that tries the first bisection scale while the ladder tries the next
+    rung: if that rung fails, the bisection from the last scale reached is already done.
+
+    The guess has exactly the inputs the bisection would have (the same controller, design
+    members and scale), so the design is the same to the bit with or without it; a guess
+    whose rung is reached is discarded. A new guess is started only when the worker is
+    free (the long rung, the one that fails, comes after short ones), and the worker is
+    terminated when the ladder is done. Used when :func:`robust.engine.nested_jobs` grants
+    two processes or more.
+    """
+
+    def __init__(self):
+        # loky's executor (joblib's): cloudpickle carries the controllers; a private one, so
+        # that a guess no longer needed can be killed without touching joblib's pool
+        self._pool = ProcessPoolExecutor(max_workers=1)
+        self._job = None
+        self._key = None
+
+    def guess(self, key, task) -> None:
+        """Start ``task`` (the scale ``key``) unless the worker is still busy."""
+        if self._job is None or self._job.done():
+            self._job, self._key = self._pool.submit(_rung_task, task), key
+
+    def answer(self, key):
+        """The result for the scale ``key`` if it was guessed, else ``None``."""
+        return self._job.result() if self._job is not None and self._key == key else None
+
+    def close(self) -> None:
+        """Stop the worker (a guess still running is not needed)."""
+        self._pool.shutdown(wait=True, kill_workers=True)
+
+
 def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMIDesign:
     K = _start(family, options, limits) if start is None else _given_start(start, options)
     rows = [family.nominal_values()]
@@ -573,29 +614,51 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
     best = None  # (scale, outcome, rows) of the largest scale reached
     failed = None
 
-    def attempt(k, K, rows):
-        level, outcome, new_rows = _try_scale(family, k, K, rows, spec, options, limits, progress)
+    def record(level, outcome, new_rows):
         if level.reached:
             controllers[len(levels)] = _loop_controller(outcome["K"], options, "K")
         levels.append(level)
         return level, outcome, new_rows
 
-    # the nominal member first (scale 0), then the ladder
-    for k in (0.0, *options.ladder):
-        level, outcome, new_rows = attempt(k, K, rows)
-        if not level.reached:
-            failed = level
-            break
-        best, K, rows = (k, outcome, new_rows), outcome["K"], new_rows
-    if failed is not None and best is not None and options.bisection:
-        lo, hi = best[0], failed.scale
-        for _ in range(options.bisection):
-            k = 0.5 * (lo + hi)
-            level, outcome, new_rows = attempt(k, best[1]["K"], best[2])
-            if level.reached:
-                best, lo = (k, outcome, new_rows), k
-            else:
-                hi = k
+    def attempt(k, K, rows):
+        return record(*_try_scale(family, k, K, rows, spec, options, limits, progress))
+
+    ahead = _Ahead() if options.bisection and jobs_available() >= 2 else None
+    try:
+        # the nominal member first (scale 0), then the ladder
+        for k in (0.0, *options.ladder):
+            if ahead is not None and best is not None:
+                mid = 0.5 * (best[0] + k)
+                ahead.guess(
+                    (best[0], k), (family, mid, best[1]["K"], best[2], spec, options, limits)
+                )
+            level, outcome, new_rows = attempt(k, K, rows)
+            if not level.reached:
+                failed = level
+                break
+            best, K, rows = (k, outcome, new_rows), outcome["K"], new_rows
+        if failed is not None and best is not None and options.bisection:
+            lo, hi = best[0], failed.scale
+            for step in range(options.bisection):
+                k = 0.5 * (lo + hi)
+                guessed = ahead.answer((lo, hi)) if ahead is not None and step == 0 else None
+                if guessed is not None:
+                    level, outcome, new_rows = record(*guessed)
+                    if progress:
+                        progress(
+                            f"scale {k:.3g} (tried beside the ladder): "
+                            f"{'reached' if level.reached else 'not reached'}, worst region "
+                            f"violation {level.worst_violation:.3g} rad/s"
+                        )
+                else:
+                    level, outcome, new_rows = attempt(k, best[1]["K"], best[2])
+                if level.reached:
+                    best, lo = (k, outcome, new_rows), k
+                else:
+                    hi = k
+    finally:
+        if ahead is not None:
+            ahead.close()
     if progress and controllers:
         progress(f"certifying the region over the {len(controllers)} scales reached")
     levels, certified = _certify_rungs(family, levels, controllers, spec, options)

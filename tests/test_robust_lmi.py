@@ -22,6 +22,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from designs.robust_lmi import RobustOptions, _start, force_tradeoff, maximise_margin
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
+from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from uncertainty import default_family
 from uncertainty.margins import margin_lower_bound, scaled_bounds
@@ -258,3 +259,27 @@ def test_the_model_refuses_to_load_without_slicot():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode != 0
     assert "the workbench needs slycot" in r.stderr and "pip install slycot" in r.stderr
+
+
+def test_bisection_tried_beside_the_ladder_gives_the_same_design(family):
+    # with two processes granted, the bisection scale is tried in a worker while the ladder
+    # tries the rung that then fails: the levels and the controller equal the serial run's
+    o = RobustOptions(
+        ladder=(0.2,), rounds=1, bisection=1, margin_boxes=5, spec_samples=2, tune_iterations=30
+    )
+    runs, said = [], []
+    for jobs in (1, 2):
+        with nested_jobs(jobs):
+            runs.append(maximise_margin(family, options=o, progress=said.append))
+    one, two = runs
+    assert [lv.scale for lv in one.levels] == [0.0, 0.2, 0.1]
+    assert not one.levels[1].reached
+    assert any("tried beside the ladder" in m for m in said)
+    for a, b in zip(one.levels, two.levels):
+        assert repr(dataclasses.replace(a, seconds=0.0)) == repr(
+            dataclasses.replace(b, seconds=0.0)
+        )
+    assert one.scale == two.scale and one.certified_scale == two.certified_scale
+    for m in "ABCD":
+        np.testing.assert_array_equal(getattr(one.controller, m), getattr(two.controller, m))
+    np.testing.assert_array_equal(one.design_rows, two.design_rows)
