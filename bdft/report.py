@@ -166,18 +166,20 @@ def run(args) -> int:
     # per-operator design share the designs' pool of processes (what the cache holds is not
     # run again)
     extra = []
+
+    def look(kind, inputs):
+        return lookup(kind, inputs) if use_cache else (False, None)
+
     scheduled_inputs = {"samples": args.scheduled_samples, "seed": args.seed}
     scheduled_pair = None
     if args.scheduled_samples:
-        found, scheduled_pair = (
-            lookup("scheduled-design", scheduled_inputs) if use_cache else (False, None)
-        )
+        found, scheduled_pair = look("scheduled-design", scheduled_inputs)
         if not found:
             extra.insert(0, (_SCHEDULED, _scheduled_task, (args.scheduled_samples, args.seed)))
     trade_inputs = {"factors": list(args.tradeoff or [])}
     tradeoff = None
     if args.tradeoff:
-        found, tradeoff = lookup("force-tradeoff", trade_inputs) if use_cache else (False, None)
+        found, tradeoff = look("force-tradeoff", trade_inputs)
         if not found:
             tasks = tradeoff_tasks(default_family(), args.tradeoff)
             extra += [
@@ -187,7 +189,7 @@ def run(args) -> int:
     limit_inputs = {"samples": args.limit_samples, "seed": args.seed}
     limit = None
     if args.limit_samples:
-        found, limit = lookup("limit-map", limit_inputs) if use_cache else (False, None)
+        found, limit = look("limit-map", limit_inputs)
         if not found:
             extra.append((_LIMIT, _limit_task, (args.limit_samples, args.seed)))
     runs, answers = run_designs_with(

@@ -374,7 +374,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
     h2 = budget if "f" in options.controls else None
     rows = [np.asarray(r, float) for r in rows]
     t0 = time.perf_counter()
-    outcome = {"reached": False, "reason": "", "certified": False, "K": K, "pk": None}
+    outcome = {"reached": False, "reason": "", "K": K, "pk": None}
     check = None
     worst_v = math.nan
     starts = {"minimax": 0, "bfgs": 0}
@@ -473,7 +473,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         reached=outcome["reached"],
         members=len(rows),
         worst_violation=float(worst_v),
-        certified=outcome["certified"],
+        certified=False,  # filled in by _certify_rungs
         binding=bad.name if bad else "",
         utilisation=float(bad.utilisation) if bad else math.inf,
         reason="" if outcome["reached"] else outcome["reason"],
