@@ -1133,6 +1133,11 @@ def _box_task(loop, region, method, box) -> dict:
     return res
 
 
+def _boxes_task(task, boxes) -> list:
+    """Several sub-boxes of one step in one task: ``[task(box) for box in boxes]``."""
+    return [task(box) for box in boxes]
+
+
 def _perron_bound(enc) -> float:
     """Upper bound of every eigenvalue modulus of the interval matrix ``enc``: the Perron
     root of its entrywise magnitude bound, by the Collatz-Wielandt ratio of a positive
@@ -1204,7 +1209,16 @@ def _certify_scale(loop, k, region, max_boxes, deadline, method, jobs=1, schedul
         count[0] += len(batch)
         if local or len(boxes) == 1:
             return [task(x) for x in boxes]
-        return map_tasks(task, boxes, jobs=jobs, scheduler=scheduler)
+        if scheduler_address(scheduler) is not None:
+            return map_tasks(task, boxes, jobs=jobs, scheduler=scheduler)
+        # local processes: one task per process, the boxes dealt in turn (a box takes
+        # 10-20 ms; a task each cost about as much again in dispatch), then put back in order
+        parts = [boxes[i :: min(jobs, len(boxes))] for i in range(min(jobs, len(boxes)))]
+        done = map_tasks(functools.partial(_boxes_task, task), parts, jobs=jobs)
+        out = [None] * len(boxes)
+        for i, part in enumerate(done):
+            out[i :: len(parts)] = part
+        return out
 
     ok, stats = subdivide(
         lambda a, b: certify_many([(a, b)])[0],
