@@ -46,6 +46,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import shutil
+import tempfile
 import time
 
 import control as ct
@@ -566,11 +569,34 @@ def _certify_rungs(family, levels, controllers, spec, options) -> tuple[list, fl
     return out, float(certified)
 
 
-def _rung_task(task):
+class _Stale(Exception):
+    """Raised in :class:`_Ahead`'s worker when the ladder no longer wants the scale it tries."""
+
+
+def _wanted(path) -> str:
+    """The key the ladder wants tried beside it (written by :meth:`_Ahead.guess`)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+    except OSError:
+        return ""
+
+
+def _rung_task(task, key=None, wanted=None):
     """One scale of the ladder in a worker process (:class:`_Ahead`): ``_try_scale``'s
-    arguments but ``progress``; solved on one thread, as :func:`maximise_margin` does."""
+    arguments but ``progress``; solved on one thread, as :func:`maximise_margin` does.
+
+    With ``wanted`` (a file holding the key the ladder wants), the task stops, raising
+    :class:`_Stale`, at its start or after any round once that file names another key.
+    """
+
+    def still_wanted(_message=None):
+        if wanted is not None and _wanted(wanted) != repr(key):
+            raise _Stale(key)
+
+    still_wanted()
     with deterministic_solvers():
-        return _try_scale(*task, None)
+        return _try_scale(*task, still_wanted)
 
 
 class _Ahead:
@@ -579,23 +605,29 @@ class _Ahead:
 
     The guess has exactly the inputs the bisection would have (the same controller, design
     members and scale), so the design is the same to the bit with or without it; a guess
-    whose rung is reached is discarded. A new guess is started only when the worker is
-    free (the long rung, the one that fails, comes after short ones), and the worker is
-    terminated when the ladder is done. Used when :func:`robust.engine.nested_jobs` grants
-    two processes or more.
+    whose rung is reached is discarded. Each rung wants its own guess: one still running
+    for an earlier rung stops after its current round (it reads the key wanted from a
+    file), so the worker is free for the long rung, the one that fails, however long the
+    short rungs before it took. The worker is terminated when the ladder is done. Used
+    when :func:`robust.engine.nested_jobs` grants two processes or more.
     """
 
     def __init__(self):
         # loky's executor (joblib's): cloudpickle carries the controllers; a private one, so
-        # that a guess no longer needed can be killed without touching joblib's pool
+        # that the worker can be stopped without touching joblib's pool
         self._pool = ProcessPoolExecutor(max_workers=1)
+        self._dir = tempfile.mkdtemp(prefix="bdft-ahead-")
+        self._file = os.path.join(self._dir, "wanted")
         self._job = None
         self._key = None
 
     def guess(self, key, task) -> None:
-        """Start ``task`` (the scale ``key``) unless the worker is still busy."""
-        if self._job is None or self._job.done():
-            self._job, self._key = self._pool.submit(_rung_task, task), key
+        """Start ``task`` (the scale ``key``); a guess still running stops at its next round."""
+        tmp = self._file + ".tmp"
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(repr(key))
+        os.replace(tmp, self._file)
+        self._job, self._key = self._pool.submit(_rung_task, task, key, self._file), key
 
     def answer(self, key):
         """The result for the scale ``key`` if it was guessed, else ``None``."""
@@ -604,6 +636,7 @@ class _Ahead:
     def close(self) -> None:
         """Stop the worker (a guess still running is not needed)."""
         self._pool.shutdown(wait=True, kill_workers=True)
+        shutil.rmtree(self._dir, ignore_errors=True)
 
 
 def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMIDesign:

@@ -36,10 +36,12 @@ __all__ = ["Interval", "Gradient", "ROUNDING", "norm2_bound", "imatrix", "ivstac
 
 #: Relative widening of every result radius, covering floating-point rounding.
 ROUNDING = 8 * np.finfo(float).eps
+#: The smallest normal float, added to every radius (so that no radius is 0 after rounding).
+_TINY = np.finfo(float).tiny
 
 
 def _widen(mid: np.ndarray, rad: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    out = rad + ROUNDING * (np.abs(mid) + scale) + np.finfo(float).tiny
+    out = rad + ROUNDING * (np.abs(mid) + scale) + _TINY
     if not np.isfinite(out).all():
         raise ParameterError("Interval: an operation overflowed (result not finite)")
     return out
@@ -91,7 +93,9 @@ class Interval:
             The value.
         """
         x = np.asarray(x, float)
-        return cls(x, np.zeros_like(x))
+        if not np.isfinite(x).all():
+            raise ParameterError("Interval: midpoint and radius must be finite")
+        return cls._raw(x, np.zeros_like(x))
 
     @classmethod
     def hull(cls, lo, hi) -> Interval:
@@ -103,9 +107,15 @@ class Interval:
             Bounds, ``lo <= hi``.
         """
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-        if np.any(lo > hi):
+        if (lo > hi).any():
             raise ParameterError("Interval.hull: need lo <= hi")
-        return cls((lo + hi) / 2, (hi - lo) / 2)
+        mid = (lo + hi) / 2
+        rad = np.broadcast_to((hi - lo) / 2, mid.shape).copy()
+        # (the checks of the constructor, on arrays of the right type and shape already;
+        # a radius is >= 0 once lo <= hi holds and both are finite)
+        if not (np.isfinite(mid).all() and np.isfinite(rad).all()):
+            raise ParameterError("Interval: midpoint and radius must be finite")
+        return cls._raw(mid, rad)
 
     @property
     def lo(self) -> np.ndarray:
@@ -189,7 +199,7 @@ class Interval:
             raise ParameterError("Interval.reciprocal: the interval contains 0")
         a, b = 1.0 / hi, 1.0 / lo
         out = Interval.hull(np.minimum(a, b), np.maximum(a, b))
-        return Interval(out.mid, _widen(out.mid, out.rad, 0.0))
+        return Interval._raw(out.mid, _widen(out.mid, out.rad, 0.0))
 
     def __truediv__(self, other) -> Interval:
         return self * self._as(other).reciprocal()
@@ -200,7 +210,7 @@ class Interval:
         a, b = lo * lo, hi * hi
         low = np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(a, b))
         out = Interval.hull(low, np.maximum(a, b))
-        return Interval(out.mid, _widen(out.mid, out.rad, 0.0))
+        return Interval._raw(out.mid, _widen(out.mid, out.rad, 0.0))
 
     def __getitem__(self, key) -> Interval:
         return Interval._raw(self.mid[key], self.rad[key])
@@ -220,7 +230,7 @@ def norm2_bound(rad) -> float:
     r = np.asarray(rad, float)
     if r.size == 0:
         return 0.0
-    return float(np.linalg.norm(r, 2) * (1 + 1e-12) + np.finfo(float).tiny)
+    return float(np.linalg.norm(r, 2) * (1 + 1e-12) + _TINY)
 
 
 def _lift(x: Interval, ndim: int) -> Interval:
@@ -230,7 +240,7 @@ def _lift(x: Interval, ndim: int) -> Interval:
     if extra <= 0:
         return x
     shape = x.mid.shape[:1] + (1,) * extra + x.mid.shape[1:]
-    return Interval(x.mid.reshape(shape), x.rad.reshape(shape))
+    return Interval._raw(x.mid.reshape(shape), x.rad.reshape(shape))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -273,7 +283,7 @@ class Gradient:
         mid, rad = np.zeros(d), np.zeros(d)
         dv = Interval.point(1.0) if dvalue is None else dvalue
         mid[index], rad[index] = float(dv.mid), float(dv.rad)
-        return cls(Interval.hull(lo, hi), Interval(mid, rad))
+        return cls(Interval.hull(lo, hi), Interval._raw(mid, rad))
 
     @property
     def shape(self) -> tuple:
@@ -285,7 +295,8 @@ class Gradient:
         if isinstance(x, Gradient):
             return x.val, x.der
         v = Interval._as(x)
-        return v, Interval.point(np.zeros((d,) + v.shape))
+        zero = np.zeros((d,) + v.shape)
+        return v, Interval._raw(zero, np.zeros_like(zero))
 
     def _d(self):
         return self.der.mid.shape[0]
