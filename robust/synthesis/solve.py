@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import dataclasses
+import functools
 import time
 import warnings
 
@@ -80,6 +81,13 @@ def solver_threads() -> int:
     return _THREADS.get()
 
 
+@functools.cache
+def _installed() -> frozenset[str]:
+    """The cvxpy solvers installed here (cvxpy probes them on every call: 3 ms, once per
+    solve of a design's hundreds; what is installed does not change within a process)."""
+    return frozenset(cp.installed_solvers())
+
+
 def _sdp_capable() -> set[str]:
     """Names of the cvxpy conic solvers that accept semidefinite (PSD) cones."""
     return {
@@ -116,7 +124,7 @@ def check_solvers(solvers, *, name: str = "solvers", sdp: bool = False) -> tuple
         If ``solvers`` is not a non-empty sequence of strings, names a solver cvxpy
         does not know, or (``sdp=True``) a solver that cannot solve SDPs.
     """
-    installed = list(cp.installed_solvers())
+    installed = sorted(_installed())
     if isinstance(solvers, (str, bytes)):
         raise ParameterError(
             f"{name} must be a sequence of cvxpy solver names such as {DEFAULT_SOLVERS}; "
@@ -248,7 +256,7 @@ def solve_problem(
         check_scalar("gap_tol", gap_tol, Spec(0.0, 1.0, True, True), owner="solve_problem")
     if not isinstance(verbose, (bool, np.bool_)):
         raise ParameterError(f"{step}: verbose must be a bool; got {verbose!r}")
-    installed = set(cp.installed_solvers())
+    installed = _installed()
     attempts = []
     t0 = time.perf_counter()
     for name in solvers:
