@@ -116,6 +116,7 @@ __all__ = [
     "ConstraintCheck",
     "SpecCheck",
     "check_specification",
+    "unstable_member_check",
     "rms_force",
     "peak_force",
     "peak_time_grid",
@@ -551,12 +552,7 @@ def check_specification(
 
     notes = []
     if not stable.all():
-        bad = np.flatnonzero(~stable).tolist()
-        undefined = "tracking, feedthrough and forces" if has_force else "tracking and feedthrough"
-        notes.append(
-            f"{len(bad)} of {n} members have an unstable closed loop (members {bad}): "
-            f"their {undefined} are undefined (inf)"
-        )
+        notes.append(_unstable_note(np.flatnonzero(~stable).tolist(), n, has_force))
     # peak force: inf on unstable members, simulated on the stable ones of largest RMS force
     peak = np.where(stable, 0.0, math.inf) if has_force else np.zeros(n)
     if has_force:
@@ -573,7 +569,68 @@ def check_specification(
                 f"largest RMS force (members {simulated}), "
                 f"{duration_s:g} s each"
             )
+    return _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, notes)
 
+
+def _unstable_note(bad: list, n: int, has_force: bool) -> str:
+    undefined = "tracking, feedthrough and forces" if has_force else "tracking and feedthrough"
+    return (
+        f"{len(bad)} of {n} members have an unstable closed loop (members {bad}): "
+        f"their {undefined} are undefined (inf)"
+    )
+
+
+def unstable_member_check(
+    max_real: float, damping: float, spec: Specification, has_force: bool
+) -> SpecCheck:
+    """What :func:`check_specification` gives for one member whose closed loop is unstable.
+
+    On an unstable member only the poles are defined: tracking, feedthrough and (with a
+    handle force) the forces are ``inf``. A caller that knows the member is unstable from
+    its poles (``max_real`` at or above :func:`robust.analysis.stability.stability_bound`)
+    gets the same checks without building the member's loop.
+
+    Parameters
+    ----------
+    max_real : float
+        Largest real part of the member's closed-loop poles, rad/s (unstable).
+    damping : float
+        Smallest damping ratio of its poles in ``spec.damping_band_hz`` (``inf`` if none).
+    spec : Specification
+        The specification.
+    has_force : bool
+        Whether the controller drives the handle force.
+
+    Returns
+    -------
+    SpecCheck
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If ``max_real`` is below the stability bound (the member is stable).
+    """
+    if not max_real >= stability_bound(0.0):
+        raise ParameterError(
+            f"unstable_member_check: max_real must be at or above the stability bound "
+            f"{stability_bound(0.0):g} rad/s (an unstable member); got {max_real!r}"
+        )
+    inf = np.array([math.inf])
+    force = inf if has_force else np.zeros(1)
+    return _spec_check(
+        spec,
+        np.array([float(max_real)]),
+        np.array([float(damping)]),
+        force,
+        force,
+        inf,
+        inf,
+        [_unstable_note([0], 1, has_force)],
+    )
+
+
+def _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, notes) -> SpecCheck:
+    """The :class:`SpecCheck` of the members' figures (see :func:`check_specification`)."""
     checks = []
     a = spec.decay_rate
     value, worst = _worst(max_real)
@@ -619,7 +676,7 @@ def check_specification(
     binding = checks[int(np.argmax(util))].name
     return SpecCheck(
         constraints=tuple(checks),
-        members=n,
+        members=len(max_real),
         holds=all(c.holds for c in checks),
         binding=binding,
         notes=tuple(notes),

@@ -3,9 +3,17 @@
 import numpy as np
 import pytest
 
+import designs.coverage as coverage_module
 from designs.coverage import design_coverage, member_verdicts
 from designs.registry import get_design
-from designs.spec import CONSTRAINTS, Specification, check_specification
+from designs.spec import (
+    CONSTRAINTS,
+    Specification,
+    check_specification,
+    unstable_member_check,
+)
+from robust.analysis.loops import closed_loop_poles
+from robust.analysis.stability import damping_in_band
 from robust.errors import ParameterError
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample
@@ -42,6 +50,32 @@ def test_member_verdicts_agree_with_the_specification_check(family, virtual_damp
     # rate, stable ones on damping or tracking), so the agreement above means something
     assert {"decay rate", "damping", "tracking"} <= set(v.binding)
     assert 0 < v.violated[:, 0].sum() < 40
+
+
+def test_unstable_members_settled_by_their_poles(family, virtual_damping, monkeypatch):
+    # members whose batched poles say "unstable" beyond doubt are not assembled one by one:
+    # their verdicts, binding constraints and utilisations equal the full check's
+    rows = sample(family.parameters, 80, method="mc", seed=4).values
+    spec = Specification()
+    unstable, max_real, damping = coverage_module._screen(family, rows, virtual_damping, spec)
+    assert 10 < unstable.sum() < 70  # both kinds, so the comparison below means something
+    quick = member_verdicts(family, rows, virtual_damping, spec, seed=5)
+    monkeypatch.setattr(
+        coverage_module, "_screen", lambda f, r, c, s: (np.zeros(len(r), bool), None, None)
+    )
+    full = member_verdicts(family, rows, virtual_damping, spec, seed=5)
+    np.testing.assert_array_equal(quick.violated, full.violated)
+    assert quick.binding == full.binding
+    np.testing.assert_array_equal(quick.utilisation, full.utilisation)
+    # and for a screened member, the check from its own poles is check_specification's
+    i = int(np.flatnonzero(unstable)[0])
+    ref = check_specification([family.member(rows[i])], virtual_damping, spec, simulate_peak=0)
+    ps = closed_loop_poles(family.member(rows[i]).system(bdft=True, controller=virtual_damping))
+    assert not ps.stable and ps.max_real == pytest.approx(max_real[i], rel=1e-9)
+    mine = unstable_member_check(
+        ps.max_real, float(damping_in_band(ps.poles, spec.damping_band_hz)), spec, True
+    )
+    assert repr(mine) == repr(ref)
 
 
 def test_parallel_verdicts_equal_serial(family, virtual_damping):
@@ -83,6 +117,8 @@ def test_workspace_design_coverage(family):
 
 
 def test_bad_input(family):
+    with pytest.raises(ParameterError, match="max_real"):
+        unstable_member_check(-1.0, 0.3, Specification(), True)
     with pytest.raises(ParameterError, match="spec"):
         member_verdicts(family, family.nominal_values()[None, :], None, spec="tight")
     with pytest.raises(ParameterError, match="n_jobs"):
