@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import control as ct
@@ -151,6 +152,23 @@ def intended_motion(
     return u * (amplitude / math.sqrt(2) / max(np.sqrt(np.mean(u**2)), 1e-300))
 
 
+@functools.lru_cache(maxsize=64)
+def _reference(k_psf: float, valve, calibration, f_key: bytes) -> np.ndarray:
+    # the loop without BDFT has neither structure nor human: every member of a family
+    # shares it, so its response is computed once per grid
+    loop = BDFTLoop(k_psf=k_psf, valve=valve, calibration=calibration)
+    out = frequency_response(loop.system(bdft=False), np.frombuffer(f_key))
+    out.setflags(write=False)
+    return out
+
+
+def _reference_response(loop: BDFTLoop, f_hz) -> np.ndarray:
+    """``Y_ref`` at ``f_hz``: the cylinder response without BDFT and without compensation
+    (read-only; it depends on the loop's valve, calibration and workspace only)."""
+    f = np.ascontiguousarray(f_hz, dtype=float)
+    return _reference(loop.k_psf, loop.valve, loop.calibration, f.tobytes())
+
+
 def output_ratio(loop: BDFTLoop, controller, f_hz: np.ndarray) -> np.ndarray:
     """``Y / Y_ref`` at ``f_hz``, the paper's Figure 13 measure.
 
@@ -172,8 +190,7 @@ def output_ratio(loop: BDFTLoop, controller, f_hz: np.ndarray) -> np.ndarray:
         The ratio at each frequency.
     """
     with_k = frequency_response(loop.system(bdft=True, controller=controller), f_hz)
-    ref = frequency_response(loop.system(bdft=False), f_hz)
-    return with_k / ref
+    return with_k / _reference_response(loop, f_hz)
 
 
 def output_ratios(
@@ -200,7 +217,7 @@ def output_ratios(
     """
     if closed is None:
         closed = loop.system(bdft=True, controller=controller)
-    ref = frequency_response(loop.system(bdft=False), f_hz)
+    ref = _reference_response(loop, f_hz)
     with_k = frequency_response(closed, f_hz) / ref
     if controller is None:
         return with_k, with_k

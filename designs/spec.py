@@ -70,6 +70,7 @@ unstable loop is reported as binding on its decay rate.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -328,6 +329,17 @@ class SpecCheck:
         return to_jsonable(self)
 
 
+@functools.lru_cache(maxsize=16)
+def _unit_intent(bandwidth_hz: float) -> tuple:
+    """``A, B, C`` of the unit intent filter (read-only) and its H2 norm: the same for every
+    member checked at one bandwidth."""
+    F = intent_filter(bandwidth_hz, 1.0)
+    Af, Bf, Cf = (np.array(m, float) for m in (F.A, F.B, F.C))
+    for m in (Af, Bf, Cf):
+        m.setflags(write=False)
+    return Af, Bf, Cf, h2_norm(Af, Bf, Cf)
+
+
 def rms_force(
     loop: BDFTLoop,
     controller,
@@ -379,8 +391,7 @@ def rms_force(
     sys = closed if closed is not None else loop.system(bdft=True, controller=controller)
     iu, jf = sys.input_labels.index("u"), sys.output_labels.index("f")
     g = minimal_realization(sys.A, sys.B[:, [iu]], sys.C[[jf]], sys.D[[jf]][:, [iu]])
-    F = intent_filter(bandwidth_hz, 1.0)
-    Af, Bf, Cf = (np.asarray(m, float) for m in (F.A, F.B, F.C))
+    Af, Bf, Cf, norm_f = _unit_intent(bandwidth_hz)
     n, nf = g.A.shape[0], Af.shape[0]
     # cascade F then G_f: states (x_g, x_f); strictly proper since F is
     A = np.block([[g.A, g.B @ Cf], [np.zeros((nf, n)), Af]])
@@ -388,7 +399,7 @@ def rms_force(
     C = np.hstack([g.C, g.D @ Cf])
     if not poles_stable(np.linalg.eigvals(A)):
         return math.inf
-    ratio = h2_norm(A, B, C) / h2_norm(Af, Bf, Cf)
+    ratio = h2_norm(A, B, C) / norm_f
     return amplitude / math.sqrt(2.0) * ratio
 
 
