@@ -1072,7 +1072,7 @@ def _certify_box(loop, lo_t, hi_t, region, spot_checks, seed) -> dict:
             max(region.decay_rate, STABILITY_TOL),
             hi_t > lo_t,
             margins=region.distance_inside(res["eigs"]),
-            remainder=h * np.array([np.linalg.norm(r, 2) for r in G.der.rad]),
+            remainder=h * np.linalg.norm(G.der.rad, 2, axis=(1, 2)),
         ),
     }
     if out["centre_violates"]:
