@@ -181,7 +181,7 @@ def run(args) -> int:
     if args.tradeoff:
         found, tradeoff = look("force-tradeoff", trade_inputs)
         if not found:
-            tasks = tradeoff_tasks(default_family(), args.tradeoff)
+            tasks = tradeoff_tasks(default_family(), args.tradeoff, cache=use_cache)
             extra += [
                 (f"force-budget trade-off, force x{f:g}", tradeoff_point, t)
                 for f, t in zip(args.tradeoff, tasks)

@@ -31,7 +31,7 @@ from designs.result import Design, DesignChecks, DesignResult, HeldOutCheck, Sat
 from designs.spec import SpecCheck, Specification, check_specification
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
-from robust.cache import cached
+from robust.cache import cached, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
@@ -216,7 +216,8 @@ def run_design(
     cache : bool
         Take the result from the content-addressed cache (:mod:`robust.cache`) when the
         same design was run with the same inputs and code, and store it there otherwise
-        (the artifact is written either way).
+        (the artifact is written either way); the robust LMI ladders' rungs are kept and
+        reused the same way (:func:`robust.cache.caching`).
 
     Returns
     -------
@@ -249,7 +250,8 @@ def run_design(
             progress,
         )
 
-    (result, art), _ = cached("design", inputs, compute, enabled=cache)
+    with caching(cache):  # (and its steps: the robust LMI ladders' rungs)
+        (result, art), _ = cached("design", inputs, compute, enabled=cache)
     if art is not None and out_dir is not None:
         path = write_artifact(art, Path(out_dir) / f"{name}.json")["json"]
         result = result.replace(artifact=str(path))

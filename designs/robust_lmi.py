@@ -45,8 +45,10 @@ times its RMS (4.2 on the 20 s simulations of the specification).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import os
+import pickle
 import shutil
 import tempfile
 import time
@@ -59,6 +61,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from designs.result import Design, DesignResult
 from designs.spec import Specification, check_specification
 from robust.analysis.reduction import balanced_truncation
+from robust.cache import caching, caching_enabled, lookup, store
 from robust.checks import POSITIVE, Spec, check_int, validate_fields
 from robust.engine import jobs_available, map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
@@ -582,6 +585,54 @@ def _wanted(path) -> str:
         return ""
 
 
+def _rung_inputs(family, k, K, rows, spec, options, limits) -> dict:
+    """What one rung (:func:`_try_scale`) depends on besides the code, as a cache key.
+
+    The options the ladder alone reads (``ladder``, ``bisection``, ``margin_boxes``) are left
+    out, so a rung of the force trade-off (no bisection, fewer boxes) and the same rung of
+    the design share one entry; the controller counts by its matrices.
+    """
+    mats = (K.A, K.B, K.C, K.D) if isinstance(K, ct.StateSpace) else tuple(K)
+    opts = dataclasses.replace(options, ladder=(1.0,), bisection=0, margin_boxes=1)
+    blob = pickle.dumps(
+        (
+            family,
+            float(k),
+            type(K).__name__,
+            [np.asarray(m, float) for m in mats],
+            np.asarray(rows, float),
+            spec,
+            opts,
+            limits,
+        ),
+        protocol=4,
+    )
+    return {"rung": hashlib.sha256(blob).hexdigest()}
+
+
+def _keep_rung(args, result) -> None:
+    """Store a rung's result (``args`` as :func:`_try_scale`'s, ``progress`` aside) when
+    :func:`robust.cache.caching` is on."""
+    if caching_enabled():
+        store("robust-lmi-rung", _rung_inputs(*args), result)
+
+
+def _cached_rung(family, k, K, rows, spec, options, limits, progress):
+    """:func:`_try_scale`, or its result from the cache when :func:`robust.cache.caching` is
+    on and the same rung was tried before (by the force trade-off's point at the same
+    limits, or an earlier run): the same inputs give the same result to the bit."""
+    args = (family, k, K, rows, spec, options, limits)
+    if caching_enabled():
+        found, result = lookup("robust-lmi-rung", _rung_inputs(*args))
+        if found:
+            if progress:
+                progress(f"scale {k:.3g}: tried before, taken from the cache")
+            return result
+    result = _try_scale(*args, progress)
+    _keep_rung(args, result)
+    return result
+
+
 def _rung_task(task, key=None, wanted=None):
     """One scale of the ladder in a worker process (:class:`_Ahead`): ``_try_scale``'s
     arguments but ``progress``; solved on one thread, as :func:`maximise_margin` does.
@@ -654,7 +705,7 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
         return level, outcome, new_rows
 
     def attempt(k, K, rows):
-        return record(*_try_scale(family, k, K, rows, spec, options, limits, progress))
+        return record(*_cached_rung(family, k, K, rows, spec, options, limits, progress))
 
     ahead = _Ahead() if options.bisection and jobs_available() >= 2 else None
     try:
@@ -676,6 +727,7 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
                 k = 0.5 * (lo + hi)
                 guessed = ahead.answer((lo, hi)) if ahead is not None and step == 0 else None
                 if guessed is not None:
+                    _keep_rung((family, k, best[1]["K"], best[2], spec, options, limits), guessed)
                     level, outcome, new_rows = record(*guessed)
                     if progress:
                         progress(
@@ -763,11 +815,14 @@ def tradeoff_point(task) -> TradeoffPoint:
     Parameters
     ----------
     task : tuple
-        One of :func:`tradeoff_tasks`.
+        One of :func:`tradeoff_tasks`: ``(family, spec, options, margin_boxes)`` and, optionally,
+        whether the ladder's rungs may be kept in and read from the cache
+        (:func:`robust.cache.caching`; the design at the same limits then reuses them).
     """
-    family, spec, options, margin_boxes = task
+    family, spec, options, margin_boxes, *rest = task
     t0 = time.perf_counter()
-    d = maximise_margin(family, spec=spec, options=options)
+    with caching(bool(rest and rest[0])):
+        d = maximise_margin(family, spec=spec, options=options)
     certified = 0.0
     if d.controller is not None:
         # the certified robust margin of the point's controller for the pole region
@@ -799,6 +854,7 @@ def tradeoff_tasks(
     spec: Specification | None = None,
     options: RobustOptions | None = None,
     margin_boxes: int = 100,
+    cache: bool = False,
 ) -> list[tuple]:
     """The independent points of :func:`force_tradeoff`, for :func:`tradeoff_point`.
 
@@ -809,6 +865,10 @@ def tradeoff_tasks(
     ----------
     family, factors, spec, options, margin_boxes
         As for :func:`force_tradeoff`.
+    cache : bool
+        Let each point keep its ladder's rungs in the cache and read them from it
+        (:func:`robust.cache.caching`): ``bdft report`` runs the point at the device's own
+        limits beside ``hinf-robust-lmi``, whose ladder climbs the same rungs.
 
     Returns
     -------
@@ -829,7 +889,7 @@ def tradeoff_tasks(
         sp = dataclasses.replace(
             spec, peak_force_n=spec.peak_force_n * f, continuous_force_n=spec.continuous_force_n * f
         )
-        tasks.append((family, sp, options, margin_boxes))
+        tasks.append((family, sp, options, margin_boxes, bool(cache)))
     return tasks
 
 

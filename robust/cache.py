@@ -16,6 +16,8 @@ Pickles run code when loaded: the cache folder must be the user's own.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import hashlib
 import importlib.metadata
 import importlib.util
@@ -41,6 +43,8 @@ __all__ = [
     "numeric_kernels",
     "cache_key",
     "cached",
+    "caching",
+    "caching_enabled",
     "lookup",
     "store",
     "CACHE_ENV",
@@ -54,6 +58,33 @@ PACKAGES = ("robust", "uncertainty", "designs", "reports")
 LIBRARIES = ("numpy", "scipy", "control", "cvxpy", "clarabel", "slycot")
 
 _VERSION: str | None = None
+_CACHING: contextvars.ContextVar[bool] = contextvars.ContextVar("bdft_caching", default=False)
+
+
+@contextlib.contextmanager
+def caching(enabled: bool = True):
+    """Within the block, steps of a computation may keep and reuse their results in the cache.
+
+    A command run with its cache (``bdft design``, ``bdft report``) sets it around its work,
+    so that a long computation that repeats another's steps (the robust LMI ladders' rungs,
+    :mod:`designs.robust_lmi`) reads them back; ``--no-cache`` leaves it off. It holds in
+    this thread and its context only: a task sent to another process sets it there.
+
+    Parameters
+    ----------
+    enabled : bool
+        Whether steps may be cached.
+    """
+    token = _CACHING.set(bool(enabled))
+    try:
+        yield
+    finally:
+        _CACHING.reset(token)
+
+
+def caching_enabled() -> bool:
+    """Whether :func:`caching` is on here."""
+    return _CACHING.get()
 
 
 def _state_space(A, B, C, D, dt, inputs, outputs, states, name):

@@ -22,6 +22,7 @@ from designs.hinf_nominal import design_hinf_nominal
 from designs.robust_lmi import RobustOptions, _start, force_tradeoff, maximise_margin
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
+from robust.cache import CACHE_ENV, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from uncertainty import default_family
@@ -259,6 +260,43 @@ def test_the_model_refuses_to_load_without_slicot():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode != 0
     assert "the workbench needs slycot" in r.stderr and "pip install slycot" in r.stderr
+
+
+def test_rungs_kept_in_the_cache_give_the_same_design(family, tmp_path, monkeypatch):
+    # with caching on, a ladder without bisection (a trade-off point) keeps its rungs; the
+    # design's ladder (with bisection, other margin boxes) reads them back and tries only
+    # the bisection scale; the levels and the controller equal a run without the cache
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    o = RobustOptions(
+        ladder=(0.2,), rounds=1, bisection=1, margin_boxes=5, spec_samples=2, tune_iterations=30
+    )
+    point = dataclasses.replace(o, bisection=0, margin_boxes=3)
+    with caching(True):
+        first = maximise_margin(family, options=point)
+    said = []
+    with caching(True):
+        again = maximise_margin(family, options=o, progress=said.append)
+    fresh = maximise_margin(family, options=o)
+    assert [lv.scale for lv in first.levels] == [0.0, 0.2]
+    assert [m for m in said if "taken from the cache" in m] == [
+        "scale 0: tried before, taken from the cache",
+        "scale 0.2: tried before, taken from the cache",
+    ]
+    assert [lv.scale for lv in again.levels] == [0.0, 0.2, 0.1]
+    for a, b in zip(again.levels, fresh.levels, strict=True):
+        assert repr(dataclasses.replace(a, seconds=0.0)) == repr(
+            dataclasses.replace(b, seconds=0.0)
+        )
+    for m in "ABCD":
+        np.testing.assert_array_equal(getattr(again.controller, m), getattr(fresh.controller, m))
+    assert len(list((tmp_path / "robust-lmi-rung").glob("*.pkl"))) == 3
+    # a different controller start is another rung: nothing is shared
+    said.clear()
+    with caching(True):
+        maximise_margin(
+            family, options=dataclasses.replace(o, order=3, bisection=0), progress=said.append
+        )
+    assert not [m for m in said if "taken from the cache" in m]
 
 
 def test_bisection_tried_beside_the_ladder_gives_the_same_design(family):
