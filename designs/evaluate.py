@@ -21,6 +21,7 @@ import numpy as np
 
 from robust.analysis.loops import frequency_response, loop_poles
 from robust.analysis.simulation import SweptSine, foh_response, simulate
+from robust.checks import NONNEGATIVE, check_vector
 from robust.errors import ModelStructureError
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits, check_force
@@ -165,7 +166,7 @@ def _reference(k_psf: float, valve, calibration, f_key: bytes) -> np.ndarray:
 def _reference_response(loop: BDFTLoop, f_hz) -> np.ndarray:
     """``Y_ref`` at ``f_hz``: the cylinder response without BDFT and without compensation
     (read-only; it depends on the loop's valve, calibration and workspace only)."""
-    f = np.ascontiguousarray(f_hz, dtype=float)
+    f = np.ascontiguousarray(check_vector("output_ratios: f_hz", f_hz, NONNEGATIVE), dtype=float)
     return _reference(loop.k_psf, loop.valve, loop.calibration, f.tobytes())
 
 

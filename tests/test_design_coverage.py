@@ -1,7 +1,9 @@
 """Coverage of a design over the population: member verdicts and the certificate."""
 
+import control as ct
 import numpy as np
 import pytest
+from scipy.linalg import block_diag
 
 import designs.coverage as coverage_module
 from designs.coverage import design_coverage, member_verdicts
@@ -57,12 +59,11 @@ def test_unstable_members_settled_by_their_poles(family, virtual_damping, monkey
     # their verdicts, binding constraints and utilisations equal the full check's
     rows = sample(family.parameters, 80, method="mc", seed=4).values
     spec = Specification()
-    unstable, max_real, damping = coverage_module._screen(family, rows, virtual_damping, spec)
+    unstable, max_real, damping, n = coverage_module._screen(family, rows, virtual_damping, spec)
     assert 10 < unstable.sum() < 70  # both kinds, so the comparison below means something
+    assert n == 13 + virtual_damping.nstates
     quick = member_verdicts(family, rows, virtual_damping, spec, seed=5)
-    monkeypatch.setattr(
-        coverage_module, "_screen", lambda f, r, c, s: (np.zeros(len(r), bool), None, None)
-    )
+    monkeypatch.setattr(coverage_module, "_screen", _no_screen)
     full = member_verdicts(family, rows, virtual_damping, spec, seed=5)
     np.testing.assert_array_equal(quick.violated, full.violated)
     assert quick.binding == full.binding
@@ -76,6 +77,45 @@ def test_unstable_members_settled_by_their_poles(family, virtual_damping, monkey
         ps.max_real, float(damping_in_band(ps.poles, spec.damping_band_hz)), spec, True
     )
     assert repr(mine) == repr(ref)
+
+
+def _no_screen(family, rows, controller, spec):
+    return np.zeros(len(rows), bool), None, None, 0
+
+
+@pytest.mark.parametrize("hidden", ["unstable", "in band"])
+def test_no_screen_where_the_loop_hides_a_mode(family, virtual_damping, hidden, monkeypatch):
+    # a controller state wired to nothing is a mode of the full closed loop that the
+    # check's minimal realisation drops: unstable, it would make every member look unstable;
+    # lightly damped in the band, it would fail every member's damping. The screen must
+    # stand aside, and the verdicts are the full check's (those of the controller without it)
+    w = 2 * np.pi * 2.0
+    H = np.array([[1.0]]) if hidden == "unstable" else np.array([[0.0, 1.0], [-w * w, -0.02 * w]])
+    K = virtual_damping
+    h = H.shape[0]
+    K2 = ct.ss(
+        block_diag(K.A, H),
+        np.vstack([K.B, np.zeros((h, K.ninputs))]),
+        np.hstack([K.C, np.zeros((K.noutputs, h))]),
+        K.D,
+        inputs=K.input_labels,
+        outputs=K.output_labels,
+    )
+    rows = sample(family.parameters, 60, method="mc", seed=4).values
+    spec = Specification()
+    with_screen = member_verdicts(family, rows, K2, spec, seed=5)
+    reference = member_verdicts(family, rows, K, spec, seed=5)
+    monkeypatch.setattr(coverage_module, "_screen", _no_screen)
+    without = member_verdicts(family, rows, K2, spec, seed=5)
+    np.testing.assert_array_equal(with_screen.violated, without.violated)
+    assert with_screen.binding == without.binding
+    np.testing.assert_array_equal(with_screen.utilisation, without.utilisation)
+    # the extra state changes the minimal realisation's rounding only
+    np.testing.assert_array_equal(without.violated, reference.violated)
+    assert without.binding == reference.binding
+    np.testing.assert_allclose(without.utilisation, reference.utilisation, rtol=1e-8)
+    # (the reference itself has unstable and stable members)
+    assert 0 < (reference.binding.count("decay rate")) < 60
 
 
 def test_parallel_verdicts_equal_serial(family, virtual_damping):
