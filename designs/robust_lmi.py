@@ -617,17 +617,25 @@ def _keep_rung(args, result) -> None:
         store("robust-lmi-rung", _rung_inputs(*args), result)
 
 
+def _stored_rung(args):
+    """The cached result of the rung ``args`` (:func:`_try_scale`'s, ``progress`` aside), or
+    ``None`` (not stored, or :func:`robust.cache.caching` off)."""
+    if not caching_enabled():
+        return None
+    found, result = lookup("robust-lmi-rung", _rung_inputs(*args))
+    return result if found else None
+
+
 def _cached_rung(family, k, K, rows, spec, options, limits, progress):
     """:func:`_try_scale`, or its result from the cache when :func:`robust.cache.caching` is
     on and the same rung was tried before (by the force trade-off's point at the same
     limits, or an earlier run): the same inputs give the same result to the bit."""
     args = (family, k, K, rows, spec, options, limits)
-    if caching_enabled():
-        found, result = lookup("robust-lmi-rung", _rung_inputs(*args))
-        if found:
-            if progress:
-                progress(f"scale {k:.3g}: tried before, taken from the cache")
-            return result
+    result = _stored_rung(args)
+    if result is not None:
+        if progress:
+            progress(f"scale {k:.3g}: tried before, taken from the cache")
+        return result
     result = _try_scale(*args, progress)
     _keep_rung(args, result)
     return result
@@ -672,13 +680,21 @@ class _Ahead:
         self._job = None
         self._key = None
 
-    def guess(self, key, task) -> None:
-        """Start ``task`` (the scale ``key``); a guess still running stops at its next round."""
+    def _want(self, text: str) -> None:
         tmp = self._file + ".tmp"
         with open(tmp, "w", encoding="utf-8") as f:
-            f.write(repr(key))
+            f.write(text)
         os.replace(tmp, self._file)
+
+    def guess(self, key, task) -> None:
+        """Start ``task`` (the scale ``key``); a guess still running stops at its next round."""
+        self._want(repr(key))
         self._job, self._key = self._pool.submit(_rung_task, task, key, self._file), key
+
+    def idle(self) -> None:
+        """No guess is wanted (the next scales are in the cache): one running stops."""
+        self._want("")
+        self._job = self._key = None
 
     def answer(self, key):
         """The result for the scale ``key`` if it was guessed, else ``None``."""
@@ -713,9 +729,15 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
         for k in (0.0, *options.ladder):
             if ahead is not None and best is not None:
                 mid = 0.5 * (best[0] + k)
-                ahead.guess(
-                    (best[0], k), (family, mid, best[1]["K"], best[2], spec, options, limits)
-                )
+                task = (family, mid, best[1]["K"], best[2], spec, options, limits)
+                # (a rung or a bisection scale in the cache needs no guess: it is read back)
+                if (
+                    _stored_rung((family, k, K, rows, spec, options, limits)) is None
+                    and _stored_rung(task) is None
+                ):
+                    ahead.guess((best[0], k), task)
+                else:
+                    ahead.idle()
             level, outcome, new_rows = attempt(k, K, rows)
             if not level.reached:
                 failed = level
@@ -725,7 +747,12 @@ def _maximise(family, spec, options, limits, progress, start=None) -> RobustLMID
             lo, hi = best[0], failed.scale
             for step in range(options.bisection):
                 k = 0.5 * (lo + hi)
-                guessed = ahead.answer((lo, hi)) if ahead is not None and step == 0 else None
+                stored = _stored_rung((family, k, best[1]["K"], best[2], spec, options, limits))
+                guessed = (
+                    ahead.answer((lo, hi))
+                    if ahead is not None and step == 0 and stored is None
+                    else None
+                )
                 if guessed is not None:
                     _keep_rung((family, k, best[1]["K"], best[2], spec, options, limits), guessed)
                     level, outcome, new_rows = record(*guessed)

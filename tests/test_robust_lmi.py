@@ -290,6 +290,14 @@ def test_rungs_kept_in_the_cache_give_the_same_design(family, tmp_path, monkeypa
     for m in "ABCD":
         np.testing.assert_array_equal(getattr(again.controller, m), getattr(fresh.controller, m))
     assert len(list((tmp_path / "robust-lmi-rung").glob("*.pkl"))) == 3
+    # every rung stored: with two processes, nothing is tried beside the ladder either
+    said.clear()
+    with caching(True), nested_jobs(2):
+        third = maximise_margin(family, options=o, progress=said.append)
+    assert sum("taken from the cache" in m for m in said) == 3
+    assert not [m for m in said if "beside the ladder" in m]
+    for m in "ABCD":
+        np.testing.assert_array_equal(getattr(third.controller, m), getattr(fresh.controller, m))
     # a different controller start is another rung: nothing is shared
     said.clear()
     with caching(True):
