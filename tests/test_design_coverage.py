@@ -65,9 +65,7 @@ def test_unstable_members_settled_by_their_poles(family, virtual_damping, monkey
     quick = member_verdicts(family, rows, virtual_damping, spec, seed=5)
     monkeypatch.setattr(coverage_module, "_screen", _no_screen)
     full = member_verdicts(family, rows, virtual_damping, spec, seed=5)
-    np.testing.assert_array_equal(quick.violated, full.violated)
-    assert quick.binding == full.binding
-    np.testing.assert_array_equal(quick.utilisation, full.utilisation)
+    _assert_same_verdicts(quick, full)
     # and for a screened member, the check from its own poles is check_specification's
     i = int(np.flatnonzero(unstable)[0])
     ref = check_specification([family.member(rows[i])], virtual_damping, spec, simulate_peak=0)
@@ -77,6 +75,12 @@ def test_unstable_members_settled_by_their_poles(family, virtual_damping, monkey
         ps.max_real, float(damping_in_band(ps.poles, spec.damping_band_hz)), spec, True
     )
     assert repr(mine) == repr(ref)
+
+
+def _assert_same_verdicts(a, b):
+    np.testing.assert_array_equal(a.violated, b.violated)
+    assert a.binding == b.binding
+    np.testing.assert_array_equal(a.utilisation, b.utilisation)
 
 
 def _no_screen(family, rows, controller, spec):
@@ -107,9 +111,7 @@ def test_no_screen_where_the_loop_hides_a_mode(family, virtual_damping, hidden, 
     reference = member_verdicts(family, rows, K, spec, seed=5)
     monkeypatch.setattr(coverage_module, "_screen", _no_screen)
     without = member_verdicts(family, rows, K2, spec, seed=5)
-    np.testing.assert_array_equal(with_screen.violated, without.violated)
-    assert with_screen.binding == without.binding
-    np.testing.assert_array_equal(with_screen.utilisation, without.utilisation)
+    _assert_same_verdicts(with_screen, without)
     # the extra state changes the minimal realisation's rounding only
     np.testing.assert_array_equal(without.violated, reference.violated)
     assert without.binding == reference.binding
@@ -122,9 +124,7 @@ def test_parallel_verdicts_equal_serial(family, virtual_damping):
     rows = sample(family.parameters, 120, method="mc", seed=3).values
     a = member_verdicts(family, rows, virtual_damping, seed=9, n_jobs=1)
     b = member_verdicts(family, rows, virtual_damping, seed=9, n_jobs=2)
-    np.testing.assert_array_equal(a.violated, b.violated)
-    assert a.binding == b.binding
-    np.testing.assert_array_equal(a.utilisation, b.utilisation)
+    _assert_same_verdicts(a, b)
 
 
 def test_workspace_design_coverage(family):
