@@ -281,3 +281,57 @@ def test_large_plant_gamma_opt_certified_or_flagged(n, seed):
     else:
         assert np.isnan(res.gamma_opt)
         assert any("gamma_opt is not reported (NaN)" in note for note in res.notes)
+
+
+# ------------------------------------------------------------------ solver fallback's twin
+def test_fallback_solver_keeps_the_first_solvers_compiled_problem(monkeypatch):
+    # a parameterised problem that Clarabel solves, and SCS when Clarabel fails: each solver
+    # keeps its compiled form (two compilations in all, not one more per switch), and the
+    # fallback's answer is the problem's own, as if SCS had solved a fresh copy
+    import cvxpy as cp
+    from cvxpy.reductions.chain import Chain
+    from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL
+
+    import robust.synthesis.solve as solve_mod
+
+    compiles = []
+    apply = Chain.apply
+    monkeypatch.setattr(
+        Chain, "apply", lambda self, *a, **k: compiles.append(1) or apply(self, *a, **k)
+    )
+    fail = {"on": False}
+    clarabel = CLARABEL.solve_via_data
+
+    def flaky(self, *a, **k):
+        if fail["on"]:
+            raise cp.error.SolverError("forced failure")
+        return clarabel(self, *a, **k)
+
+    monkeypatch.setattr(CLARABEL, "solve_via_data", flaky)
+    x = cp.Variable(3)
+    c = cp.Parameter(3)
+    prob = cp.Problem(cp.Minimize(c @ x + cp.norm(x, 2)), [cp.norm(x, 1) <= 1.0])
+    answers = []
+    for k, failing in enumerate([False, True, False, True, True]):
+        c.value = np.array([1.0, -2.0 + 0.1 * k, 0.5])
+        fail["on"] = failing
+        res = solve_mod.solve_problem(prob, step="test: fallback twin", warm_start=False)
+        assert res.solver == ("SCS" if failing else "CLARABEL")
+        assert [a[0] for a in res.attempts] == (["CLARABEL", "SCS"] if failing else ["CLARABEL"])
+        # the problem carries the answer of the solver that produced it
+        assert prob.status == res.status
+        assert prob.value == res.objective
+        assert x.value is not None
+        # ... and the same numbers as that solver compiling a fresh copy
+        theta = x.value.copy()
+        fresh = cp.Problem(prob.objective, prob.constraints)
+        again = solve_mod.solve_problem(
+            fresh, step="test: fresh copy", solvers=(res.solver,), warm_start=False
+        )
+        assert again.objective == res.objective
+        np.testing.assert_array_equal(x.value, theta)
+        answers.append(res.objective)
+    # one compilation per solver (the fresh copies above add one each)
+    assert len(compiles) == 2 + 5
+    # the optimum moves with the parameter: the answers are not a stale problem's
+    assert len(set(np.round(answers, 8))) == 5

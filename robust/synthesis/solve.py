@@ -15,6 +15,7 @@ import dataclasses
 import functools
 import time
 import warnings
+import weakref
 
 import cvxpy as cp
 import numpy as np
@@ -86,6 +87,30 @@ def _installed() -> frozenset[str]:
     """The cvxpy solvers installed here (cvxpy probes them on every call: 3 ms, once per
     solve of a design's hundreds; what is installed does not change within a process)."""
     return frozenset(cp.installed_solvers())
+
+
+#: Per problem, the twin each fallback solver solves (see :func:`_for_solver`).
+_TWINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _for_solver(problem: cp.Problem, name: str, first: bool) -> cp.Problem:
+    """The problem object that solver ``name`` solves: ``problem`` itself for the first
+    solver of the list, else a twin (the same objective and constraints, so the same
+    variables and parameters) kept for that solver.
+
+    cvxpy keeps one compiled form per problem: solving it with another solver compiles it
+    again and drops the first solver's. A parameterised problem that Clarabel solves
+    hundreds of times, SCS now and then, was compiled afresh twice at each fallback (about
+    0.4 s each for the achievable-limit map's cones); each solver now keeps its own. The
+    answers are those of compiling afresh: the compiled form is the same, and a twin is
+    solved without a warm start.
+    """
+    if first:
+        return problem
+    twins = _TWINS.setdefault(problem, {})
+    if name not in twins:
+        twins[name] = cp.Problem(problem.objective, problem.constraints)
+    return twins[name]
 
 
 def _sdp_capable() -> set[str]:
@@ -259,17 +284,20 @@ def solve_problem(
     installed = _installed()
     attempts = []
     t0 = time.perf_counter()
-    for name in solvers:
+    for i, name in enumerate(solvers):
         if name not in installed:
             attempts.append((name, "not installed"))
             continue
+        target = _for_solver(problem, name, i == 0)
         opts = _SOLVER_OPTS.get(name, lambda t: {})(SOLVER_TOL.get(name, 1e-7))
         if name == "CLARABEL" and gap_tol is not None:
             opts.update(tol_gap_abs=gap_tol, tol_gap_rel=gap_tol)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)
-                problem.solve(solver=name, verbose=verbose, warm_start=warm_start, **opts)
+                # a fallback starts cold, as it did when it compiled the problem afresh
+                warm = warm_start and target is problem
+                target.solve(solver=name, verbose=verbose, warm_start=warm, **opts)
         except cp.error.SolverError as exc:
             attempts.append((name, f"solver error: {exc}"))
             continue
@@ -281,14 +309,20 @@ def solve_problem(
                 raise
             attempts.append((name, f"solver crashed: {str(exc).splitlines()[0][:200]}"))
             continue
-        status = problem.status
+        if target is not problem and target.status in (
+            *cp.settings.SOLUTION_PRESENT,
+            *cp.settings.INF_OR_UNB,
+        ):
+            # the twin's answer (its variables are the problem's) becomes the problem's
+            problem.unpack(target.solution)
+        status = target.status
         attempts.append((name, status))
         if status in (cp.INFEASIBLE, cp.UNBOUNDED):
             raise InfeasibleError(
                 f"{step}: solver {name} certifies the problem {status}; attempts: {attempts}"
             )
         if status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and problem.value is not None:
-            st = problem.solver_stats
+            st = target.solver_stats
             return SolveResult(
                 solver=name,
                 status=status,
