@@ -32,42 +32,6 @@ def test_loop_matches_hand_built_feedback_formula(k_psf, bdft):
     np.testing.assert_allclose(got, want, rtol=1e-7)
 
 
-def _refined_response(sys, f_hz, inp="u", out="y"):
-    """``C (j w I - A)^-1 B + D`` of one channel with one step of iterative refinement, its
-    residual formed in extended precision (``clongdouble``): an error bound near
-    ``cond * eps**2``, far below the double-precision answers compared with it."""
-    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    i, o = sys.input_labels.index(inp), sys.output_labels.index(out)
-    out_ = []
-    for w in 2 * np.pi * np.asarray(f_hz, float):
-        M = 1j * w * np.eye(A.shape[0]) - A
-        x0 = np.linalg.solve(M, B[:, i].astype(complex))
-        r = B[:, i].astype(np.clongdouble) - M.astype(np.clongdouble) @ x0.astype(np.clongdouble)
-        x1 = x0.astype(np.clongdouble) + np.linalg.solve(M, r.astype(complex))
-        out_.append(C[o].astype(np.longdouble) @ x1 + D[o, i])
-    return np.array(out_)
-
-
-@pytest.mark.parametrize("bdft", [True, False], ids=["bdft", "no-bdft"])
-def test_frequency_response_accurate_near_ill_conditioned_frequencies(bdft):
-    # the literal human's modes at the origin make j w I - A ill-conditioned at low
-    # frequency (condition number 1e7-1e8): the channel's stacked solve stays within 1e-12
-    # of the refined resolvent over a dense grid (python-control's per-frequency Hessenberg
-    # evaluation was 3e-10 off there), and it is the channel python-control names
-    from robust.analysis.loops import frequency_response
-
-    sys = BDFTLoop().system(bdft=bdft)
-    f = np.linspace(0.05, 20.0, 400)
-    got = frequency_response(sys, f)
-    ref = _refined_response(sys, f)
-    rel = np.abs(got - ref) / np.abs(ref)
-    assert rel.max() < 1e-12
-    if bdft:  # the grid does reach the ill-conditioned frequencies
-        w = 2 * np.pi * f[:5]
-        assert max(np.linalg.cond(1j * x * np.eye(sys.nstates) - sys.A) for x in w) > 1e6
-    np.testing.assert_allclose(got, y_over_u(sys, f), rtol=1e-8)
-
-
 def test_loop_signals_and_order():
     sys = BDFTLoop().system()
     assert sys.input_labels == ["u"]
