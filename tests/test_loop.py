@@ -160,3 +160,34 @@ def test_literal_loop_has_two_hidden_modes_at_origin():
     m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
     assert m.n_uncontrollable == 2 and m.n_unobservable == 0
     assert np.all(np.abs(m.removed_eigenvalues) < 1e-4)
+
+
+def test_blocks_shared_read_only_and_the_same_loop_as_fresh_blocks():
+    # a loop's blocks (all but the controller) are one system per parameter set, read-only;
+    # the loop assembled from them is exactly the one from freshly built blocks
+    from robust.model.components import pi_controller, structure, valve_cylinder
+    from robust.model.wiring import connect
+    from uncertainty import default_family
+
+    fam = default_family()
+    row = fam.nominal_values()
+    a, b = fam.member(row), fam.member(row)
+    ba, bb = a.blocks(), b.blocks()
+    assert all(x is y for x, y in zip(ba, bb))
+    with pytest.raises(ValueError, match="read-only"):
+        ba[2].A[0, 0] = 1.0
+    fresh = [
+        pi_controller(a.calibration.pi),
+        valve_cylinder(a.valve),
+        structure(a.struct),
+        a.human.system(),
+    ]
+    assert fresh[2] is not ba[2] and fresh[2].A.flags.writeable
+    kw = dict(inputs=["u", "f_ext"], outputs=["y", "c", "h", "x", "e"], name="bdft_loop")
+    got = a.system()
+    want = connect(fresh[:4] + [j.system() for j in a.junctions(force_terms=("f_ext",))], **kw)
+    for m in "ABCD":
+        np.testing.assert_array_equal(getattr(got, m), getattr(want, m))
+    # another member's structure is another block
+    other = fam.member(np.where(np.array(fam.names) == "struct.f1_hz", row * 0.9, row))
+    assert other.blocks()[2] is not ba[2]

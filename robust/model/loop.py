@@ -25,6 +25,7 @@ values found by :func:`robust.analysis.calibration.calibrate`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import control as ct
 
@@ -102,6 +103,26 @@ DEFAULT_CALIBRATION = LoopCalibration(
     handle_sign=-1,
     source="robust.analysis.calibration.calibrate(human='literal') default search",
 )
+
+
+@functools.lru_cache(maxsize=1024)
+def _shared(build, params) -> ct.StateSpace:
+    """``build(params)``, one python-control system per (hashable) parameter set and
+    process, its matrices read-only (see :meth:`BDFTLoop.blocks`)."""
+    sys = build(params)
+    for m in (sys.A, sys.B, sys.C, sys.D):
+        m.setflags(write=False)
+    return sys
+
+
+def _shared_human(human) -> ct.StateSpace:
+    """The human's system, shared when the model is hashable (the shipped ones are frozen
+    dataclasses), else built afresh."""
+    try:
+        hash(human)
+    except TypeError:
+        return human.system()
+    return _shared(type(human).system, human)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,6 +275,11 @@ class BDFTLoop:
         Without a controller force and without ``external_force``, the human's force
         input ``f`` is left open for the caller (a generalized plant's control input).
 
+        The blocks other than the controller are shared, one per parameter set and process,
+        and their matrices are read-only: a member's checks assemble its loop several times,
+        and building python-control systems cost more than the assemblies' arithmetic
+        (:func:`robust.model.components.structure` and the others hand out copies).
+
         Parameters
         ----------
         bdft : bool
@@ -280,15 +306,15 @@ class BDFTLoop:
                     f"got bdft={bdft}, human {self.human.variant!r}"
                 )
             force_terms.insert(0, "f_ext")
-        blocks = [pi_controller(self.calibration.pi), valve_cylinder(self.valve)]
+        blocks = [_shared(pi_controller, self.calibration.pi), _shared(valve_cylinder, self.valve)]
         if bdft:
-            blocks += [structure(self.struct), self.human.system()]
+            blocks += [_shared(structure, self.struct), _shared_human(self.human)]
         if controller is not None:
             blocks.append(renamed(controller, {"f": CONTROLLER_FORCE}))
         junctions = self.junctions(
             bdft=bdft, reference_correction=rc, force_terms=tuple(force_terms)
         )
-        return blocks + [j.system() for j in junctions]
+        return blocks + [_shared(Junction.system, j) for j in junctions]
 
     def system(
         self,
