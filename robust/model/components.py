@@ -135,7 +135,13 @@ def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFuncti
     return ct.tf(num, [1.0, 2.0 * zeta * wn, wn * wn])
 
 
-@functools.lru_cache(maxsize=1024)
+#: Parameter sets whose realisation a process keeps: more than a coverage certificate's
+#: members (2000 by default, the same members for every design), so that the next design a
+#: process checks finds them realised.
+REALISATIONS_KEPT = 8192
+
+
+@functools.lru_cache(maxsize=REALISATIONS_KEPT)
 def _realised(kind: str, params) -> tuple[np.ndarray, ...]:
     """``A, B, C, D`` of a block's transfer function, realised once per parameter set.
 

@@ -34,6 +34,7 @@ from robust.checks import POSITIVE, check_scalar, validate_fields
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import (
     K_PSF_NOMINAL,
+    REALISATIONS_KEPT,
     PIParams,
     StructureParams,
     ValveCylinderParams,
@@ -105,7 +106,7 @@ DEFAULT_CALIBRATION = LoopCalibration(
 )
 
 
-@functools.lru_cache(maxsize=1024)
+@functools.lru_cache(maxsize=REALISATIONS_KEPT)
 def _shared(build, params) -> ct.StateSpace:
     """``build(params)``, one python-control system per (hashable) parameter set and
     process, its matrices read-only (see :meth:`BDFTLoop.blocks`)."""
