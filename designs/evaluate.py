@@ -23,7 +23,7 @@ from robust.analysis.loops import frequency_response, loop_poles
 from robust.analysis.simulation import SweptSine, foh_response, simulate
 from robust.checks import NONNEGATIVE, check_vector
 from robust.errors import ModelStructureError
-from robust.model.components import K_PSF_NOMINAL
+from robust.model.components import K_PSF_NOMINAL, REALISATIONS_KEPT
 from robust.model.device import DeviceLimits, check_force
 from robust.model.loop import BDFTLoop
 from robust.synthesis.forcefb import intent_filter
@@ -222,7 +222,21 @@ def output_ratios(
     with_k = frequency_response(closed, f_hz) / ref
     if controller is None:
         return with_k, with_k
-    return with_k, frequency_response(loop.system(bdft=True), f_hz) / ref
+    f = np.ascontiguousarray(f_hz, dtype=float)
+    try:
+        hash(loop)
+    except TypeError:  # (a human model that is not hashable)
+        return with_k, frequency_response(loop.system(bdft=True), f) / ref
+    return with_k, _uncompensated(loop, f.tobytes()) / ref
+
+
+@functools.lru_cache(maxsize=REALISATIONS_KEPT)
+def _uncompensated(loop: BDFTLoop, f_key: bytes) -> np.ndarray:
+    # the member's response without a compensator: every design's coverage checks the same
+    # members, and a process of the report's pool checks several designs
+    out = frequency_response(loop.system(bdft=True), np.frombuffer(f_key))
+    out.setflags(write=False)
+    return out
 
 
 def frequency_metrics(loop: BDFTLoop, controller) -> tuple[float, float]:
