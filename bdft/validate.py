@@ -20,6 +20,7 @@ from bdft.args import (
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from robust.analysis.stability import DAMPING_BAND_HZ
+from robust.engine import scheduler_address, warm_workers
 from robust.model.literature import DEFAULT_POSTURE, POSTURES
 from robust.model.physical import nominal_params
 from uncertainty import (
@@ -29,6 +30,7 @@ from uncertainty import (
     sample,
     validate_family,
 )
+from uncertainty.batched import TASK_MEMBERS
 from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
 
 __all__ = [
@@ -365,10 +367,17 @@ def run(args) -> int:
     check_family_arguments(args)
     if args.controller is not None:
         check_json_file("--controller", args.controller)
+    # the worker processes start while the members are sampled and checked
+    local = (
+        args.jobs > 1 and args.samples > TASK_MEMBERS and scheduler_address(args.scheduler) is None
+    )
+    warm = warm_workers(args.jobs, "uncertainty.batched") if local else None
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()
     samples = sample(family.parameters, args.samples, method=args.method, seed=args.seed)
+    if warm is not None:
+        warm.join()
     with progress_bar(len(samples), "validate") as bar:
         res = validate_family(
             family,

@@ -174,3 +174,24 @@ def test_nested_jobs_grant_and_refuse():
         with pytest.raises(ParameterError, match="nested_jobs: jobs"):
             with nested_jobs(bad):
                 pass
+
+
+def _pid(_):
+    import os
+
+    return os.getpid()
+
+
+def test_warmed_workers_are_the_ones_the_tasks_run_in():
+    # the processes started (and their imports done) while the caller prepares its tasks
+    # are those map_tasks then uses: the warm-up is not thrown away
+    assert engine.warm_workers(1, "uncertainty.batched") is None
+    with pytest.raises(ParameterError, match="warm_workers: jobs"):
+        engine.warm_workers(0, "uncertainty.batched")
+    thread = engine.warm_workers(2, "uncertainty.batched")
+    thread.join(timeout=120)
+    assert not thread.is_alive()
+    warmed = set(thread.worker_pids)
+    assert len(thread.worker_pids) == 2 and all(isinstance(p, int) for p in warmed)
+    used = set(map_tasks(_pid, range(8), jobs=2))
+    assert used <= warmed
