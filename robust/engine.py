@@ -38,6 +38,13 @@ __all__ = [
     "warm_workers",
 ]
 
+
+def _check_jobs(where: str, jobs) -> None:
+    """``jobs`` must be a positive integer (a bool is not one)."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ParameterError(f"{where}: jobs must be a positive integer; got {jobs!r}")
+
+
 #: Environment variable that names a Dask scheduler when no address is given (Dask's own).
 SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 #: Seconds to wait for the scheduler before giving up.
@@ -61,8 +68,7 @@ def nested_jobs(jobs: int):
     jobs : int
         Local processes, >= 1.
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ParameterError(f"nested_jobs: jobs must be a positive integer; got {jobs!r}")
+    _check_jobs("nested_jobs", jobs)
     token = _NESTED.set(jobs)
     try:
         yield
@@ -159,8 +165,7 @@ def warm_workers(jobs: int, module: str) -> threading.Thread | None:
     ParameterError
         If ``jobs`` is not a positive integer.
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ParameterError(f"warm_workers: jobs must be a positive integer; got {jobs!r}")
+    _check_jobs("warm_workers", jobs)
     if jobs == 1:
         return None
     from joblib import Parallel, delayed
@@ -212,8 +217,7 @@ def map_tasks(
     BDFTError
         If the scheduler cannot be reached. A task's own exception is raised as it is.
     """
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ParameterError(f"map_tasks: jobs must be a positive integer; got {jobs!r}")
+    _check_jobs("map_tasks", jobs)
     args = list(args)
     step = progress or (lambda i: None)
     address = scheduler_address(scheduler)
