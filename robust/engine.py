@@ -24,7 +24,9 @@ import contextlib
 import contextvars
 import importlib
 import os
+import tempfile
 import threading
+import time
 from collections.abc import Callable, Sequence
 
 from robust.errors import BDFTError, ParameterError
@@ -132,10 +134,20 @@ def _client(address: str):
         yield client
 
 
-def _import(module: str) -> int:
-    """Import ``module`` in a worker; its process id."""
+#: Seconds a warm-up task waits for the other workers to check in before it gives up waiting.
+WARM_RENDEZVOUS_S = 60.0
+
+
+def _import(module: str, rendezvous: str, jobs: int) -> int:
+    """Import ``module`` in a worker, check in under ``rendezvous`` and wait until ``jobs``
+    workers have (so that each warm-up task runs in a worker of its own); the process id."""
     importlib.import_module(module)
-    return os.getpid()
+    pid = os.getpid()
+    open(os.path.join(rendezvous, str(pid)), "w").close()
+    deadline = time.monotonic() + WARM_RENDEZVOUS_S
+    while len(os.listdir(rendezvous)) < jobs and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return pid
 
 
 def warm_workers(jobs: int, module: str) -> threading.Thread | None:
@@ -158,7 +170,8 @@ def warm_workers(jobs: int, module: str) -> threading.Thread | None:
     -------
     threading.Thread or None
         The thread starting the workers (already started), or None when ``jobs`` is 1; once
-        joined, its ``worker_pids`` lists the processes that ran the imports.
+        joined, its ``worker_pids`` lists the processes that ran the imports, one task
+        each (unless a worker failed to check in within ``WARM_RENDEZVOUS_S``).
 
     Raises
     ------
@@ -171,7 +184,13 @@ def warm_workers(jobs: int, module: str) -> threading.Thread | None:
     from joblib import Parallel, delayed
 
     def start():
-        thread.worker_pids = Parallel(n_jobs=jobs)(delayed(_import)(module) for _ in range(jobs))
+        # a worker that finished its import first would otherwise take the next task too,
+        # and the other would import only when the real tasks arrive: each task waits until
+        # every worker has checked in (a busy worker does not hold back queued tasks)
+        with tempfile.TemporaryDirectory(prefix="bdft-warm-") as rendezvous:
+            thread.worker_pids = Parallel(n_jobs=jobs)(
+                delayed(_import)(module, rendezvous, jobs) for _ in range(jobs)
+            )
 
     thread = threading.Thread(target=start, name="bdft-warm-workers", daemon=True)
     thread.worker_pids = []
