@@ -207,6 +207,7 @@ SOLVE_CASES = [
     ("solvers-empty", {"solvers": ()}, ParameterError, r"test: solvers must name at least one"),
     ("solvers-unknown", {"solvers": ("FOO",)}, ParameterError, r"\['FOO'\] is not a solver"),
     ("verbose-none", {"verbose": None}, ParameterError, r"verbose must be a bool"),
+    ("refine-str", {"refine": "yes"}, ParameterError, r"test: refine must be a bool; got 'yes'"),
 ]
 
 

@@ -231,6 +231,7 @@ def solve_problem(
     gap_tol: float | None = None,
     verbose: bool = False,
     warm_start: bool = True,
+    refine: bool = False,
 ) -> SolveResult:
     """Solve ``problem``, falling back through ``solvers``; map failure to exceptions.
 
@@ -252,6 +253,11 @@ def solve_problem(
         cvxpy's ``warm_start``: with it, a re-solved parameterised problem reuses the
         solver's previous workspace (Clarabel's ``update``), so its answer depends in the
         last digits on what was solved before; ``False`` solves afresh each time.
+    refine : bool
+        Clarabel's iterative refinement of each step's linear solve (off by default: the
+        LMI syntheses' SDPs do without it at half the cost). Second-order cone programs
+        whose primal residual stalls and then grows near the optimum (Clarabel stops with
+        ``InsufficientProgress``) converge with it.
 
     Returns
     -------
@@ -281,6 +287,8 @@ def solve_problem(
         check_scalar("gap_tol", gap_tol, Spec(0.0, 1.0, True, True), owner="solve_problem")
     if not isinstance(verbose, (bool, np.bool_)):
         raise ParameterError(f"{step}: verbose must be a bool; got {verbose!r}")
+    if not isinstance(refine, (bool, np.bool_)):
+        raise ParameterError(f"{step}: refine must be a bool; got {refine!r}")
     installed = _installed()
     attempts = []
     t0 = time.perf_counter()
@@ -292,6 +300,8 @@ def solve_problem(
         opts = _SOLVER_OPTS.get(name, lambda t: {})(SOLVER_TOL.get(name, 1e-7))
         if name == "CLARABEL" and gap_tol is not None:
             opts.update(tol_gap_abs=gap_tol, tol_gap_rel=gap_tol)
+        if name == "CLARABEL" and refine:
+            opts.update(iterative_refinement_enable=True)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)
