@@ -5,6 +5,7 @@ import json
 import control as ct
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 import designs.limit as limit
 from bdft import main
@@ -85,6 +86,33 @@ def test_stabilising_gain_meets_the_region(force_problem):
     # the open loop itself does not (lightly damped structure and arm modes)
     ev0 = np.linalg.eigvals(plant.A)
     assert np.min(-ev0.real / np.abs(ev0)) < 0.05
+
+
+def test_stabilising_gain_skips_inaccurate_riccati_solutions(family):
+    # member 11 of the 64-member map (seed 0), handle force with every state: with the
+    # input weights 1e8 and 1e7 the Riccati solution grows to 1e15 and its relative
+    # residual to 4e-3; the gain of 1e7 happened to place the poles in the region on one
+    # CPU's kernels and not on another's. It is skipped: the gain returned is that of the
+    # first accurately solved weight that meets the region, 1e-2 (shift 0.2 rad/s beyond
+    # the region's), as SLICOT's Riccati solver (python-control) gives it
+    import robust.synthesis.youla as youla
+
+    row = sample(family.parameters, 64, method="lhs", seed=0).values[11]
+    plant, _ = limit._member_plant(family.member(row), ("f",))
+    spec = Specification()
+    region = PoleRegion(spec.decay_rate, spec.min_damping)
+    K0 = stabilising_gain(plant.A, plant.Bu, region)
+    n = plant.A.shape[0]
+    target_decay = spec.decay_rate * 1.05 + 0.05
+    As = plant.A + (target_decay + 0.2) * np.eye(n)
+    X, _, G = ct.care(As, plant.Bu, np.eye(n), 1e-2 * np.eye(1))
+    np.testing.assert_allclose(K0, -G, rtol=1e-6)
+    ev = np.linalg.eigvals(plant.A + plant.Bu @ K0)
+    assert ev.real.max() < -target_decay
+    # the skipped solution of weight 1e7
+    X7 = sla.solve_continuous_are(As, plant.Bu, np.eye(n), 1e7 * np.eye(1))
+    assert youla._riccati_residual(As, plant.Bu, X7, 1e7) > 1e2 * youla.RICCATI_RTOL
+    assert youla._riccati_residual(As, plant.Bu, X, 1e-2) < 1e-9
 
 
 def test_affine_maps_equal_the_closed_loop(force_problem):

@@ -252,13 +252,33 @@ def output_gram(A, B, C) -> np.ndarray:
     return 0.5 * (W + W.T)
 
 
+#: Largest relative residual of an accepted Riccati solution in :func:`stabilising_gain`
+#: (accurate solutions of the limit map's members reach 1e-7 at most; those whose gains
+#: depend on rounding, 1e-4 to 1e-2).
+RICCATI_RTOL = 1e-5
+
+
+def _riccati_residual(A, Bu, X, r: float) -> float:
+    """Relative residual of ``A' X + X A - X Bu Bu' X / r + I = 0`` (1-norms, scaled by its
+    terms' sizes)."""
+    G = (X @ Bu) @ (Bu.T @ X) / r
+    res = A.T @ X + X @ A - G + np.eye(A.shape[0])
+    scale = 1.0 + 2.0 * np.linalg.norm(A, 1) * np.linalg.norm(X, 1) + np.linalg.norm(G, 1)
+    return float(np.linalg.norm(res, 1) / scale)
+
+
 def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.ndarray:
     """A state feedback ``K0`` with every eigenvalue of ``A + Bu K0`` inside ``region``.
 
     Linear-quadratic regulators on ``A + alpha I`` (decay rate ``alpha`` above the
     region's) with identity state weight and input weights from large (least effort) to
     small, tried in turn; the first whose closed-loop eigenvalues lie at least ``margin``
-    (relative) inside the region (:meth:`PoleRegion.violations`) is returned.
+    (relative) inside the region (:meth:`PoleRegion.violations`) is returned. A Riccati
+    solution whose relative residual exceeds :data:`RICCATI_RTOL` is skipped: with a large
+    input weight and a mode the actuators barely move, the solution grows to 1e15 and its
+    residual to 1e-3, and the gain it gives is set by rounding (on one CPU's kernels it
+    placed the poles in the region, on another it did not, and the map's basis and
+    required force followed).
 
 
     Parameters
@@ -287,16 +307,14 @@ def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.n
     # the least control effort first: a large input weight mirrors the poles outside the
     # shifted half-plane and leaves the others; smaller weights move more of them
     for alpha_extra in (0.2, 1.0, 3.0):
-        alpha = target.decay_rate + alpha_extra
+        As = A + (target.decay_rate + alpha_extra) * np.eye(n)
         for r in 10.0 ** np.arange(8, -9, -1):
             try:
-                X = sla.solve_continuous_are(
-                    A + alpha * np.eye(n), Bu, np.eye(n), r * np.eye(Bu.shape[1])
-                )
+                X = sla.solve_continuous_are(As, Bu, np.eye(n), r * np.eye(Bu.shape[1]))
             except (np.linalg.LinAlgError, ValueError):
                 continue
             K = -np.linalg.solve(r * np.eye(Bu.shape[1]), Bu.T @ X)
-            if not np.all(np.isfinite(K)):
+            if not np.all(np.isfinite(K)) or _riccati_residual(As, Bu, X, r) > RICCATI_RTOL:
                 continue
             if target.violation(np.linalg.eigvals(A + Bu @ K)) < 0:
                 return K
