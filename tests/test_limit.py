@@ -11,7 +11,7 @@ import designs.limit as limit
 from bdft import main
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
-from robust.errors import ParameterError
+from robust.errors import InfeasibleError, ParameterError
 from robust.jsonio import round_significant
 from robust.synthesis.forcefb import intent_filter
 from robust.synthesis.region import PoleRegion
@@ -113,6 +113,9 @@ def test_stabilising_gain_skips_inaccurate_riccati_solutions(family):
     X7 = sla.solve_continuous_are(As, plant.Bu, np.eye(n), 1e7 * np.eye(1))
     assert youla._riccati_residual(As, plant.Bu, X7, 1e7) > 1e2 * youla.RICCATI_RTOL
     assert youla._riccati_residual(As, plant.Bu, X, 1e-2) < 1e-9
+    # an unstable mode the actuator cannot move: no gain, and the message says why
+    with pytest.raises(InfeasibleError, match=r"no LQR gain places every pole.* of the 51 Ric"):
+        stabilising_gain(np.diag([1.0, -1.0]), np.array([[0.0], [1.0]]), region)
 
 
 def test_affine_maps_equal_the_closed_loop(force_problem):
