@@ -88,3 +88,36 @@ def test_the_json_hashes_alike_across_threads_and_kernels(args, tmp_path):
         return
     hashes = {_hash(args, env, tmp_path) for env in ENVS}
     assert len(hashes) == 1
+
+
+def test_deterministic_solvers_put_every_blas_on_one_thread_and_restore_it(monkeypatch):
+    """Inside the block every loaded BLAS runs one thread (Clarabel too), and the counts are
+    restored after it; the view of the loaded libraries is kept between blocks and made
+    again once a module has been imported."""
+    from threadpoolctl import ThreadpoolController
+
+    from robust.synthesis import solve
+
+    def blas_threads():
+        return {
+            i["filepath"]: i["num_threads"]
+            for i in ThreadpoolController().info()
+            if i["user_api"] == "blas"
+        }
+
+    with ThreadpoolController().limit(limits=2, user_api="blas"):
+        before = blas_threads()
+        assert 2 in before.values()  # (a single-threaded build stays at 1)
+        with solve.deterministic_solvers():
+            assert blas_threads() == dict.fromkeys(before, 1)
+            assert solve.solver_threads() == 1
+            first = solve._blas_controller()
+        assert blas_threads() == before
+        assert solve.solver_threads() == 0
+        with solve.deterministic_solvers():
+            assert solve._blas_controller() is first
+        monkeypatch.setitem(sys.modules, "bdft_test_new_module", type(sys)("bdft_test_new_module"))
+        with solve.deterministic_solvers():
+            assert blas_threads() == dict.fromkeys(before, 1)
+            assert solve._blas_controller() is not first
+        assert blas_threads() == before

@@ -77,6 +77,12 @@ def test_lifted_simulation_equals_dlsim():
     y = lifted_response(Ad, Bd[:, 0], Cd[0], float(Dd[0, 0]), u)
     _, ref, _ = ss.dlsim((Ad, Bd, Cd, Dd, 1e-3), u)
     np.testing.assert_allclose(y, ref[:, 0], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    # several output rows in one call: the same numbers as one call per row (the
+    # calibration's record relies on it)
+    C2 = np.vstack([Cd[0], rng.normal(size=30)])
+    both = lifted_response(Ad, Bd[:, 0], C2, np.array([Dd[0, 0], 0.3]), u)
+    np.testing.assert_array_equal(both[0], y)
+    np.testing.assert_array_equal(both[1], lifted_response(Ad, Bd[:, 0], C2[1], 0.3, u))
 
 
 def test_first_order_hold_response_equals_control_forced_response():

@@ -13,6 +13,7 @@ import contextlib
 import contextvars
 import dataclasses
 import functools
+import sys
 import time
 import warnings
 import weakref
@@ -20,7 +21,7 @@ import weakref
 import cvxpy as cp
 import numpy as np
 from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from robust.checks import Spec, check_scalar
 from robust.errors import InfeasibleError, ParameterError, SolverError
@@ -70,10 +71,28 @@ def deterministic_solvers():
     """
     token = _THREADS.set(1)
     try:
-        with threadpool_limits(limits=1, user_api="blas"):
+        with _blas_controller().limit(limits=1, user_api="blas"):
             yield
     finally:
         _THREADS.reset(token)
+
+
+#: (modules imported when it was made, the controller) of :func:`_blas_controller`
+_CONTROLLER: list = [-1, None]
+
+
+def _blas_controller() -> ThreadpoolController:
+    """threadpoolctl's view of the BLAS libraries loaded in this process, kept between calls.
+
+    Making it scans the process's shared libraries (about 0.7 ms; the calibrations and the
+    coverage checks enter :func:`deterministic_solvers` thousands of times per report); it
+    is made again when a module has been imported since, as a new BLAS library comes with
+    the module that loads it.
+    """
+    if _CONTROLLER[0] != len(sys.modules):
+        controller = ThreadpoolController()
+        _CONTROLLER[:] = [len(sys.modules), controller]
+    return _CONTROLLER[1]
 
 
 def solver_threads() -> int:
