@@ -379,6 +379,62 @@ def _butterworth(lo: float, hi: float, fs: float) -> np.ndarray:
     return sos
 
 
+def human_log_derivatives(family, theta: np.ndarray, f_hz: np.ndarray) -> np.ndarray:
+    """Derivatives of ``log`` :func:`human_response` in its modal parameters, analytically.
+
+    With ``num`` and ``D`` as in :func:`human_response`, ``d log(x/c) = d num / num - dD / D``;
+    the coefficients ``d_3 ... d_0`` and ``num``'s constant are polynomials in ``w_a, s_a,
+    w_t, s_t`` (``s_i = 2 zeta_i w_i``), differentiated term by term. The gain and the held
+    mass ratio do not depend on the parameters.
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+        Gives the nominal mass ratio (held).
+    theta : ndarray, shape (N, 4)
+        Rows of (f_arm_hz, zeta_arm, f_trunk_hz, zeta_trunk).
+    f_hz : ndarray, shape (F,)
+        Frequencies, Hz.
+
+    Returns
+    -------
+    ndarray of complex, shape (N, F, 4)
+        ``d log(x/c) / d theta_k`` (per Hz for the frequencies).
+    """
+    th = np.atleast_2d(np.asarray(theta, float))
+    p = family.physical
+    big_r = 1.0 + p.m_arm / p.m_trunk
+    wa, wt = 2 * np.pi * th[:, 0:1], 2 * np.pi * th[:, 2:3]
+    sa, st = 2 * th[:, 1:2] * wa, 2 * th[:, 3:4] * wt
+    wa2, wt2 = wa * wa, wt * wt
+    s = 2j * np.pi * np.asarray(f_hz, float)[None, :]
+    d3 = big_r * (sa + st)
+    num = (s + d3) * s + big_r * (wa2 + wt2)
+    den = (((s + d3) * s + big_r * (wa2 + wt2 + sa * st)) * s + big_r * (sa * wt2 + st * wa2)) * s
+    den = den + big_r * wa2 * wt2
+
+    def dlog(e3, e2, e1, e0, ec):
+        # the log-derivative for coefficient derivatives (d3, d2, d1, d0, num's constant)
+        return (e3 * s + ec) / num - (((e3 * s + e2) * s + e1) * s + e0) / den
+
+    zero = np.zeros_like(wa)
+    # per primitive variable: w_a, s_a, w_t, s_t
+    d_wa = dlog(zero, 2 * big_r * wa, 2 * big_r * st * wa, 2 * big_r * wa * wt2, 2 * big_r * wa)
+    d_sa = dlog(big_r + zero, big_r * st, big_r * wt2, zero, zero)
+    d_wt = dlog(zero, 2 * big_r * wt, 2 * big_r * sa * wt, 2 * big_r * wt * wa2, 2 * big_r * wt)
+    d_st = dlog(big_r + zero, big_r * sa, big_r * wa2, zero, zero)
+    za, zt = th[:, 1:2], th[:, 3:4]
+    return np.stack(
+        [
+            2 * np.pi * (d_wa + 2 * za * d_sa),  # d/d f_arm_hz (s_a moves with w_a)
+            2 * wa * d_sa,
+            2 * np.pi * (d_wt + 2 * zt * d_st),
+            2 * wt * d_st,
+        ],
+        axis=-1,
+    )
+
+
 def _band_noise(rng, n, fs, band, rms):
     """Gaussian noise through a 4th-order Butterworth band (or low) pass, scaled to ``rms``."""
     w = rng.standard_normal(n + 4096)
@@ -587,7 +643,11 @@ def _operator_fit(family, f, H, w, handle_gain, start=None):
                 z0 = 0.5 * (zlo + zhi)
                 z0[0], z0[2] = math.log(fa), math.log(ft)
                 starts.append(np.clip(z0, zlo, zhi))
-    best, J, JtJ_inv, cov, s2 = _fit(resid_rows, starts, zlo, zhi, f.size)
+
+    def jacobian(z):
+        return _residual_jacobian(human_log_derivatives(family, _values(z), f)[0], z, LOG_AXES, w)
+
+    best, J, JtJ_inv, cov, s2 = _fit(resid_rows, jacobian, starts, zlo, zhi, f.size)
     z = best.x
     # the held mass ratio: the estimate's shift if the ratio were at either end of its range
     r0 = resid_rows(z[None, :])[0]
@@ -874,30 +934,25 @@ def _coherent(coh, pr, where, n_params: int = 4):
     return good
 
 
-def _fit(resid_rows, starts, zlo, zhi, n_freq):
+def _fit(resid_rows, jacobian, starts, zlo, zhi, n_freq):
     """Weighted least squares from the three best of ``starts``; covariance (module notes).
 
-    Returns ``(result, jacobian, (J'J)^-1, covariance, s2)``, the covariance in the fit
-    coordinates, ``s2`` the residual variance per degree of freedom (at least 1).
-
-    The finite-difference Jacobian's perturbed points go through ``resid_rows`` in one
-    batched call (scipy's ``workers`` map): the residual is computed row by row, so the
-    numbers are those of one call per point, in a fraction of the time.
+    ``jacobian(z)`` is the residual's Jacobian at one point (analytic: the models' log
+    responses are differentiated term by term, :func:`human_log_derivatives` and
+    :func:`cab_log_derivatives`). Returns ``(result, jacobian, (J'J)^-1, covariance, s2)``,
+    the covariance in the fit coordinates, ``s2`` the residual variance per degree of
+    freedom (at least 1).
     """
-
-    def batched(_fun, points):
-        return list(resid_rows(np.array(list(points))))
-
     cost0 = (resid_rows(np.array(starts)) ** 2).sum(axis=1)
     best = None
     for k in np.argsort(cost0)[:3]:
         sol = sopt.least_squares(
             lambda z: resid_rows(z[None, :])[0],
             starts[k],
+            jac=jacobian,
             bounds=(zlo, zhi),
             x_scale="jac",
             method="trf",
-            workers=batched,
         )
         if best is None or sol.cost < best.cost:
             best = sol
@@ -974,6 +1029,47 @@ def cab_response(theta: np.ndarray, f_hz: np.ndarray) -> np.ndarray:
         w, z = 2 * np.pi * th[:, [fi]], th[:, [zi]]
         out = out * (2 * z * w * s + w**2) / (s**2 + 2 * z * w * s + w**2)
     return out
+
+
+def cab_log_derivatives(theta: np.ndarray, f_hz: np.ndarray) -> np.ndarray:
+    """Derivatives of ``log`` :func:`cab_response` in its parameters, analytically.
+
+    ``log(C/Y) = log K_s + 2 log s + sum_i [log(2 zeta_i w_i s + w_i^2) - log(s^2 + 2 zeta_i
+    w_i s + w_i^2)]``, differentiated term by term.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (N, 5)
+        Rows of (k_s, f_a_hz, zeta_a, f_b_hz, zeta_b).
+    f_hz : ndarray, shape (F,)
+        Frequencies, Hz.
+
+    Returns
+    -------
+    ndarray of complex, shape (N, F, 5)
+        ``d log(C/Y) / d theta_k``.
+    """
+    th = np.atleast_2d(np.asarray(theta, float))
+    s = 2j * np.pi * np.asarray(f_hz, float)[None, :]
+    out = [np.broadcast_to(1.0 / th[:, [0]], (th.shape[0], s.shape[1])).astype(complex)]
+    for fi, zi in ((1, 2), (3, 4)):
+        w, z = 2 * np.pi * th[:, [fi]], th[:, [zi]]
+        num, den = 2 * z * w * s + w**2, s**2 + 2 * z * w * s + w**2
+        out.append(2 * np.pi * (2 * z * s + 2 * w) * (1.0 / num - 1.0 / den))
+        out.append(2 * w * s * (1.0 / num - 1.0 / den))
+    return np.stack(out, axis=-1)
+
+
+def _residual_jacobian(dlog: np.ndarray, z: np.ndarray, log, w: np.ndarray) -> np.ndarray:
+    """The weighted log-response residual's Jacobian in the fit coordinates.
+
+    ``dlog`` (shape ``(F, p)``) holds the derivatives of the model's log-response in its
+    parameters; a parameter fitted in logarithms has ``d theta / dz = theta``. The residual's
+    rows are the real parts, then the phases (wrapped; their derivative is the imaginary
+    part's), each weighted by ``w``.
+    """
+    d = dlog * np.where(log, _values(z, log), 1.0)[None, :]
+    return np.concatenate([d.real, d.imag], axis=0) * np.concatenate([w, w])[:, None]
 
 
 def cab_truth(family, row) -> dict:
@@ -1082,7 +1178,11 @@ def identify_cab(
             z0 = 0.5 * (zlo + zhi)
             z0[1], z0[3] = math.log(fa), math.log(fb)
             starts.append(np.clip(z0, zlo, zhi))
-    best, _, _, cov, _ = _fit(resid_rows, starts, zlo, zhi, f.size)
+
+    def jacobian(z):
+        return _residual_jacobian(cab_log_derivatives(_values(z, log), f)[0], z, log, w)
+
+    best, _, _, cov, _ = _fit(resid_rows, jacobian, starts, zlo, zhi, f.size)
     z = best.x
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     # the spectral estimate's resolution: leakage at a lightly damped mode biases its

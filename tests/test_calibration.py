@@ -14,9 +14,11 @@ from designs.calibration import (
     REGION_RADIUS,
     CalibrationProtocol,
     CalibrationRecord,
+    cab_log_derivatives,
     cab_response,
     cab_truth,
     confidence_points,
+    human_log_derivatives,
     human_response,
     identify_cab,
     identify_operator,
@@ -62,6 +64,42 @@ def test_the_closed_form_response_is_the_state_space_model():
             ]
         )
         np.testing.assert_allclose(human_response(FAM, th, f, 0.7, mu), 0.7 * ref, rtol=1e-11)
+
+
+@pytest.mark.parametrize("model", ["human", "cab"])
+def test_the_fits_analytic_derivatives_are_the_central_differences(model):
+    """The fits' Jacobians (term-by-term derivatives of the log responses) agree with
+    central differences of the responses themselves, for members across the ranges."""
+    rng = np.random.default_rng(8)
+    f = np.geomspace(0.5, 12.0, 40)
+    for _ in range(5):
+        if model == "human":
+            th = np.array([[rng.uniform(1, 4), rng.uniform(0.1, 0.5), 0, rng.uniform(0.1, 0.5)]])
+            th[0, 2] = th[0, 0] * rng.uniform(1.05, 3.0)
+
+            def log_resp(t):
+                return np.log(human_response(FAM, t, f, 0.7))[0]
+
+            D = human_log_derivatives(FAM, th, f)[0]
+        else:
+            th = np.array(
+                [[rng.uniform(200, 600), rng.uniform(2, 4), rng.uniform(0.03, 0.2), 0, 0.1]]
+            )
+            th[0, 3] = th[0, 1] * rng.uniform(1.02, 2.5)
+
+            def log_resp(t):
+                return np.log(cab_response(t, f))[0]
+
+            D = cab_log_derivatives(th, f)[0]
+        assert D.shape == (f.size, th.shape[1])
+        for k in range(th.shape[1]):
+            h = 1e-6 * th[0, k]
+            up, down = th.copy(), th.copy()
+            up[0, k] += h
+            down[0, k] -= h
+            fd = (log_resp(up) - log_resp(down)) / (2 * h)
+            # central differences: error of order h^2 (1e-12 relative) plus rounding (1e-10)
+            np.testing.assert_allclose(D[:, k], fd, rtol=0, atol=1e-7 * np.abs(D[:, k]).max())
 
 
 def test_the_response_is_symmetric_in_the_two_modes():
