@@ -146,10 +146,24 @@ def sigma_max(sys, omega) -> np.ndarray:
     H, Q = sla.hessenberg(A, calc_q=True)
     Bq, Cq = Q.T @ B, C @ Q
     eye = np.eye(n)
-    for i, w in enumerate(omega):
-        G = D + Cq @ np.linalg.solve(1j * w * eye - H, Bq)
-        out[i] = np.linalg.norm(G, 2)
+    if min(D.shape) == 0:
+        for i, w in enumerate(omega):
+            out[i] = np.linalg.norm(D + Cq @ np.linalg.solve(1j * w * eye - H, Bq), 2)
+        return out
+    # the frequencies in stacks: LAPACK solves and decomposes each matrix of a stack as it
+    # does a single one, so the numbers are those of one frequency at a time
+    Bc = Bq.astype(complex)
+    for a in range(0, omega.size, _SIGMA_STACK):
+        w = omega[a : a + _SIGMA_STACK]
+        X = np.linalg.solve(
+            1j * w[:, None, None] * eye - H, np.broadcast_to(Bc, (w.size, *Bc.shape))
+        )
+        out[a : a + w.size] = np.linalg.svd(D + Cq @ X, compute_uv=False)[:, 0]
     return out
+
+
+#: Frequencies per stack of :func:`sigma_max` (bounds the stack's memory).
+_SIGMA_STACK = 256
 
 
 def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: bool = False):
