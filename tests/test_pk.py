@@ -9,6 +9,7 @@ poles of the Figure 5 loop by python-control, the handle force by
 import math
 
 import control as ct
+import cvxpy as cp
 import numpy as np
 import pytest
 
@@ -23,6 +24,12 @@ from robust.model.device import DeviceLimits
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import (
     _Affine,
+    _analyse_hinf,
+    _controller_data,
+    _h2_analysis_data,
+    _h2_analysis_sdp,
+    _hinf_analysis_data,
+    _hinf_analysis_sdp,
     certify_regions,
     h2_norm,
     pksyn_multi,
@@ -30,8 +37,8 @@ from robust.synthesis.pk import (
     scale_members,
     to_scaled,
 )
-from robust.synthesis.region import PoleRegion
-from robust.synthesis.solve import deterministic_solvers
+from robust.synthesis.region import PoleRegion, sym
+from robust.synthesis.solve import DEFAULT_SOLVERS, deterministic_solvers, solve_problem
 from robust.synthesis.tuning import _Terms, minimax_start, region_start, tune_members
 from uncertainty import default_family
 from uncertainty.margins import scaled_bounds
@@ -247,6 +254,57 @@ def test_p_steps_in_two_processes_give_the_same_synthesis(members, tuned):
     np.testing.assert_array_equal(one.gammas, two.gammas)
     np.testing.assert_array_equal(one.h2s, two.h2s)
     assert len(one.solve_times) == len(two.solve_times)
+
+
+def _solve_analysis(sdp, values, level=None, *, explicit_cone=False):
+    """The optimal margin ``t`` and certificate of an analysis SDP (optionally with the
+    certificate's own cone ``P >> 0`` added back, as the SDP was first written)."""
+    for par, val in zip(sdp.data, values):
+        par.value = val
+    if level is not None:
+        sdp.level.value = level
+    problem = sdp.problem
+    if explicit_cone:
+        problem = cp.Problem(problem.objective, [sdp.P >> 0, *problem.constraints])
+    with deterministic_solvers():
+        solve_problem(problem, step="test analysis", warm_start=False, gap_tol=1e-10)
+    return float(sdp.t.value), sym(sdp.P.value)
+
+
+def test_analysis_sdps_without_the_certificates_cone_reach_the_same_optimum(members, tuned):
+    # P > 0 is implied by the bounded-real inequality for a Hurwitz A and by the H2 output
+    # inequality (Q >= t I): dropping the cone leaves the optimum where it was, and the
+    # certificate it returns is positive definite (each member's first P-step, in the
+    # scaled coordinates pksyn_multi works in); the margins agree to what the solver's
+    # feasibility tolerance (1e-8 on data of norm up to 1e3) lets them, about 1e-4 of t
+    Om, nk = _controller_data(tuned.K)
+    w0 = 20.0
+    channels, scaled = scale_members(members, nk, w0)
+    Om_s = to_scaled(Om, nk, w0, channels)
+    decay = REGION.scaled(w0).decay_rate
+    for m in scaled:
+        _, _, data = _hinf_analysis_data(m.hinf.shifted(decay), Om_s, None)
+        sdp = _hinf_analysis_sdp(data[0].shape[0], data[1].shape[1], data[2].shape[0])
+        t_new, P = _solve_analysis(sdp, data)
+        t_old, _ = _solve_analysis(sdp, data, explicit_cone=True)
+        assert t_new > 0 and t_new == pytest.approx(t_old, rel=1e-4)
+        assert np.linalg.eigvalsh(P).min() > 0
+        _, level, data = _h2_analysis_data(m.h2, Om_s, None)
+        sdp2 = _h2_analysis_sdp(data[0].shape[0], data[1].shape[1], data[2].shape[0])
+        t_new, Q = _solve_analysis(sdp2, data, level)
+        t_old, _ = _solve_analysis(sdp2, data, level, explicit_cone=True)
+        assert t_new > 0 and t_new == pytest.approx(t_old, rel=1e-4)
+        assert np.linalg.eigvalsh(Q).min() >= t_new * (1 - 1e-6)
+
+
+def test_hinf_analysis_of_an_unstable_loop_gives_no_certificate(members, tuned):
+    # without the cone an unstable A admits an indefinite P with a positive margin; the
+    # P-step must refuse it as the SDP with the cone did (no certificate)
+    Om, nk = _controller_data(tuned.K)
+    cl = _Affine(members[0].hinf, nk).shifted(50.0)
+    assert np.linalg.eigvals(cl.matrices(Om)[0]).real.max() > 0
+    with deterministic_solvers(), pytest.raises(InfeasibleError, match="not stable"):
+        _analyse_hinf(cl, Om, np.eye(cl.N), DEFAULT_SOLVERS)
 
 
 def test_pk_design_meets_the_spec_on_its_members(loops, design):
