@@ -30,6 +30,7 @@ from robust.synthesis.pk import (
     _h2_analysis_sdp,
     _hinf_analysis_data,
     _hinf_analysis_sdp,
+    _sizes,
     certify_regions,
     h2_norm,
     pksyn_multi,
@@ -284,13 +285,13 @@ def test_analysis_sdps_without_the_certificates_cone_reach_the_same_optimum(memb
     decay = REGION.scaled(w0).decay_rate
     for m in scaled:
         _, _, data = _hinf_analysis_data(m.hinf.shifted(decay), Om_s, None)
-        sdp = _hinf_analysis_sdp(data[0].shape[0], data[1].shape[1], data[2].shape[0])
+        sdp = _hinf_analysis_sdp(*_sizes(data))
         t_new, P = _solve_analysis(sdp, data)
         t_old, _ = _solve_analysis(sdp, data, explicit_cone=True)
         assert t_new > 0 and t_new == pytest.approx(t_old, rel=1e-4)
         assert np.linalg.eigvalsh(P).min() > 0
         _, level, data = _h2_analysis_data(m.h2, Om_s, None)
-        sdp2 = _h2_analysis_sdp(data[0].shape[0], data[1].shape[1], data[2].shape[0])
+        sdp2 = _h2_analysis_sdp(*_sizes(data))
         t_new, Q = _solve_analysis(sdp2, data, level)
         t_old, _ = _solve_analysis(sdp2, data, level, explicit_cone=True)
         assert t_new > 0 and t_new == pytest.approx(t_old, rel=1e-4)
