@@ -245,9 +245,11 @@ def lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200, x0=None) -> np.ndarray:
     ``O x0 + T u_block`` (``O`` the powers ``Cd Ad^i``, ``T`` the lower-triangular Toeplitz
     matrix of the Markov parameters), and the state jumps by ``Ad^block`` and ``G u_block``.
     No eigendecomposition is involved, so badly conditioned modal bases (lightly damped
-    loops in companion-like realisations) cost nothing in accuracy; the time is a few
-    matrix products per block instead of a Python step per sample (a 60 000-sample record
-    of a 13-state loop: milliseconds against about 0.3 s for ``dlsim``).
+    loops in companion-like realisations) cost nothing in accuracy. Only the state at the
+    blocks' starts is stepped one block at a time (one ``n x n`` product each); the
+    outputs of all blocks are two matrix products (a 60 000-sample record of a 13-state
+    loop: about 3 ms, against 5 ms stepping the outputs block by block and about 0.3 s
+    for ``dlsim``).
 
     Parameters
     ----------
@@ -273,40 +275,42 @@ def lifted_response(Ad, Bd, Cd, Dd, u, block: int = 200, x0=None) -> np.ndarray:
     """
     n = Ad.shape[0]
     rows = np.atleast_2d(Cd)
-    feed = np.broadcast_to(np.asarray(Dd, float).reshape(-1), (rows.shape[0],))
+    p = rows.shape[0]
+    feed = np.broadcast_to(np.asarray(Dd, float).reshape(-1), (p,))
     N = u.size
     M = max(1, int(block))
-    # per output: O[i] = Cd Ad^i, the Markov parameters h_0 = D, h_i = Cd Ad^(i-1) Bd and
-    # their lower-triangular Toeplitz matrix
-    obs = np.empty((rows.shape[0], M, n))
-    P = np.eye(n)
+    # powers[i] = Ad^i for i = 0..M (the last steps the state over a block)
+    powers = np.empty((M + 1, n, n))
+    powers[0] = np.eye(n)
     for i in range(M):
-        for j, c in enumerate(rows):
-            obs[j, i] = c @ P
-        P = Ad @ P
-    AdM = P
-    T = np.zeros((rows.shape[0], M, M))
-    for j in range(rows.shape[0]):
-        markov = np.concatenate([[feed[j]], obs[j, :-1] @ Bd])
-        for i in range(M):
-            T[j, i, : i + 1] = markov[i::-1]
-    # G = [Ad^(M-1) Bd, ..., Ad Bd, Bd]
-    G = np.empty((n, M))
-    v = Bd.copy()
-    for j in range(M - 1, -1, -1):
-        G[:, j] = v
-        v = Ad @ v
+        powers[i + 1] = Ad @ powers[i]
+    AB = powers[:M] @ Bd  # Ad^i Bd, i = 0..M-1
+    G = AB[::-1].T  # [Ad^(M-1) Bd, ..., Ad Bd, Bd]
     nblk = -(-N // M)
     U = np.zeros(nblk * M)
     U[:N] = u
     U = U.reshape(nblk, M)
-    y = np.empty((rows.shape[0], nblk, M))
+    # the state at each block's start: one product per block, the input's share batched
+    GU = U @ G.T
+    X = np.empty((nblk, n))
     x = np.zeros(n) if x0 is None else np.asarray(x0, float)
+    AdM = powers[M]
     for b in range(nblk):
-        for j in range(rows.shape[0]):
-            y[j, b] = obs[j] @ x + T[j] @ U[b]
-        x = AdM @ x + G @ U[b]
-    y = y.reshape(rows.shape[0], nblk * M)[:, :N]
+        X[b] = x
+        x = AdM @ x + GU[b]
+    # per output (each row on its own, so that a row's numbers do not depend on the others)
+    # the outputs of all blocks at once, O x_b + T u_b: O[i] = Cd Ad^i, and T[i, k] = h_(i-k)
+    # the lower-triangular Toeplitz matrix of the Markov parameters h_0 = D,
+    # h_i = Cd Ad^(i-1) Bd, read from a sliding window
+    y = np.empty((p, nblk, M))
+    padded = np.zeros(2 * M - 1)
+    for j, c in enumerate(rows):
+        obs = c @ powers[:M]  # (M, n)
+        padded[M - 1] = feed[j]
+        padded[M:] = AB[: M - 1] @ c
+        T = np.lib.stride_tricks.sliding_window_view(padded, M)[:, ::-1]
+        y[j] = X @ obs.T + U @ T.T
+    y = y.reshape(p, nblk * M)[:, :N]
     return y if np.ndim(Cd) == 2 else y[0]
 
 
