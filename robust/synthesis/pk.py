@@ -64,6 +64,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
+from robust.analysis.lyapunov import lyapunov
 from robust.analysis.norms import hinf_norm
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.engine import jobs_available, map_tasks
@@ -378,7 +379,7 @@ def h2_norm(A, B, C) -> float:
         return 0.0
     if np.linalg.eigvals(A).real.max() >= 0:
         return math.inf
-    W = sla.solve_continuous_lyapunov(A, -B @ B.T)
+    W = lyapunov(A, -B @ B.T)
     return math.sqrt(max(float(np.trace(C @ W @ C.T)), 0.0))
 
 

@@ -35,9 +35,9 @@ import dataclasses
 
 import control
 import numpy as np
-import scipy.linalg as sla
 import scipy.optimize as so
 
+from robust.analysis.lyapunov import lyapunov
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.pk import (
@@ -249,8 +249,8 @@ class _Terms:
         if np.isfinite(self.h2_bound):
             for cl in self.h2:
                 A, B, C, _ = cl.matrices(Om)
-                W = sla.solve_continuous_lyapunov(A, -B @ B.T)
-                Lo = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
+                W = lyapunov(A, -B @ B.T)
+                Lo = lyapunov(A.T, -C.T @ C)
                 h = np.sqrt(max(float(np.trace(C @ W @ C.T)), 1e-300))
                 dJ = 2 * (cl.Bb.T @ Lo @ W @ cl.Cb.T + cl.D12b.T @ C @ W @ cl.Cb.T)
                 dJ += 2 * cl.Bb.T @ Lo @ B @ cl.D21b.T
@@ -308,8 +308,8 @@ class _Terms:
             A, B, C, _ = cl.matrices(Om)
             if np.linalg.eigvals(A).real.max() >= 0:
                 return 1e6, grad, np.inf
-            W = sla.solve_continuous_lyapunov(A, -B @ B.T)
-            Lo = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
+            W = lyapunov(A, -B @ B.T)
+            Lo = lyapunov(A.T, -C.T @ C)
             J = float(np.trace(C @ W @ C.T))
             h = np.sqrt(max(J, 0.0))
             worst = max(worst, h)
