@@ -153,7 +153,6 @@ def test_blocks_realised_once_per_parameter_set_and_handed_out_as_copies():
 def test_block_realisation_is_python_controls_to_the_bit(kind):
     # _realise skips python-control's unused minimal realisation: the same td04ad call, so
     # the same matrices, bit for bit, as ct.ss of the same transfer function
-
     params = {
         "valve_cylinder": ValveCylinderParams(k_vc=31.0, p1=290.0, wn_hz=4.6, zeta=0.5),
         "structure": StructureParams(k_s=180.0, zeta1=0.1, zeta2=0.25, f1_hz=6.1, f2_hz=6.9),

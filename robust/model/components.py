@@ -179,7 +179,7 @@ def _realise(g: ct.TransferFunction) -> tuple:
     """``ct.ss(g)``'s matrices for a SISO ``g``, without its discarded work.
 
     python-control's conversion calls SLICOT's ``td04ad`` on ``g``'s common-denominator form,
-    after a minimal realisation of ``g`` whose result it does not use (about 0.35 of the
+    after a minimal realisation of ``g`` whose result it does not use (about 0.35 ms of the
     0.5 ms a conversion takes). The same call on the same arrays gives the same matrices
     (a test compares them); without SLICOT, or without that form, ``ct.ss`` itself.
     """
