@@ -13,6 +13,7 @@ from robust.sysid import (
     estimate_frequency_responses,
     simulate_experiment,
     simulate_response,
+    spectral,
 )
 
 FS = 1000.0
@@ -185,8 +186,9 @@ def test_band_outside_data(band, match):
         ({"nperseg": 4}, r"nperseg must be an integer >= 8"),
         ({"nperseg": 256, "noverlap": 256}, r"noverlap=256"),
         ({"window": "nonsense"}, r"window 'nonsense' is not a scipy.signal window"),
+        ({"window": ["hann"]}, r"window \['hann'\] .* must be a tuple, a string or a float"),
     ],
-    ids=["detrend", "nperseg", "noverlap", "window"],
+    ids=["detrend", "nperseg", "noverlap", "window", "window-list"],
 )
 def test_bad_options(kw, match):
     u, y = _records()
@@ -248,3 +250,24 @@ def test_several_outputs_need_matching_records():
         estimate_frequency_responses(u, [], FS)
     with pytest.raises(DataError, match="input has 2048 samples but output has 1000"):
         estimate_frequency_responses(u, [np.zeros(2048), np.zeros(1000)], FS)
+
+
+def test_kept_transform_gives_a_fresh_transforms_bits():
+    # the window and transform of a setting are kept for the next call; interleaved settings
+    # and a cleared store give the same bits
+    rng = np.random.default_rng(11)
+    u = rng.standard_normal(20000)
+    y = np.convolve(u, [1.0, -0.3, 0.1], "same") + 0.2 * rng.standard_normal(20000)
+
+    def arrays(**kw):
+        e = estimate_frequency_response(u, y, FS, **kw)
+        return [e.h1, e.coherence, e.g_uu, e.g_yy, e.g_uy, e.n_effective]
+
+    spectral._short_time_fft.cache_clear()
+    fresh = arrays(nperseg=1024, window="hann")
+    other = arrays(nperseg=1024, window=("tukey", 0.25))
+    assert not np.array_equal(other[1], fresh[1])
+    kept = arrays(nperseg=1024, window="hann")
+    assert spectral._short_time_fft.cache_info().hits >= 1
+    for a, b in zip(fresh, kept):
+        np.testing.assert_array_equal(a, b)

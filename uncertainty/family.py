@@ -363,8 +363,13 @@ class Family:
                 out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.literal, f)))
         else:
             scale = cols.get("human.body_mass", np.full(n, self.body_mass)) / self.body_mass
+            # the nominal's modal values only for the parameters that do not vary (each
+            # attribute of the physical parameters recomputes all four modal values)
             modal = {
-                f: cols.get(f"human.{f}", np.full(n, getattr(self.physical, f))) for f in _MODAL
+                f: cols[f"human.{f}"]
+                if f"human.{f}" in cols
+                else np.full(n, getattr(self.physical, f))
+                for f in _MODAL
             }
             m_trunk = self.physical.m_trunk * scale
             k_t, c_t, k_a, c_a = modal_to_physical(

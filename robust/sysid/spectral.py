@@ -42,6 +42,7 @@ correlation of the window with itself shifted by ``j`` hops.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -457,15 +458,18 @@ def estimate_frequency_responses(
         )
     if window is None:
         window = "boxcar" if all(r.size == nperseg for r in us) else "hann"
-    try:
-        win = sps.get_window(window, nperseg)
-    except (ValueError, TypeError) as exc:
-        raise ParameterError(f"window {window!r} is not a scipy.signal window: {exc}") from None
     noverlap = int(noverlap)
     hop = nperseg - noverlap
-    sft = sps.ShortTimeFFT(
-        win, hop, fs, fft_mode="onesided", mfft=nperseg, scale_to="psd", phase_shift=None
-    )
+    try:
+        hash(window)
+    except TypeError:  # not a window scipy knows (an array, a list): scipy's own message
+        make = _short_time_fft.__wrapped__
+    else:
+        make = _short_time_fft
+    try:
+        win, sft = make(window, nperseg, hop, fs)
+    except (ValueError, TypeError) as exc:
+        raise ParameterError(f"window {window!r} is not a scipy.signal window: {exc}") from None
     detr = None if _DETRENDS[detrend] is False else _DETRENDS[detrend]
     n_out = len(yss)
     acc_uu = 0.0
@@ -528,6 +532,23 @@ def estimate_frequency_responses(
             )
         )
     return out
+
+
+@functools.lru_cache(maxsize=16)
+def _short_time_fft(window, nperseg: int, hop: int, fs: float):
+    """The window and the PSD-scaled :class:`scipy.signal.ShortTimeFFT` of one setting.
+
+    Kept for the next call with the same setting (a calibration run estimates thousands of
+    records alike): building it (the scaling's sum over the window is a Python loop in
+    scipy) took a sixth of the estimate of a minute's record at 1 kHz. The window is read-only, and
+    the transform is only read (its own caches aside).
+    """
+    win = sps.get_window(window, nperseg)
+    win.setflags(write=False)
+    sft = sps.ShortTimeFFT(
+        win, hop, fs, fft_mode="onesided", mfft=nperseg, scale_to="psd", phase_shift=None
+    )
+    return win, sft
 
 
 def _averaged(P: np.ndarray, nfft: int) -> np.ndarray:
