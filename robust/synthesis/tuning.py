@@ -174,6 +174,16 @@ class _Terms:
         self.resp = [(m.hinf, m.response, m.w_resp) for m in scaled if m.response is not None]
         self.region, self.w, self.margin, self.tau = region, w_rad, margin, tau
         self.g_t, self.h2_bound = g_t, h2_bound
+        self._eig_key, self._eig = None, []
+
+    def _eigen(self, Om) -> list:
+        """:func:`eigen_derivatives` of every region member at ``Om``, kept for the last
+        ``Om`` (the barrier and the utilisations of one evaluation ask for the same)."""
+        key = (Om.shape, Om.tobytes())
+        if key != self._eig_key:
+            self._eig = [eigen_derivatives(cl, Om) for cl in self.reg]
+            self._eig_key = key
+        return self._eig
 
     def region_term(self, Om):
         vs, gs = zip(*self._violations(Om))
@@ -198,8 +208,7 @@ class _Terms:
 
     def _violations(self, Om):
         z = self.region.min_damping
-        for cl in self.reg:
-            lam, dl = eigen_derivatives(cl, Om)
+        for lam, dl in self._eigen(Om):
             yield lam.real + self.region.decay_rate, dl.real
             if z > 0:
                 mag = np.maximum(np.abs(lam), 1e-300)
@@ -218,8 +227,7 @@ class _Terms:
         """
         us, dus = [], []
         a, z = self.region.decay_rate, self.region.min_damping
-        for cl in self.reg:
-            lam, dl = eigen_derivatives(cl, Om)
+        for lam, dl in self._eigen(Om):
             neg = np.minimum(lam.real, -1e-12)
             mag = np.maximum(np.abs(lam), 1e-300)
             # decay: a / -Re p
