@@ -6,10 +6,12 @@ stabilising controller must settle; a member whose loop is unstable must be flag
 diverging even though the force is bounded.
 """
 
+import control as ct
 import numpy as np
 import pytest
 
 from designs.virtual_damping import virtual_damping_controller
+from robust.analysis.sampled import open_plant
 from robust.analysis.saturation import saturated_response
 from robust.analysis.simulation import simulate
 from robust.errors import ModelStructureError, ParameterError
@@ -67,3 +69,36 @@ def test_bad_input(setup):
         saturated_response(m, Kd, np.zeros(10), peak_force_n=0.0)
     with pytest.raises(ParameterError, match="u"):
         saturated_response(m, Kd, np.array([0.0, np.nan]), peak_force_n=3.3)
+
+
+def _literal_steps(m, Kd, u, peak, settle_s=10.0):
+    """The sampled loop stepped as the equations read (no algebraic loop): y and force."""
+    P = ct.sample_system(open_plant(m, Kd), float(Kd.dt), method="zoh")
+    Ap, Bp, Cp, Dp = (np.asarray(a, float) for a in (P.A, P.B, P.C, P.D))
+    Ak, Bk, Ck, Dk = (np.asarray(a, float) for a in (Kd.A, Kd.B, Kd.C, Kd.D))
+    rows = [list(P.output_labels).index(s) for s in Kd.input_labels]
+    iy, jf = list(P.output_labels).index("y"), list(Kd.output_labels).index("f")
+    uu = np.concatenate([u, np.zeros(int(round(settle_s / float(Kd.dt))))])
+    xp, xk = np.zeros(Ap.shape[0]), np.zeros(Ak.shape[0])
+    y, force = np.zeros(uu.size), np.zeros(uu.size)
+    for k, uk in enumerate(uu):
+        z0 = Cp @ xp + Dp[:, :1] @ [uk]
+        meas = z0[rows]
+        v = Ck @ xk + Dk @ meas
+        v[jf] = np.clip(v[jf], -peak, peak)
+        y[k], force[k] = (z0 + Dp[:, 1:] @ v)[iy], v[jf]
+        xk = Ak @ xk + Bk @ meas
+        xp = Ap @ xp + Bp @ np.concatenate([[uk], v])
+    return y, force
+
+
+def test_saturated_steps_are_the_literal_equations_bit_for_bit(setup):
+    _, m, _, Kd = setup
+    u = 0.5 * np.sin(2 * np.pi * 0.5 * T[:3000])
+    peak = DeviceLimits().peak_force_n
+    r = saturated_response(m, Kd, u, peak_force_n=peak, settle_s=2.0)
+    assert not r.delayed and r.saturated_fraction > 0.1
+    y, force = _literal_steps(m, Kd, u, peak, settle_s=2.0)
+    np.testing.assert_array_equal(r.y, y)
+    np.testing.assert_array_equal(r.force, force)
+    assert r.peak_request_n > peak

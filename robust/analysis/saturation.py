@@ -26,6 +26,7 @@ phase is more than half of its RMS over the first second, and not negligible, ab
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import control as ct
 import numpy as np
@@ -153,32 +154,44 @@ def saturated_response(
     norms = np.zeros(N)
     requests = np.zeros(N)
     clipped = 0
+    # the same products as stepping the equations literally (the slices, the input vector
+    # and the state norm made once or without numpy's per-call checks: the same bits)
+    Dpu, Dpv = Dp[:, :n_u], Dp[:, n_u:]
+    uk = np.zeros(n_u)
+    w = np.zeros(n_u + len(outs))
     with np.errstate(over="ignore", invalid="ignore"):
         for k in range(N):
+            uk[0] = w[0] = uu[k]
             if delayed:
-                z = Cp @ xp + Dp @ np.concatenate([[uu[k]], v])
+                w[n_u:] = v
+                z = Cp @ xp + Dp @ w
                 meas = z[meas_rows]
                 req = Ck @ xk + Dk @ meas
             else:
-                z0 = Cp @ xp + Dp[:, :n_u] @ [uu[k]]
+                z0 = Cp @ xp + Dpu @ uk
                 meas = z0[meas_rows]
                 req = Ck @ xk + Dk @ meas
             v_new = req.copy()
             if f_idx is not None:
-                requests[k] = req[f_idx]
-                v_new[f_idx] = np.clip(req[f_idx], -peak, peak)
-                clipped += bool(abs(req[f_idx]) > peak)
+                r = float(req[f_idx])
+                requests[k] = r
+                # np.clip's value (NaN stays NaN), without its per-call overhead
+                v_new[f_idx] = min(max(r, -peak), peak)
+                clipped += abs(r) > peak
             if not delayed:
                 v = v_new
-                z = z0 + Dp[:, n_u:] @ v
+                z = z0 + Dpv @ v
             y[k] = z[y_row]
             force[k] = v[f_idx] if f_idx is not None else 0.0
             xk = Ak @ xk + Bk @ meas
-            xp = Ap @ xp + Bp @ np.concatenate([[uu[k]], v])
+            w[n_u:] = v
+            xp = Ap @ xp + Bp @ w
             if delayed:
                 v = v_new
-            norms[k] = np.linalg.norm(xp)
-            if not np.isfinite(norms[k]) or norms[k] > 1e300:
+            # numpy.linalg.norm of a real vector: sqrt(x . x)
+            nrm = math.sqrt(float(xp.dot(xp)))
+            norms[k] = nrm
+            if not math.isfinite(nrm) or nrm > 1e300:
                 norms[k:] = np.inf
                 y[k:] = np.nan
                 break
