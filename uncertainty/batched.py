@@ -9,7 +9,8 @@ signal names, and the loop is closed for all members at once::
     =>  A_cl = A + B M (I - D M)^{-1} C          (one batched solve per chunk)
 
 No python-control object is built per member. The eigenvalues of the stack are
-taken with :func:`numpy.linalg.eigvals`, chunk by chunk, so memory stays bounded.
+taken chunk by chunk, so memory stays bounded, by the compiled loop of
+:func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's to rounding).
 
 Realisations (fixed, as functions of the parameters):
 
@@ -57,6 +58,7 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
+from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, stability_bound
 from robust.checks import FINITE, check_callable, check_int, check_scalar
 from robust.engine import map_tasks, scheduler_address
@@ -510,15 +512,16 @@ def batched_poles(
     Returns
     -------
     ndarray of complex, shape (N, n)
-        Every member's closed-loop poles, rad/s (one batch: for large ``N`` see
-        :func:`member_metrics`, which works chunk by chunk).
+        Every member's closed-loop poles, rad/s, in no particular order (the numbers
+        :func:`member_metrics` reduces: :func:`robust.analysis.small_eig.eigvals_stack`;
+        one batch: for large ``N`` see :func:`member_metrics`, which works chunk by chunk).
 
     Raises
     ------
     ParameterError
         As :func:`closed_loop_matrices`.
     """
-    return np.linalg.eigvals(
+    return eigvals_stack(
         closed_loop_matrices(family, values, controller=controller, check_bounds=check_bounds)
     )
 
@@ -697,7 +700,7 @@ def _metrics(family, values, controller, chunk, band_hz, progress):
         stop = min(N, start + chunk)
         Acl = _closed_loop(family, values[start:stop], controller)
         nstates = Acl.shape[-1]
-        poles = np.linalg.eigvals(Acl)
+        poles = eigvals_stack(Acl)
         del Acl
         max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, band_hz)
         if progress is not None:
@@ -893,7 +896,7 @@ def _validate_system(
     max_real, min_damp = np.empty(N), np.empty(N)
     for start in range(0, N, chunk):
         stop = min(N, start + chunk)
-        poles = np.linalg.eigvals(closed.state_matrices(values[start:stop]))
+        poles = eigvals_stack(closed.state_matrices(values[start:stop]))
         max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, (lo, hi))
         if progress is not None:
             progress(stop - start)
