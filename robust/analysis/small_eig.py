@@ -6,9 +6,10 @@ once per matrix, 22 us each on the machine of the README's figures: 4.5 us of ba
 double-shift sweeps, whose latency (a square root and three divisions per reflector, one
 reflector after the other) and short loops the processor cannot fill. Validating a
 million members was mostly this loop. :func:`eigvals_stack` runs the same three
-classical steps, compiled by Numba, on :data:`LANES` matrices side by side, with the
-innermost loops running across the matrices, so that the compiler vectorises them and
-one matrix's reflector overlaps another's:
+classical steps, compiled by Numba, on up to :data:`LANES` matrices side by side, with
+the innermost loops running across the matrices, so that the compiler vectorises them
+and one matrix's reflector overlaps another's (a stack of one matrix costs what LAPACK
+does, 37 us; from eight on, the loops are 2 to 2.7 times faster):
 
 1. balancing by powers of two (Parlett and Reinsch, "Balancing a matrix for calculation
    of eigenvalues and eigenvectors", Numer. Math. 13, 1969), without the permutations;
@@ -38,7 +39,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["MAX_SWEEPS", "eigvals_stack"]
+__all__ = ["LANES", "MAX_SWEEPS", "eigvals_stack", "load_kernels"]
 
 #: Double-shift sweeps allowed per eigenvalue (or pair) before LAPACK takes the matrix.
 MAX_SWEEPS = 60
@@ -46,14 +47,14 @@ MAX_SWEEPS = 60
 # a reflector's entries are squared unscaled
 _TINY = 1e-100
 _HUGE = 1e100
-#: Matrices balanced and reduced side by side (the compiled loops run across them).
+#: Most matrices reduced side by side (the compiled loops run across them).
 LANES = 64
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _balance(b, n, c, r, f, d):  # pragma: no cover - compiled
-    """Balance every lane of ``b`` by powers of two (in place; ``c``, ``r``, ``f``, ``d``
-    scratch of one value per lane).
+def _balance(b, n, lanes, c, r, f, d):  # pragma: no cover - compiled
+    """Balance the first ``lanes`` lanes of ``b`` by powers of two (in place; ``c``, ``r``,
+    ``f``, ``d`` scratch of one value per lane).
 
     Parlett and Reinsch's iteration: row and column ``i`` are scaled by ``1/f`` and ``f``
     (a power of two, so exactly) when that brings their off-diagonal 1-norms within a
@@ -67,17 +68,17 @@ def _balance(b, n, c, r, f, d):  # pragma: no cover - compiled
         done = True
         for i in range(n):
             # the off-diagonal 1-norms (the diagonal entry set aside for the sums)
-            for m in range(LANES):
+            for m in range(lanes):
                 c[m] = 0.0
                 r[m] = 0.0
                 d[m] = b[i, i, m]
                 b[i, i, m] = 0.0
             for j in range(n):
-                for m in range(LANES):
+                for m in range(lanes):
                     c[m] += abs(b[j, i, m])
                     r[m] += abs(b[i, j, m])
             changed = False
-            for m in range(LANES):
+            for m in range(lanes):
                 b[i, i, m] = d[m]
                 cm = c[m]
                 rm = r[m]
@@ -100,40 +101,40 @@ def _balance(b, n, c, r, f, d):  # pragma: no cover - compiled
             if not changed:
                 continue
             done = False
-            for m in range(LANES):
+            for m in range(lanes):
                 c[m] = 1.0 / f[m]
             for j in range(n):
-                for m in range(LANES):
+                for m in range(lanes):
                     b[i, j, m] *= c[m]
             for j in range(n):
-                for m in range(LANES):
+                for m in range(lanes):
                     b[j, i, m] *= f[m]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _hessenberg(b, n, v, w, h):  # pragma: no cover - compiled
-    """Householder reduction of every lane of ``b`` (shape (n, n, LANES)) to upper
-    Hessenberg form (in place; ``v`` (n, LANES), ``w`` (n, LANES) and ``h`` (4, LANES)
-    scratch). The lanes run the same operations; a lane whose column is already zero
-    gets the identity (its reflector's scale is zero)."""
+def _hessenberg(b, n, lanes, v, w, h):  # pragma: no cover - compiled
+    """Householder reduction of the first ``lanes`` lanes of ``b`` (shape (n, n, LANES))
+    to upper Hessenberg form (in place; ``v`` (n, LANES), ``w`` (n, LANES) and ``h``
+    (4, LANES) scratch). The lanes run the same operations; a lane whose column is
+    already zero gets the identity (its reflector's scale is zero)."""
     scale = h[0]
     hh = h[1]
     g = h[2]
     hinv = h[3]
     for k in range(n - 2):
-        for m in range(LANES):
+        for m in range(lanes):
             scale[m] = 0.0
         for i in range(k + 1, n):
-            for m in range(LANES):
+            for m in range(lanes):
                 scale[m] += abs(b[i, k, m])
-        for m in range(LANES):
+        for m in range(lanes):
             hinv[m] = 1.0 / scale[m] if scale[m] != 0.0 else 0.0
             hh[m] = 0.0
         for i in range(k + 1, n):
-            for m in range(LANES):
+            for m in range(lanes):
                 v[i, m] = b[i, k, m] * hinv[m]
                 hh[m] += v[i, m] * v[i, m]
-        for m in range(LANES):
+        for m in range(lanes):
             gm = math.sqrt(hh[m])
             if v[k + 1, m] > 0.0:
                 gm = -gm
@@ -143,35 +144,35 @@ def _hessenberg(b, n, v, w, h):  # pragma: no cover - compiled
             hinv[m] = 1.0 / hh[m] if scale[m] != 0.0 else 0.0
         # from the left, row by row: w = v' b / h, then b -= v w
         for j in range(k + 1, n):
-            for m in range(LANES):
+            for m in range(lanes):
                 w[j, m] = 0.0
         for i in range(k + 1, n):
             for j in range(k + 1, n):
-                for m in range(LANES):
+                for m in range(lanes):
                     w[j, m] += v[i, m] * b[i, j, m]
         for j in range(k + 1, n):
-            for m in range(LANES):
+            for m in range(lanes):
                 w[j, m] *= hinv[m]
         for i in range(k + 1, n):
             for j in range(k + 1, n):
-                for m in range(LANES):
+                for m in range(lanes):
                     b[i, j, m] -= w[j, m] * v[i, m]
         # from the right, column by column: w = b v / h, then b -= w v'
         for i in range(n):
-            for m in range(LANES):
+            for m in range(lanes):
                 w[i, m] = 0.0
         for j in range(k + 1, n):
             for i in range(n):
-                for m in range(LANES):
+                for m in range(lanes):
                     w[i, m] += v[j, m] * b[i, j, m]
         for i in range(n):
-            for m in range(LANES):
+            for m in range(lanes):
                 w[i, m] *= hinv[m]
         for i in range(n):
             for j in range(k + 1, n):
-                for m in range(LANES):
+                for m in range(lanes):
                     b[i, j, m] -= w[i, m] * v[j, m]
-        for m in range(LANES):
+        for m in range(lanes):
             if scale[m] != 0.0:
                 b[k + 1, k, m] = scale[m] * g[m]
                 for i in range(k + 2, n):
@@ -179,9 +180,10 @@ def _hessenberg(b, n, v, w, h):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - compiled
+def _hqr(b, n, lanes, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - compiled
     """Eigenvalues of the upper Hessenberg matrices of the first ``count`` lanes of ``b``
-    (shape (n + 1, n + 1, LANES), the last row and column zero) into ``lam`` (LANES, n);
+    (shape (n + 1, n + 1, LANES), the last row and column zero; ``lanes`` of them take
+    part) into ``lam`` (LANES, n);
     ``ok[m]`` False where lane ``m`` did not converge. ``ints`` (4, LANES) and ``reals``
     (12, LANES) are scratch.
 
@@ -210,7 +212,7 @@ def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - c
     Z = reals[7]
     Q = reals[8]
     R = reals[9]
-    for m in range(LANES):
+    for m in range(lanes):
         nn[m] = n - 1 if m < count else -1
         its[m] = 0
         t[m] = 0.0
@@ -224,7 +226,7 @@ def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - c
         kmin = n
         kmax = -1
         lmin = n
-        for m in range(LANES):
+        for m in range(lanes):
             mst[m] = n
             # deflate what the lane can: a negligible subdiagonal entry splits its block
             while nn[m] >= 0:
@@ -319,7 +321,7 @@ def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - c
             return
         # the lanes' bulge chases, row by row
         for k in range(kmin, kmax + 1):
-            for m in range(LANES):
+            for m in range(lanes):
                 X[m] = 0.0
                 Y[m] = 0.0
                 Z[m] = 0.0
@@ -364,7 +366,7 @@ def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - c
                 Q[m] = q * inv
                 R[m] = r * inv
             for j in range(k, kmax + 2):
-                for m in range(LANES):
+                for m in range(lanes):
                     p = b[k, j, m] + Q[m] * b[k + 1, j, m]
                     p += R[m] * b[k + 2, j, m]
                     b[k + 2, j, m] -= p * Z[m]
@@ -372,7 +374,7 @@ def _hqr(b, n, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - c
                     b[k, j, m] -= p * X[m]
             top = min(kmax + 1, k + 3)
             for i in range(lmin, top + 1):
-                for m in range(LANES):
+                for m in range(lanes):
                     p = X[m] * b[i, k, m] + Y[m] * b[i, k + 1, m]
                     p += Z[m] * b[i, k + 2, m]
                     b[i, k + 2, m] -= p * R[m]
@@ -413,9 +415,11 @@ def _stack(A, max_sweeps):  # pragma: no cover - compiled
                 for i in range(n):
                     for j in range(n):
                         b[i, j, m] = A[start + m, i, j]
-        _balance(b, n, h[0], h[1], h[2], h[3])
-        _hessenberg(b, n, v, w, h)
-        _hqr(b, n, count, max_sweeps, lanes_lam, lanes_ok, ints, reals)
+        # the lanes in use (a short stack needs no more)
+        lanes = count
+        _balance(b, n, lanes, h[0], h[1], h[2], h[3])
+        _hessenberg(b, n, lanes, v, w, h)
+        _hqr(b, n, lanes, count, max_sweeps, lanes_lam, lanes_ok, ints, reals)
         for m in range(count):
             if finite[m] and lanes_ok[m]:
                 ok[start + m] = True
@@ -457,3 +461,12 @@ def eigvals_stack(A) -> np.ndarray:
         # LAPACK takes what the loops did not (and raises NumPy's error on a non-finite entry)
         lam[~ok] = np.linalg.eigvals(flat[~ok])
     return lam.reshape(A.shape[:-1])
+
+
+def load_kernels() -> None:
+    """Compile the loops, or load them from Numba's cache, now rather than at first use.
+
+    A process loads them in about 0.2 s (compiles them in about 4 s the first time after
+    an install); validation's worker processes do it while the members are sampled.
+    """
+    _stack(np.zeros((1, 1, 1)), MAX_SWEEPS)
