@@ -466,7 +466,7 @@ def eigvals_stack(A) -> np.ndarray:
 def load_kernels() -> None:
     """Compile the loops, or load them from Numba's cache, now rather than at first use.
 
-    A process loads them in about 0.2 s (compiles them in about 4 s the first time after
-    an install); validation's worker processes do it while the members are sampled.
+    A process loads them in about 0.2 s at its first call (compiles them in about 4 s the
+    first time after an install); a benchmark calls this to time that apart.
     """
     _stack(np.zeros((1, 1, 1)), MAX_SWEEPS)
