@@ -130,6 +130,26 @@ def test_a_matrix_does_not_depend_on_its_neighbours(family_matrices):
     assert np.array_equal(eigvals_stack(mixed)[7], whole[3])
 
 
+def test_negative_zeros_do_not_make_a_matrix_depend_on_its_neighbours():
+    """A neighbour's sweep applies the identity to this lane, which can turn -0.0 into
+    +0.0; the sign of a zero decides the order within a pair, so the loops start from
+    +0.0 (without that, this matrix listed -1, 1 alone and 1, -1 beside another)."""
+    M = np.array(
+        [
+            [-0.0, 1, 1, 0, 0],
+            [1, 0, 0, 0, 0],
+            [0, 0, 1, 2, 3],
+            [0, 0, 4, 5, 6],
+            [0, 0, 7, 8, 10],
+        ]
+    )
+    other = np.random.default_rng(0).standard_normal((5, 5))
+    alone = eigvals_stack(M[None])[0]
+    assert np.array_equal(eigvals_stack(np.stack([M, other]))[0], alone)
+    assert np.array_equal(eigvals_stack(np.stack([other, M]))[1], alone)
+    assert _matched_error(np.linalg.eigvals(M), alone) < 1e-13
+
+
 def test_shapes_and_types():
     rng = np.random.default_rng(1)
     A = rng.normal(size=(2, 3, 5, 5))
@@ -140,7 +160,8 @@ def test_shapes_and_types():
     assert sorted(eigvals_stack(ints).real) == [2.0, 3.0]
     cplx = np.array([[1j, 0], [0, 2]])
     assert np.array_equal(eigvals_stack(cplx), np.linalg.eigvals(cplx))
-    assert eigvals_stack(np.zeros((0, 4, 4))).shape == (0, 4)
+    empty = eigvals_stack(np.zeros((0, 4, 4)))
+    assert empty.shape == (0, 4) and empty.dtype == np.complex128
     with pytest.raises(np.linalg.LinAlgError):
         eigvals_stack(np.zeros((3, 4)))
 
