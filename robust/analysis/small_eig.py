@@ -185,10 +185,9 @@ def _hessenberg(b, n, lanes, v, w, h):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _hqr(b, n, lanes, count, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - compiled
-    """Eigenvalues of the upper Hessenberg matrices of the first ``count`` lanes of ``b``
-    (shape (n + 1, n + 1, LANES), the last row and column zero; ``lanes`` of them take
-    part) into ``lam`` (LANES, n);
+def _hqr(b, n, lanes, max_sweeps, lam, ok, ints, reals):  # pragma: no cover - compiled
+    """Eigenvalues of the upper Hessenberg matrices of the first ``lanes`` lanes of ``b``
+    (shape (n + 1, n + 1, LANES), the last row and column zero) into ``lam`` (LANES, n);
     ``ok[m]`` False where lane ``m`` did not converge. ``ints`` (4, LANES) and ``reals``
     (12, LANES) are scratch.
 
@@ -218,10 +217,10 @@ def _hqr(b, n, lanes, count, max_sweeps, lam, ok, ints, reals):  # pragma: no co
     Q = reals[8]
     R = reals[9]
     for m in range(lanes):
-        nn[m] = n - 1 if m < count else -1
+        nn[m] = n - 1
         its[m] = 0
         t[m] = 0.0
-        ok[m] = m < count
+        ok[m] = True
         s = 0.0
         for i in range(n):
             for j in range(max(i - 1, 0), n):
@@ -423,11 +422,10 @@ def _stack(A, max_sweeps):  # pragma: no cover - compiled
                         # updates may turn -0.0 into +0.0, and the sign of a zero decides
                         # the order within a pair of eigenvalues
                         b[i, j, m] = A[start + m, i, j] + 0.0
-        # the lanes in use (a short stack needs no more)
-        lanes = count
-        _balance(b, n, lanes, h[0], h[1], h[2], h[3])
-        _hessenberg(b, n, lanes, v, w, h)
-        _hqr(b, n, lanes, count, max_sweeps, lanes_lam, lanes_ok, ints, reals)
+        # only the lanes in use take part (a short stack needs no more)
+        _balance(b, n, count, h[0], h[1], h[2], h[3])
+        _hessenberg(b, n, count, v, w, h)
+        _hqr(b, n, count, max_sweeps, lanes_lam, lanes_ok, ints, reals)
         for m in range(count):
             if finite[m] and lanes_ok[m]:
                 ok[start + m] = True
@@ -448,7 +446,8 @@ def eigvals_stack(A) -> np.ndarray:
     -------
     ndarray of complex, shape (..., n)
         Each matrix's eigenvalues, in no particular order (conjugate pairs adjacent,
-        the positive imaginary part first), equal to LAPACK's to rounding.
+        the positive imaginary part first), equal to LAPACK's to rounding where they are
+        well conditioned (see the module notes on reducible matrices).
 
     Raises
     ------
