@@ -37,10 +37,11 @@ pin_numeric_kernels()
 
 from bdft import design, identify, limit, margin, report, reproduce, sweep, validate  # noqa: E402
 from bdft.args import ArgumentParser, UsageError  # noqa: E402
+from robust.engine import stop_workers  # noqa: E402
 from robust.errors import BDFTError  # noqa: E402
 from robust.version import __version__  # noqa: E402
 
-__all__ = ["main", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
+__all__ = ["main", "program", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
 
 #: Sub-command modules, in the order ``bdft --help`` lists them.
 COMMANDS = (reproduce, validate, margin, sweep, identify, design, limit, report)
@@ -143,3 +144,23 @@ def main(argv: list[str] | None = None) -> int:
             where = f"the traceback could not be written ({_one_line(log_exc)})"
         print(f"{prog}: internal error: {what}; this is a bug, {where}", file=sys.stderr)
         return 1
+
+
+def program() -> int:
+    """The ``bdft`` program: :func:`main` on ``sys.argv``, then its worker processes ended.
+
+    The console script and ``python -m bdft`` run this. The local worker processes of a
+    command's ``--jobs`` are idle once :func:`main` returns; ending them at once
+    (:func:`robust.engine.stop_workers`) spares the wait for their interpreters' shutdown.
+    :func:`main` itself leaves them to the next call (a program calling it repeatedly reuses
+    them).
+
+    Returns
+    -------
+    int
+        :func:`main`'s exit code.
+    """
+    try:
+        return main()
+    finally:
+        stop_workers()

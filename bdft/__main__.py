@@ -2,6 +2,6 @@
 
 import sys
 
-from bdft import main
+from bdft import program
 
-sys.exit(main())
+sys.exit(program())

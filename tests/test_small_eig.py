@@ -1,13 +1,11 @@
 """The compiled batched eigenvalue loops against LAPACK and 40-digit references."""
 
 import hashlib
-import os
-import subprocess
-import sys
 
 import mpmath
 import numpy as np
 import pytest
+from numba_builds import outputs_here_and_generic
 from scipy.optimize import linear_sum_assignment
 
 from robust.analysis import small_eig
@@ -200,13 +198,7 @@ print(hashlib.sha256(eigvals_stack(A).tobytes()).hexdigest())
 def test_same_bits_for_a_generic_cpu_build(tmp_path):
     """Numba compiles for the CPU it finds; a build for a generic x86-64 (no AVX) gives
     the same bits (no fused multiply-add, no reassociation)."""
-    here = subprocess.run(
-        [sys.executable, "-c", _HASH_SCRIPT], capture_output=True, text=True, check=True
-    ).stdout.strip()
-    env = dict(os.environ, NUMBA_CPU_NAME="generic", NUMBA_CACHE_DIR=str(tmp_path))
-    generic = subprocess.run(
-        [sys.executable, "-c", _HASH_SCRIPT], capture_output=True, text=True, check=True, env=env
-    ).stdout.strip()
+    here, generic = outputs_here_and_generic(_HASH_SCRIPT, tmp_path)
     assert len(here) == 64 and here == generic
     rng = np.random.default_rng(5)
     A = rng.normal(size=(300, 13, 13)) * 10.0 ** rng.uniform(-3, 3, size=(300, 1, 13))

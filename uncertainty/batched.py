@@ -6,9 +6,11 @@ outputs are wired to the block inputs by one constant matrix ``M`` built from th
 signal names, and the loop is closed for all members at once::
 
     x' = A x + B u,   y = C x + D u,   u = M y
-    =>  A_cl = A + B M (I - D M)^{-1} C          (one batched solve per chunk)
+    =>  A_cl = A + B M (I - D M)^{-1} C
 
-No python-control object is built per member. The eigenvalues of the stack are
+by the compiled loops of :func:`uncertainty.interconnect.close_loops` (the series of
+``(D M)^k`` when the feedthroughs form no algebraic cycle, as in the family's loop; LAPACK's
+solve otherwise). No python-control object is built per member. The eigenvalues of the stack are
 taken chunk by chunk, so memory stays bounded, by the compiled loop of
 :func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's to rounding).
 
@@ -68,6 +70,7 @@ from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
 from uncertainty.family import BOUNDS_RTOL, Family
+from uncertainty.interconnect import close_loops
 from uncertainty.sampling import SampleSet
 from uncertainty.uss import USS
 
@@ -423,70 +426,12 @@ def closed_loop_matrices(
 
 def _closed_loop(family: Family, values: np.ndarray, controller) -> np.ndarray:
     """:func:`closed_loop_matrices` of checked values."""
-    N = values.shape[0]
     blocks = _loop_blocks(family, values, controller)
     M = interconnection(family, blocks, controller)
-    ns = [b.nstates for b in blocks]
-    ni = [len(b.inputs) for b in blocks]
-    no = [len(b.outputs) for b in blocks]
-    n, m, p = sum(ns), sum(ni), sum(no)
-    A = np.zeros((N, n, n))
-    B = np.zeros((N, n, m))
-    C = np.zeros((N, p, n))
-    D = np.zeros((N, p, m))
-    xs = us = ys = 0
-    for b, k, i, o in zip(blocks, ns, ni, no):
-        A[:, xs : xs + k, xs : xs + k] = b.A
-        B[:, xs : xs + k, us : us + i] = b.B
-        C[:, ys : ys + o, xs : xs + k] = b.C
-        D[:, ys : ys + o, us : us + i] = b.D
-        xs, us, ys = xs + k, us + i, ys + o
-    DM = np.einsum("nom,mq->noq", D, M, optimize=True)
-    Z = _solve_algebraic_loop(DM, C)
-    BM = np.einsum("nim,mq->niq", B, M, optimize=True)
-    A += np.einsum("niq,nqj->nij", BM, Z, optimize=True)
+    A = close_loops(*([getattr(b, x) for b in blocks] for x in "ABCD"), M)
+    if A.shape[0] != values.shape[0]:  # no block varies: every member has the same loop
+        A = np.repeat(A, values.shape[0], axis=0)
     return A
-
-
-def _nilpotent(pattern: np.ndarray) -> bool:
-    """Whether every matrix with this sparsity pattern is nilpotent.
-
-    That is, whether the pattern's graph has no cycle.
-    """
-    P = pattern.astype(np.int64)
-    Q = P.copy()
-    for _ in range(P.shape[0]):
-        if not Q.any():
-            return True
-        Q = np.minimum(Q @ P, 1)
-    return not Q.any()
-
-
-def _solve_algebraic_loop(DM: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """``(I - DM)^{-1} C`` for every member.
-
-    When the direct feedthroughs form no algebraic cycle (``DM`` structurally
-    nilpotent, the case without a controller feedthrough), the inverse is the
-    finite series ``I + DM + (DM)^2 + ...``, exact and cheaper than a batched solve.
-    """
-    p = DM.shape[-1]
-    if _nilpotent(np.any(DM != 0.0, axis=0)):
-        Z = C.copy()
-        term = C
-        for _ in range(p - 1):
-            term = np.einsum("nop,npj->noj", DM, term, optimize=True)
-            if not term.any():
-                break
-            Z += term
-        return Z
-    lhs = np.eye(p)[None] - DM
-    try:
-        return np.linalg.solve(lhs, C)
-    except np.linalg.LinAlgError:
-        raise ModelStructureError(
-            "the loop is ill-posed (I - D M singular) for at least one member; "
-            "check the controller's feedthrough D"
-        ) from None
 
 
 def batched_poles(

@@ -218,6 +218,9 @@ def sample(
         )
     seed = _resolve_seed(seed)
     rng = np.random.default_rng(seed)
-    u = _unit_samples(method, int(n), d, rng)
-    values = np.column_stack([p.ppf(u[:, j]) for j, p in enumerate(params)])
+    # one parameter's quantiles contiguous in memory (its column of u is strided)
+    u = np.ascontiguousarray(_unit_samples(method, int(n), d, rng).T)
+    values = np.empty((u.shape[1], d))
+    for j, p in enumerate(params):
+        values[:, j] = p.ppf(u[j])
     return SampleSet(names=tuple(names), values=values, method=method, seed=seed, requested=int(n))
