@@ -78,19 +78,21 @@ def add_coverage_arguments(p, subject: str) -> None:
     add_jobs_argument(p)
 
 
-def add_jobs_argument(p) -> None:
-    """Add ``--jobs``: parallel processes, 1 to 256 (default: the number of cores).
+def add_jobs_argument(p, *, workers: str = "parallel processes") -> None:
+    """Add ``--jobs``: parallel workers, 1 to 256 (default: the number of cores).
 
     Parameters
     ----------
     p : argparse.ArgumentParser
         The sub-command's parser.
+    workers : str
+        What the jobs are, for the help text (default ``"parallel processes"``).
     """
     p.add_argument(
         "--jobs",
         type=integer("--jobs", low=1, high=256),
         default=max(1, os.cpu_count() or 1),
-        help="parallel processes (default: the number of cores, %(default)s)",
+        help=f"{workers} (default: the number of cores, %(default)s)",
     )
 
 

@@ -78,7 +78,7 @@ def register(sub) -> None:
         help="report folder: a new folder or a previous bdft report, never another folder "
         "or file (default: reports/out/sweep-<name>)",
     )
-    add_jobs_argument(p)
+    add_jobs_argument(p, workers="parallel threads for the grid points")
     add_scheduler_argument(p)
     p.add_argument(
         "--json", action="store_true", help="print one JSON object with the table and settings"
@@ -138,7 +138,7 @@ def run(args) -> int:
         19 factors, a 12 x 12 map or 13 frequencies); ``workspace_factor`` (``None``:
         1 for the workspace sweep, 2 for the others); ``out`` (report folder, ``None`` for
         ``reports/out/sweep-<name>``; a new folder or a previous report, checked
-        before the sweep runs), ``jobs`` (local processes for the grid points, used above
+        before the sweep runs), ``jobs`` (threads for the grid points, used above
         50,000 members in all), ``scheduler`` (a Dask scheduler's address: the grid points
         run on its workers) and ``json``.
 

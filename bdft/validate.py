@@ -20,7 +20,6 @@ from bdft.args import (
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from robust.analysis.stability import DAMPING_BAND_HZ
-from robust.engine import scheduler_address, warm_workers
 from robust.model.literature import DEFAULT_POSTURE, POSTURES
 from robust.model.physical import nominal_params
 from uncertainty import (
@@ -30,7 +29,6 @@ from uncertainty import (
     sample,
     validate_family,
 )
-from uncertainty.batched import TASK_MEMBERS
 from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
 
 __all__ = [
@@ -128,7 +126,7 @@ def register(sub) -> None:
     )
     add_family_arguments(p, samples=10_000)
     add_system_argument(p)
-    add_jobs_argument(p)
+    add_jobs_argument(p, workers="parallel threads (the compiled loops release the GIL)")
     add_scheduler_argument(p)
     p.add_argument(
         "--band",
@@ -350,7 +348,7 @@ def run(args) -> int:
         ``controller`` (controller JSON path or ``None``), ``workspace_factor``
         (``K_PSF = 0.1097 / factor``), ``system`` (a Python file defining a ``uss``,
         validated instead of the family), ``band`` (``LO-HI`` Hz of the minimum damping),
-        ``jobs`` (local processes), ``scheduler`` (a Dask scheduler's address) and
+        ``jobs`` (threads), ``scheduler`` (a Dask scheduler's address) and
         ``json``.
 
     Returns
@@ -367,17 +365,10 @@ def run(args) -> int:
     check_family_arguments(args)
     if args.controller is not None:
         check_json_file("--controller", args.controller)
-    # the worker processes start while the members are sampled and checked
-    local = (
-        args.jobs > 1 and args.samples > TASK_MEMBERS and scheduler_address(args.scheduler) is None
-    )
-    warm = warm_workers(args.jobs, "uncertainty.batched") if local else None
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()
     samples = sample(family.parameters, args.samples, method=args.method, seed=args.seed)
-    if warm is not None:
-        warm.join()
     with progress_bar(len(samples), "validate") as bar:
         res = validate_family(
             family,

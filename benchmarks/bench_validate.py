@@ -1,8 +1,8 @@
-"""Benchmark: ``bdft validate`` of many members, serial against local processes and Dask.
+"""Benchmark: ``bdft validate`` of many members, serial against local threads and Dask.
 
 Runs the command ``bdft validate --samples N --json`` (default family, seed 0) three ways,
-each ``--repeats`` times: in one process (``--jobs 1``, the baseline), in two local
-processes (``--jobs 2``) and on a ``dask.distributed.LocalCluster`` of two single-threaded
+each ``--repeats`` times: in one thread (``--jobs 1``, the baseline), in two threads of
+the process (``--jobs 2``) and on a ``dask.distributed.LocalCluster`` of two single-threaded
 worker processes (``--scheduler``; the cluster is started once, outside the timing).
 Prints min/median/max wall time of each, the ratios of the medians against the serial run,
 whether the three JSON outputs are the same bytes, and this process's peak resident memory
@@ -48,7 +48,7 @@ def main_(argv=None) -> None:
     ) as cluster:
         ways = {
             "serial (--jobs 1)": base + ["--jobs", "1"],
-            "local processes (--jobs 2)": base + ["--jobs", "2"],
+            "local threads (--jobs 2)": base + ["--jobs", "2"],
             "Dask LocalCluster, 2 workers (--scheduler)": base
             + ["--scheduler", cluster.scheduler_address],
         }

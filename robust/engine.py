@@ -4,7 +4,8 @@ One function, :func:`map_tasks`, applies a function to a list of arguments and r
 the results in the arguments' order, whichever engine runs them:
 
 * serially in this process (``jobs=1``, no scheduler);
-* in ``jobs`` local worker processes through joblib's loky backend;
+* in ``jobs`` local worker processes through joblib's loky backend, or, for work that
+  releases the GIL (``threads=True``: compiled loops), in ``jobs`` threads of this process;
 * on a Dask distributed cluster (``scheduler="tcp://host:8786"``, or the address in the
   ``DASK_SCHEDULER_ADDRESS`` environment variable, Dask's own convention), its workers
   wherever they run; ``scheduler="local:N"`` starts a local Dask cluster of ``N``
@@ -22,12 +23,9 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import importlib
 import os
-import tempfile
-import threading
-import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 
 from robust.errors import BDFTError, ParameterError
 
@@ -37,7 +35,6 @@ __all__ = [
     "SCHEDULER_ENV",
     "jobs_available",
     "nested_jobs",
-    "warm_workers",
     "stop_workers",
 ]
 
@@ -138,74 +135,8 @@ def _client(address: str):
         yield client
 
 
-#: Seconds a warm-up task waits for the other workers to check in before it gives up waiting.
-WARM_RENDEZVOUS_S = 60.0
-
-
-def _import(module: str, rendezvous: str, jobs: int) -> int:
-    """Import ``module`` in a worker, check in under ``rendezvous`` and wait until ``jobs``
-    workers have (so that each warm-up task runs in a worker of its own); the process id."""
-    importlib.import_module(module)
-    pid = os.getpid()
-    open(os.path.join(rendezvous, str(pid)), "w").close()
-    deadline = time.monotonic() + WARM_RENDEZVOUS_S
-    while len(os.listdir(rendezvous)) < jobs and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return pid
-
-
-def warm_workers(jobs: int, module: str) -> threading.Thread | None:
-    """Start :func:`map_tasks`'s ``jobs`` local processes in the background, each importing
-    ``module``, while this process prepares the tasks.
-
-    A worker process takes about 1.5 s to start and import the numerical libraries; started
-    at once, it does so while the caller samples and checks its members. Join the returned
-    thread before calling :func:`map_tasks` (the same joblib/loky pool is then reused). What
-    the tasks compute does not change.
-
-    Parameters
-    ----------
-    jobs : int
-        Local worker processes (as :func:`map_tasks`' ``jobs``); 1 starts none.
-    module : str
-        The module the tasks' function lives in (imported in each worker).
-
-    Returns
-    -------
-    threading.Thread or None
-        The thread starting the workers (already started), or None when ``jobs`` is 1; once
-        joined, its ``worker_pids`` lists the processes that ran the imports, one task
-        each (unless a worker failed to check in within ``WARM_RENDEZVOUS_S``).
-
-    Raises
-    ------
-    ParameterError
-        If ``jobs`` is not a positive integer.
-    """
-    _check_jobs("warm_workers", jobs)
-    if jobs == 1:
-        return None
-    from joblib import Parallel, delayed
-
-    _POOL["started"] = True
-
-    def start():
-        # a worker that finished its import first would otherwise take the next task too,
-        # and the other would import only when the real tasks arrive: each task waits until
-        # every worker has checked in (a busy worker does not hold back queued tasks)
-        with tempfile.TemporaryDirectory(prefix="bdft-warm-") as rendezvous:
-            thread.worker_pids = Parallel(n_jobs=jobs)(
-                delayed(_import)(module, rendezvous, jobs) for _ in range(jobs)
-            )
-
-    thread = threading.Thread(target=start, name="bdft-warm-workers", daemon=True)
-    thread.worker_pids = []
-    thread.start()
-    return thread
-
-
 def stop_workers() -> bool:
-    """End the local worker processes that :func:`map_tasks` and :func:`warm_workers` started.
+    """End the local worker processes that :func:`map_tasks` started.
 
     joblib keeps its worker processes for the next call and, when the program exits, asks
     each to finish and waits while it tears its interpreter down (about 0.6 s for two
@@ -228,6 +159,24 @@ def stop_workers() -> bool:
     return True
 
 
+def _map_threads(fn: Callable, args: list, jobs: int, step: Callable[[int], None]) -> list:
+    """:func:`map_tasks` in ``jobs`` threads of this process (results in the order of ``args``)."""
+    out: list = [None] * len(args)
+    pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="bdft-task")
+    try:
+        futures = {pool.submit(fn, a): i for i, a in enumerate(args)}
+        for fut in as_completed(futures):
+            i = futures[fut]
+            out[i] = fut.result()
+            step(i)
+    except BaseException:
+        # a failed task or an interrupt: the tasks not yet started are dropped
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return out
+
+
 def map_tasks(
     fn: Callable,
     args: Sequence,
@@ -235,6 +184,7 @@ def map_tasks(
     jobs: int = 1,
     scheduler: str | None = None,
     progress: Callable[[int], None] | None = None,
+    threads: bool = False,
 ) -> list:
     """``[fn(a) for a in args]``, run serially, in local processes or on a Dask cluster.
 
@@ -253,6 +203,11 @@ def map_tasks(
         variable is read when this is None).
     progress : callable, optional
         Called with a task's index when it finishes (in completion order).
+    threads : bool
+        Run the local jobs as ``jobs`` threads of this process instead of processes: for a
+        function that spends its time in code that releases the GIL (compiled loops such as
+        Numba's ``nogil`` ones, LAPACK), no process starts, imports or receives copies of the
+        arguments. A Dask scheduler, when one is given, is used all the same.
 
     Returns
     -------
@@ -288,6 +243,8 @@ def map_tasks(
             out.append(fn(a))
             step(i)
         return out
+    if threads:
+        return _map_threads(fn, args, jobs, step)
     from joblib import Parallel, delayed
 
     _POOL["started"] = True

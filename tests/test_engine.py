@@ -1,9 +1,11 @@
-"""Where the work runs does not change what it computes: serial, local processes, Dask."""
+"""Where the work runs does not change what it computes: serial, local threads and processes,
+Dask."""
 
 from __future__ import annotations
 
 import functools
 import json
+import threading
 
 import numpy as np
 import pytest
@@ -182,17 +184,45 @@ def _pid(_):
     return os.getpid()
 
 
-def test_warmed_workers_are_the_ones_the_tasks_run_in():
-    # the processes started (and their imports done) while the caller prepares its tasks
-    # are those map_tasks then uses: the warm-up is not thrown away
-    assert engine.warm_workers(1, "uncertainty.batched") is None
-    with pytest.raises(ParameterError, match="warm_workers: jobs"):
-        engine.warm_workers(0, "uncertainty.batched")
-    thread = engine.warm_workers(2, "uncertainty.batched")
-    thread.join(timeout=120)
-    assert not thread.is_alive()
-    warmed = set(thread.worker_pids)
-    # each warm-up task ran (and imported) in a process of its own
-    assert len(warmed) == 2 and all(isinstance(p, int) for p in warmed)
-    used = set(map_tasks(_pid, range(8), jobs=2))
-    assert used <= warmed
+def test_idle_worker_processes_are_ended_on_request():
+    import os
+
+    first = set(map_tasks(_pid, range(6), jobs=2))
+    assert os.getpid() not in first and 1 <= len(first) <= 2
+    assert engine.stop_workers() is True
+    for pid in first:  # ended: the process is gone (or a reaped zombie no longer ours)
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+    assert engine.stop_workers() is False  # nothing left to end
+    # the next call starts new workers
+    again = set(map_tasks(_pid, range(6), jobs=2))
+    assert again and not (again & first)
+    assert engine.stop_workers() is True
+
+
+def _meet(barrier, x):
+    # passes only if another task runs at the same time (two threads side by side)
+    barrier.wait(timeout=30)
+    return x * x, threading.current_thread().name
+
+
+def test_threads_run_side_by_side_in_this_process_and_keep_the_order():
+    barrier = threading.Barrier(2)
+    seen = []
+    out = map_tasks(
+        functools.partial(_meet, barrier), range(6), jobs=2, threads=True, progress=seen.append
+    )
+    assert [r[0] for r in out] == [x * x for x in range(6)]
+    assert {r[1] for r in out} <= {"bdft-task_0", "bdft-task_1"}
+    assert sorted(seen) == list(range(6))
+
+
+def _fail_at(k, x):
+    if x == k:
+        raise ValueError(f"task {x} failed")
+    return x
+
+
+def test_a_failing_thread_task_raises_its_own_error():
+    with pytest.raises(ValueError, match="task 3 failed"):
+        map_tasks(functools.partial(_fail_at, 3), range(40), jobs=2, threads=True)

@@ -653,7 +653,7 @@ def _metrics(family, values, controller, chunk, band_hz, progress):
     return max_real, min_damp, int(nstates)
 
 
-#: Members per task when validation runs in several processes or on a Dask cluster.
+#: Members per task when validation runs in several threads or on a Dask cluster.
 TASK_MEMBERS = 50_000
 
 
@@ -676,6 +676,7 @@ def _distributed_metrics(family, values, controller, chunk, band_hz, progress, j
         jobs=jobs,
         scheduler=scheduler,
         progress=done,
+        threads=True,
     )
     max_real = np.concatenate([p[0] for p in parts])
     min_damp = np.concatenate([p[1] for p in parts])
@@ -727,7 +728,9 @@ def validate_family(
         non-physical values (a negative mass, frequency or damping ratio) are refused
         either way.
     jobs : int
-        Local worker processes (joblib); 1 (default) validates in this process.
+        Threads of this process that validate tasks of :data:`TASK_MEMBERS` members side by
+        side (the compiled loops release the GIL, so no worker process is needed); 1
+        (default) validates in this thread.
     scheduler : str, optional
         A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the members are
         validated on its workers in tasks of :data:`TASK_MEMBERS` (see

@@ -96,9 +96,9 @@ def _metrics_on_grid(
     Returns the per-point fraction stable, worst real part and minimum damping, and
     the settings. With ``check_bounds=False`` the grid values may leave the family's
     bounds (they must stay physical). The grid points are independent tasks: on a Dask
-    scheduler, or in ``jobs`` local processes when the sweep holds more than
-    :data:`~uncertainty.batched.TASK_MEMBERS` members (below that, starting the
-    processes costs more than the poles); every engine gives the same bits.
+    scheduler, or in ``jobs`` threads of this process when the sweep holds more than
+    :data:`~uncertainty.batched.TASK_MEMBERS` members (below that, the grid points are
+    too small to gain); every engine gives the same bits.
     """
     jobs = check_int("sweep: jobs", jobs, low=1)
     fixed = set().union(*(g.keys() for g in grid_values))
@@ -126,7 +126,9 @@ def _metrics_on_grid(
         results = [point(t, progress) for t in tasks]
     else:
         done = (lambda i: progress(M + 1)) if progress is not None else None
-        results = map_tasks(point, tasks, jobs=jobs, scheduler=scheduler, progress=done)
+        results = map_tasks(
+            point, tasks, jobs=jobs, scheduler=scheduler, progress=done, threads=True
+        )
     for mr_all, md_all in results:
         mr, md = mr_all[:M], md_all[:M]
         rows["nominal_max_real"].append(float(mr_all[M]))
@@ -195,8 +197,9 @@ def workspace_sweep(
     progress : callable, optional
         Called with the number of members finished.
     jobs : int
-        Local worker processes for the grid points (used above
-        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+        Threads of this process for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all; the compiled loops release
+        the GIL).
     scheduler : str, optional
         A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
         its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
@@ -274,8 +277,9 @@ def frequency_damping_sweep(
     progress : callable, optional
         Called with the number of members finished.
     jobs : int
-        Local worker processes for the grid points (used above
-        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+        Threads of this process for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all; the compiled loops release
+        the GIL).
     scheduler : str, optional
         A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
         its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
@@ -368,8 +372,9 @@ def structure_frequency_sweep(
     progress : callable, optional
         Called with the number of members finished.
     jobs : int
-        Local worker processes for the grid points (used above
-        :data:`~uncertainty.batched.TASK_MEMBERS` members in all).
+        Threads of this process for the grid points (used above
+        :data:`~uncertainty.batched.TASK_MEMBERS` members in all; the compiled loops release
+        the GIL).
     scheduler : str, optional
         A Dask scheduler's address (or ``$DASK_SCHEDULER_ADDRESS``): the grid points run on
         its workers (:func:`robust.engine.map_tasks`); the same result on every engine.
