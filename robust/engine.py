@@ -186,7 +186,7 @@ def map_tasks(
     progress: Callable[[int], None] | None = None,
     threads: bool = False,
 ) -> list:
-    """``[fn(a) for a in args]``, run serially, in local processes or on a Dask cluster.
+    """``[fn(a) for a in args]``, run serially, in local processes or threads, or on a Dask cluster.
 
     Parameters
     ----------
