@@ -103,7 +103,6 @@ def _close(As, Bs, Cs, Ds, M, xs, us, ys, out):  # pragma: no cover - compiled
             for c in range(n):
                 T[r, c] = Z[r, c]
         for _ in range(p - 1):
-            nonzero = False
             for r in range(p):
                 for c in range(n):
                     T2[r, c] = 0.0
@@ -112,13 +111,16 @@ def _close(As, Bs, Cs, Ds, M, xs, us, ys, out):  # pragma: no cover - compiled
                     if w != 0.0:
                         for c in range(n):
                             T2[r, c] += w * T[s, c]
-                        nonzero = True
-            if not nonzero:
-                break
+            nonzero = False
             for r in range(p):
                 for c in range(n):
                     T[r, c] = T2[r, c]
-                    Z[r, c] += T2[r, c]
+                    nonzero |= T2[r, c] != 0.0
+            if not nonzero:  # the series has ended
+                break
+            for r in range(p):
+                for c in range(n):
+                    Z[r, c] += T[r, c]
         # A_cl = A + (B M) Z, each row's sum over the nonzero entries of B M in order
         for i in range(n):
             cnt = 0
