@@ -48,7 +48,6 @@ import dataclasses
 import hashlib
 import math
 import os
-import pickle
 import shutil
 import tempfile
 import time
@@ -590,24 +589,19 @@ def _rung_inputs(family, k, K, rows, spec, options, limits) -> dict:
 
     The options the ladder alone reads (``ladder``, ``bisection``, ``margin_boxes``) are left
     out, so a rung of the force trade-off (no bisection, fewer boxes) and the same rung of
-    the design share one entry; the controller counts by its matrices.
+    the design share one entry; the controller counts by its matrices. The key is made of
+    values only: the dataclasses' ``repr`` (floats written exactly) and the arrays' bytes,
+    not pickles, whose bytes depend on which equal strings are one object (a family sent
+    to a worker process pickles otherwise than the same family built there).
     """
     mats = (K.A, K.B, K.C, K.D) if isinstance(K, ct.StateSpace) else tuple(K)
     opts = dataclasses.replace(options, ladder=(1.0,), bisection=0, margin_boxes=1)
-    blob = pickle.dumps(
-        (
-            family,
-            float(k),
-            type(K).__name__,
-            [np.asarray(m, float) for m in mats],
-            np.asarray(rows, float),
-            spec,
-            opts,
-            limits,
-        ),
-        protocol=4,
-    )
-    return {"rung": hashlib.sha256(blob).hexdigest()}
+    h = hashlib.sha256(repr((family, float(k), type(K).__name__, spec, opts, limits)).encode())
+    for m in (*mats, rows):
+        a = np.ascontiguousarray(m, dtype=float)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    return {"rung": h.hexdigest()}
 
 
 def _keep_rung(args, result) -> None:

@@ -8,6 +8,7 @@ gives the same controller under one and two BLAS threads.
 import dataclasses
 import json
 import os
+import pickle
 import subprocess
 import sys
 import textwrap
@@ -19,7 +20,13 @@ from threadpoolctl import threadpool_info
 
 from designs.cancellation import cancellation_controller
 from designs.hinf_nominal import design_hinf_nominal
-from designs.robust_lmi import RobustOptions, _start, force_tradeoff, maximise_margin
+from designs.robust_lmi import (
+    RobustOptions,
+    _rung_inputs,
+    _start,
+    force_tradeoff,
+    maximise_margin,
+)
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
 from robust.cache import CACHE_ENV, caching
@@ -305,6 +312,41 @@ def test_rungs_kept_in_the_cache_give_the_same_design(family, tmp_path, monkeypa
             family, options=dataclasses.replace(o, order=3, bisection=0), progress=said.append
         )
     assert not [m for m in said if "taken from the cache" in m]
+
+
+def test_a_rungs_key_is_made_of_values_not_of_objects():
+    # bdft report sends the trade-off's family to a worker process (pickled), while the
+    # design builds its own there: equal values must give one key, or the design climbs
+    # the trade-off point's rungs again; every value the rung reads must change the key
+    fam = default_family()
+    spec = Specification()
+    o = RobustOptions()
+    lim = spec.limits()
+    K = _start(fam, o, lim)
+    rows = [fam.nominal_values()]
+    key = _rung_inputs(fam, 0.05, K, rows, spec, o, lim)
+    sent = pickle.loads(pickle.dumps((fam, spec, o, lim)))
+    assert pickle.dumps(sent[0]) != pickle.dumps(fam)  # the pickles differ, the values do not
+    assert _rung_inputs(sent[0], 0.05, K, rows, *sent[1:]) == key
+    # the options only the ladder reads do not count
+    point = dataclasses.replace(o, bisection=0, margin_boxes=30, ladder=(0.5, 1.0))
+    assert _rung_inputs(fam, 0.05, K, rows, spec, point, lim) == key
+    K2 = ct.ss(K.A, K.B, K.C, K.D * (1 + 1e-15) + 1e-300)
+    other_rows = np.array(rows) * (1 + 2**-52)
+    changed = [
+        _rung_inputs(fam.with_workspace_factor(2.0), 0.05, K, rows, spec, o, lim),
+        _rung_inputs(fam, 0.05 + 1e-19, K, rows, spec, o, lim),
+        _rung_inputs(fam, np.nextafter(0.05, 1), K, rows, spec, o, lim),
+        _rung_inputs(fam, 0.05, K2, rows, spec, o, lim),
+        _rung_inputs(fam, 0.05, K, other_rows, spec, o, lim),
+        _rung_inputs(fam, 0.05, K, rows + rows, spec, o, lim),
+        _rung_inputs(fam, 0.05, K, rows, dataclasses.replace(spec, peak_force_n=3.0), o, lim),
+        _rung_inputs(fam, 0.05, K, rows, spec, dataclasses.replace(o, order=3), lim),
+        _rung_inputs(fam, 0.05, K, rows, spec, o, dataclasses.replace(lim, workspace_mm=70.0)),
+    ]
+    assert changed[1] == key  # 0.05 + 1e-19 is the float 0.05
+    del changed[1]
+    assert len({c["rung"] for c in changed} | {key["rung"]}) == len(changed) + 1
 
 
 def test_bisection_tried_beside_the_ladder_gives_the_same_design(family):
