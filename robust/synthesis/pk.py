@@ -66,6 +66,7 @@ import scipy.linalg as sla
 
 from robust.analysis.lyapunov import lyapunov
 from robust.analysis.norms import hinf_norm
+from robust.analysis.resolvent import siso_responses
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.engine import jobs_available, map_tasks
 from robust.errors import (
@@ -323,7 +324,8 @@ def responses(cl: _Affine, Om, w) -> tuple[np.ndarray, np.ndarray]:
     """A SISO closed loop's frequency response and its derivative in the controller data.
 
     ``T(jw) = C R B + D`` with ``R = (jw - A)^-1``; since ``A, B, C, D`` are affine in
-    ``Om``, ``dT = (D12b + C R Bb) dOm (Cb R B + D21b)``.
+    ``Om``, ``dT = (D12b + C R Bb) dOm (Cb R B + D21b)``. The three products come from one
+    Hessenberg form of ``A`` (:func:`robust.analysis.resolvent.siso_responses`).
 
     Parameters
     ----------
@@ -340,15 +342,10 @@ def responses(cl: _Affine, Om, w) -> tuple[np.ndarray, np.ndarray]:
     dT : numpy.ndarray of complex, shape (n_w, *Om.shape)
     """
     A, B, C, D = cl.matrices(Om)
-    n = A.shape[0]
-    w = np.asarray(w, float)
-    lhs = 1j * w[:, None, None] * np.eye(n) - A  # (n_w, n, n)
-    RB = np.linalg.solve(
-        lhs, np.broadcast_to(np.hstack([B, cl.Bb]), (w.size, n, 1 + cl.Bb.shape[1]))
-    )
-    T = (RB[:, :, 0] @ C[0]) + D[0, 0]
-    p = cl.D12b[0][None, :] + C[0] @ RB[:, :, 1:]  # (n_w, m): C R Bb from the one solve
-    q = RB[:, :, 0] @ cl.Cb.T + cl.D21b[:, 0][None, :]  # (n_w, p)
+    crb, cRBb, CbRb = siso_responses(A, B[:, 0], C[0], cl.Bb, cl.Cb, w)
+    T = crb + D[0, 0]
+    p = cl.D12b[0][None, :] + cRBb  # (n_w, m)
+    q = CbRb + cl.D21b[:, 0][None, :]  # (n_w, p)
     return T, p[:, :, None] * q[:, None, :]
 
 
