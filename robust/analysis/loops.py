@@ -16,6 +16,7 @@ import numpy as np
 from robust.analysis.norms import hinf_norm
 from robust.analysis.realization import minimal_realization
 from robust.analysis.reduction import balanced_truncation
+from robust.analysis.resolvent import siso_responses
 from robust.analysis.stability import poles_stable, unstable_mask
 from robust.checks import (
     NONNEGATIVE,
@@ -172,9 +173,10 @@ def frequency_response(
 ) -> np.ndarray:
     """Complex frequency response of one channel of ``sys`` at ``freqs_hz`` (Hz).
 
-    ``C_o (j w I - A)^-1 B_i + D_oi`` by one stacked LU solve over the frequencies
-    (:func:`resolvent_times`); SLICOT's evaluation through python-control (a Hessenberg
-    form and a solve per frequency, about twice the time) is kept for a frequency on a pole.
+    ``C_o (j w I - A)^-1 B_i + D_oi`` from one Hessenberg form of ``A`` and an ``O(n^2)``
+    solve per frequency (:func:`robust.analysis.resolvent.siso_responses`); SLICOT's
+    evaluation through python-control (the same method, with a Python loop over the
+    frequencies) is kept for a frequency on a pole.
 
     Parameters
     ----------
@@ -212,13 +214,15 @@ def frequency_response(
     d = complex(np.asarray(sys.D, float)[o, i])
     if A.shape[0] == 0:
         return np.full(w.size, d)
+    B = np.asarray(sys.B, float)
+    C = np.asarray(sys.C, float)
     try:
-        # one stacked solve for the channel: C_o (j w I - A)^-1 B_i + D_oi
-        X = resolvent_times(A, w, np.asarray(sys.B, float)[:, i : i + 1])
+        # C_o (j w I - A)^-1 B_i + D_oi through one Hessenberg form of A
+        crb, _, _ = siso_responses(A, B[:, i], C[o], np.zeros((A.shape[0], 0)), C[:0], w)
     except np.linalg.LinAlgError:  # a frequency on a pole: SLICOT's evaluation reports it
         resp = sys(1j * w, squeeze=False)  # shape (noutputs, ninputs, nfreq)
         return np.asarray(resp)[o, i, :]
-    return (np.asarray(sys.C, float)[o] @ X)[:, 0] + d
+    return crb + d
 
 
 def bdft_ratio(loop: BDFTLoop, freqs_hz: np.ndarray, *, controller=None) -> np.ndarray:
