@@ -195,8 +195,8 @@ def _responses(A, b, c, Bb, Cb, w, crb, cRBb, CbRb):  # pragma: no cover - compi
         # the lower one has the larger pivot
         for i in range(n - 1):
             a = U[i, i]
-            d = U[i + 1, i]
-            swap[i] = abs(d.real) + abs(d.imag) > abs(a.real) + abs(a.imag)
+            e = U[i + 1, i]
+            swap[i] = abs(e.real) + abs(e.imag) > abs(a.real) + abs(a.imag)
             if swap[i]:
                 for j in range(i, n):
                     t = U[i, j]
