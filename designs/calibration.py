@@ -936,6 +936,35 @@ def _coherent(coh, pr, where, n_params: int = 4):
     return good
 
 
+def _local_fit(resid, jacobian, z0, zlo, zhi):
+    """One local weighted least-squares solve from ``z0`` within ``zlo .. zhi``.
+
+    MINPACK's Levenberg-Marquardt (``lmder``; J. J. Moré, "The Levenberg-Marquardt
+    algorithm: implementation and theory", *Numerical Analysis*, Lecture Notes in
+    Mathematics 630, 1978) first, unbounded: where it converges strictly inside the box,
+    its answer is a local minimum of the bounded problem too (no bound is active), found
+    at less than half the cost of the bounded trust-region method. Otherwise (a bound
+    active, no convergence, a non-finite answer) the bounded trust-region reflective
+    method (:func:`scipy.optimize.least_squares`, ``"trf"``) solves from ``z0`` again.
+    """
+    try:
+        with np.errstate(all="ignore"):
+            sol = sopt.least_squares(resid, z0, jac=jacobian, x_scale="jac", method="lm")
+    except (ValueError, np.linalg.LinAlgError):  # a non-finite residual on the way
+        sol = None
+    if (
+        sol is not None
+        and sol.status > 0
+        and np.isfinite(sol.cost)
+        and np.all(np.isfinite(sol.jac))
+        and np.all((zlo < sol.x) & (sol.x < zhi))
+    ):
+        return sol
+    return sopt.least_squares(
+        resid, z0, jac=jacobian, bounds=(zlo, zhi), x_scale="jac", method="trf"
+    )
+
+
 def _fit(resid_rows, jacobian, starts, zlo, zhi, n_freq):
     """Weighted least squares from the three best of ``starts``; covariance (module notes).
 
@@ -948,14 +977,7 @@ def _fit(resid_rows, jacobian, starts, zlo, zhi, n_freq):
     cost0 = (resid_rows(np.array(starts)) ** 2).sum(axis=1)
     best = None
     for k in np.argsort(cost0)[:3]:
-        sol = sopt.least_squares(
-            lambda z: resid_rows(z[None, :])[0],
-            starts[k],
-            jac=jacobian,
-            bounds=(zlo, zhi),
-            x_scale="jac",
-            method="trf",
-        )
+        sol = _local_fit(lambda z: resid_rows(z[None, :])[0], jacobian, starts[k], zlo, zhi)
         if best is None or sol.cost < best.cost:
             best = sol
     z, J = best.x, best.jac

@@ -347,3 +347,54 @@ def test_noise_free_estimate_and_the_joint_error_region(records):
         noise_free_estimate(loop, FAM, dataclasses.replace(est, weights=None), seed=100)
     with pytest.raises(ParameterError, match="residual variance"):
         response_distance(FAM, dataclasses.replace(est, residual_variance=None), v0, v0, 1.0)
+
+
+def _cab_problem(seed: int):
+    """A weighted log-response fit of :func:`cab_response` to a noisy cab, in the fit's
+    coordinates (log gain, log frequencies, linear damping ratios)."""
+    rng = np.random.default_rng(seed)
+    f = np.linspace(1.0, 12.0, 60)
+    truth = np.array([0.02, 2.1, 0.08, 5.3, 0.12])
+    H = cab_response(truth, f)[0] * np.exp(0.01 * rng.standard_normal(f.size))
+    log = np.array([True, True, False, True, False])
+
+    def values(z):
+        return np.where(log, np.exp(z), z)
+
+    def resid(z):
+        d = np.log(cab_response(values(z), f)[0] / H)
+        return np.concatenate([d.real, np.angle(np.exp(1j * d.imag))])
+
+    def jac(z):
+        d = cab_log_derivatives(values(z), f)[0] * np.where(log, values(z), 1.0)[None, :]
+        return np.concatenate([d.real, d.imag], axis=0)
+
+    return truth, log, resid, jac
+
+
+def test_the_local_fit_is_the_bounded_methods_minimum_inside_and_on_the_box():
+    import scipy.optimize as sopt
+
+    from designs.calibration import _local_fit
+
+    truth, log, resid, jac = _cab_problem(4)
+    z_true = np.where(log, np.log(truth), truth)
+    z0 = z_true + np.array([0.3, 0.1, 0.05, -0.1, 0.05])
+    zlo, zhi = z_true - 1.0, z_true + 1.0
+    zlo[[2, 4]], zhi[[2, 4]] = 0.01, 0.5
+    ref = sopt.least_squares(resid, z0, jac=jac, bounds=(zlo, zhi), x_scale="jac")
+    got = _local_fit(resid, jac, z0, zlo, zhi)
+    # inside the box: the unbounded Levenberg-Marquardt answer, the same minimum
+    assert not np.any(ref.active_mask)
+    np.testing.assert_allclose(got.x, ref.x, rtol=0, atol=1e-6)
+    assert got.cost == pytest.approx(ref.cost, rel=1e-9)
+    np.testing.assert_allclose(got.jac, jac(got.x), rtol=1e-12)
+    # the lower damping bound above the true damping: the minimum lies on the bound, which
+    # the unbounded method cannot give; the bounded method's answer is returned
+    zlo[2] = 0.1
+    z0[2] = 0.2
+    ref = sopt.least_squares(resid, z0, jac=jac, bounds=(zlo, zhi), x_scale="jac")
+    got = _local_fit(resid, jac, z0, zlo, zhi)
+    assert ref.active_mask[2] == -1
+    np.testing.assert_array_equal(got.x, ref.x)
+    assert got.x[2] == pytest.approx(zlo[2], abs=1e-12)

@@ -16,7 +16,7 @@ import numpy as np
 from robust.analysis.norms import hinf_norm
 from robust.analysis.realization import minimal_realization
 from robust.analysis.reduction import balanced_truncation
-from robust.analysis.resolvent import siso_responses
+from robust.analysis.resolvent import resolvent_solve, siso_responses
 from robust.analysis.stability import poles_stable, unstable_mask
 from robust.checks import (
     NONNEGATIVE,
@@ -148,7 +148,11 @@ def loop_poles(loop: BDFTLoop, *, bdft: bool = True, controller=None) -> PoleSet
 
 
 def resolvent_times(A, omega, B) -> np.ndarray:
-    """``(j omega_k I - A)^-1 B`` at every frequency ``omega_k``, one stacked solve.
+    """``(j omega_k I - A)^-1 B`` at every frequency ``omega_k``.
+
+    Real data through one Hessenberg form of ``A`` and an ``O(n^2)`` elimination per
+    frequency (:func:`robust.analysis.resolvent.resolvent_solve`); complex data by one
+    stacked LU solve.
 
     Parameters
     ----------
@@ -162,7 +166,15 @@ def resolvent_times(A, omega, B) -> np.ndarray:
     Returns
     -------
     numpy.ndarray of complex, shape (f, n, k)
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If ``j omega_k I - A`` is singular at a frequency.
     """
+    A, B = np.asarray(A), np.asarray(B)
+    if A.dtype.kind in "biuf" and B.dtype.kind in "biuf" and np.isrealobj(omega):
+        return resolvent_solve(A, omega, B)
     n = A.shape[0]
     M = 1j * omega[:, None, None] * np.eye(n)[None] - A[None]
     return np.linalg.solve(M, np.broadcast_to(B, (omega.size,) + B.shape))

@@ -72,17 +72,29 @@ def _krylov_basis(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
     singular value exceeds ``tol`` (absolute, on the balanced system).
     """
     n = A.shape[0]
-    U, s, _ = np.linalg.svd(B, full_matrices=False)
-    block = U[:, s > tol]
+    block = _range(B, tol)
     basis = block
     while block.shape[1] and basis.shape[1] < n:
         new = A @ block
         for _ in range(2):  # classical Gram-Schmidt twice is numerically orthogonal
             new = new - basis @ (basis.T @ new)
-        U, s, _ = np.linalg.svd(new, full_matrices=False)
-        block = U[:, s > tol]
+        block = _range(new, tol)
         basis = np.hstack([basis, block])
     return basis
+
+
+def _range(M: np.ndarray, tol: float) -> np.ndarray:
+    """Orthonormal basis of the directions of ``M`` whose singular values exceed ``tol``.
+
+    A single column is its own singular vector (singular value its norm): normalised
+    without an SVD, which a single-input system's Krylov sequence would otherwise call at
+    every step.
+    """
+    if M.shape[1] == 1:
+        s = float(np.sqrt(M[:, 0] @ M[:, 0]))
+        return M / s if s > tol else M[:, :0]
+    U, s, _ = np.linalg.svd(M, full_matrices=False)
+    return U[:, s > tol]
 
 
 def controllable_part(A, B, C, *, rtol: float = 1e-9):
