@@ -37,7 +37,7 @@ import control
 import numpy as np
 import scipy.optimize as so
 
-from robust.analysis.lyapunov import lyapunov_pair
+from robust.analysis.lyapunov import lyapunov, lyapunov_solver
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.pk import (
@@ -257,9 +257,8 @@ class _Terms:
         if np.isfinite(self.h2_bound):
             for cl in self.h2:
                 A, B, C, _ = cl.matrices(Om)
-                gram = lyapunov_pair(A)
-                W = gram.controllability(-B @ B.T)
-                Lo = gram.observability(-C.T @ C)
+                W = lyapunov(A, -B @ B.T)
+                Lo = lyapunov(A.T, -C.T @ C)
                 h = np.sqrt(max(float(np.trace(C @ W @ C.T)), 1e-300))
                 dJ = 2 * (cl.Bb.T @ Lo @ W @ cl.Cb.T + cl.D12b.T @ C @ W @ cl.Cb.T)
                 dJ += 2 * cl.Bb.T @ Lo @ B @ cl.D21b.T
@@ -315,12 +314,12 @@ class _Terms:
         val, grad, worst = 0.0, np.zeros_like(Om), 0.0
         for cl in self.h2:
             A, B, C, _ = cl.matrices(Om)
-            # one Schur form: the eigenvalues, then both Gramians
-            gram = lyapunov_pair(A)
+            # one Schur form: the eigenvalues, then the controllability Gramian
+            gram = lyapunov_solver(A)
             if gram.eigenvalues.real.max() >= 0:
                 return 1e6, grad, np.inf
-            W = gram.controllability(-B @ B.T)
-            Lo = gram.observability(-C.T @ C)
+            W = gram.solve(-B @ B.T)
+            Lo = lyapunov(A.T, -C.T @ C)
             J = float(np.trace(C @ W @ C.T))
             h = np.sqrt(max(J, 0.0))
             worst = max(worst, h)
