@@ -42,7 +42,7 @@ from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.pk import (
     SynthesisMember,
-    eigen_derivatives,
+    eigen_derivatives_many,
     eigen_region_rows,
     from_scaled,
     responses,
@@ -181,7 +181,7 @@ class _Terms:
         ``Om`` (the barrier and the utilisations of one evaluation ask for the same)."""
         key = (Om.shape, Om.tobytes())
         if key != self._eig_key:
-            self._eig = [eigen_derivatives(cl, Om) for cl in self.reg]
+            self._eig = eigen_derivatives_many(self.reg, Om)
             self._eig_key = key
         return self._eig
 
