@@ -78,6 +78,11 @@ def _plain(*arrays) -> bool:
 class LyapunovSolver:
     """One Schur form of ``A``: its eigenvalues and ``A X + X A' = Q`` (:func:`lyapunov_solver`).
 
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+        A finite float64 matrix (:func:`lyapunov_solver` checks).
+
     Attributes
     ----------
     eigenvalues : numpy.ndarray of complex, shape (n,)
