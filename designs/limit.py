@@ -97,6 +97,7 @@ __all__ = [
     "split_set",
     "set_contains",
     "sensor_noise",
+    "FORCE_FLOOR_N",
     "FORCE_SCALES",
     "LIMIT_SAMPLES",
     "ACTUATOR_SETS",
@@ -137,6 +138,9 @@ BASIS_POLES = tuple(float(x) for x in np.geomspace(0.3, 1000.0, 32))
 TIGHTENING = 0.999
 #: Relative floor of the singular values in the change of variable of the problem.
 FLOOR = 1e-8
+#: Force below which a set's controller counts as using none, N (a micronewton: a set that
+#: needs no force gets one at the solver's rounding, 1e-11 to 1e-8 N; no limit binds it).
+FORCE_FLOOR_N = 1e-6
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,7 +166,7 @@ class SetLimit:
         When ``required_force`` is infinite: the constraint that cannot be met
         (``"tracking"``, ``"feedthrough"``, ``"damping"``, ``"decay rate"``); else which
         force limit sets ``required_force`` (``"continuous force"``, ``"peak force"``), or
-        ``""`` without force.
+        ``""`` without force (none, or RMS and peak below :data:`FORCE_FLOOR_N`).
     verified : bool
         Whether the controller passed the numpy re-check (poles, grids, RMS).
     note : str
@@ -722,6 +726,10 @@ def _verify(
     peak = _simulate_peak(A, B, C, amp, spec, seed, duration_s)
     rc, rp = rms / spec.continuous_force_n, peak / spec.peak_force_n
     binding = "continuous force" if rc >= rp else "peak force"
+    if max(rms, peak) < FORCE_FLOOR_N:
+        # a force the solver leaves at its rounding (a set that needs none): which limit
+        # "binds" would be a draw between two zeros
+        binding = ""
     return _set_limit(
         actuators, sensors, max(rc, rp), rms, peak, relaxation, binding, True, notes, gap
     )

@@ -246,6 +246,11 @@ def test_member_limits_of_the_nominal_member(nominal):
     # shaping the reference with the member known exactly nearly cancels the feedthrough:
     # tracking and feedthrough at a small fraction of their limits (measured 0.048)
     assert ref.verified and ref.required_force == 0.0 and ref.relaxation < 0.2
+    # both actuators: the reference does it and the handle force is left at the solver's
+    # rounding; no force limit binds such a force (which one would be a draw)
+    both = limit.member_limit(nominal, "force+reference", spec, problems={})
+    assert both.verified and both.rms_force_n < limit.FORCE_FLOOR_N
+    assert both.peak_force_n < limit.FORCE_FLOOR_N and both.binding == ""
 
 
 def test_member_controller_realises_the_limit_on_the_loop(nominal):
