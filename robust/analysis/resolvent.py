@@ -122,6 +122,21 @@ def _balance(A, d):  # pragma: no cover - compiled
                     A[j, i] *= f
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _balanced_hessenberg(A):  # pragma: no cover - compiled
+    """``(H, Q, d)``: ``D^-1 A D = Q H Q'`` with ``d = diag(D)`` (:func:`_balance`) and ``H``
+    upper Hessenberg (:func:`_hessenberg_q`); ``A`` is left as it is."""
+    n = A.shape[0]
+    Ab = A.copy()
+    d = np.empty(n)
+    _balance(Ab, d)
+    H = np.empty((n, n))
+    Q = np.empty((n, n))
+    v = np.zeros(n)
+    _hessenberg_q(Ab, H, Q, v)
+    return H, Q, d
+
+
 @numba.njit(cache=True, nogil=True)
 def _finite(a):  # pragma: no cover - compiled
     for x in a.flat:
@@ -205,13 +220,7 @@ def _responses(A, b, c, Bb, Cb, w, crb, cRBb, CbRb):  # pragma: no cover - compi
     p = Cb.shape[0]
     # balance: R = D (j w I - D^-1 A D)^-1 D^-1, so the inputs are scaled by D^-1, the
     # outputs by D (exact: powers of two)
-    Ab = A.copy()
-    d = np.empty(n)
-    _balance(Ab, d)
-    H = np.empty((n, n))
-    Q = np.empty((n, n))
-    v = np.zeros(n)
-    _hessenberg_q(Ab, H, Q, v)
+    H, Q, d = _balanced_hessenberg(A)
     # Q' D^-1 b, c D Q, Q' D^-1 Bb, Cb D Q
     qb = np.zeros(n)
     cq = np.zeros(n)
@@ -353,13 +362,7 @@ def _resolvent_solve(A, B, w, X):  # pragma: no cover - compiled
         return -4
     n = A.shape[0]
     k = B.shape[1]
-    Ab = A.copy()
-    d = np.empty(n)
-    _balance(Ab, d)
-    H = np.empty((n, n))
-    Q = np.empty((n, n))
-    v = np.zeros(n)
-    _hessenberg_q(Ab, H, Q, v)
+    H, Q, d = _balanced_hessenberg(A)
     # Q' D^-1 B, and D Q for the way back
     qB = np.zeros((n, k))
     for i in range(n):
