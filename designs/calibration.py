@@ -87,6 +87,7 @@ from robust.errors import DataError, ParameterError
 from robust.model.components import structure
 from robust.model.modal import physical_to_modal
 from robust.model.wiring import connect
+from robust.sysid.levenberg import levenberg_marquardt
 from robust.sysid.spectral import estimate_frequency_responses
 from uncertainty import default_family
 
@@ -939,22 +940,21 @@ def _coherent(coh, pr, where, n_params: int = 4):
 def _local_fit(resid, jacobian, z0, zlo, zhi):
     """One local weighted least-squares solve from ``z0`` within ``zlo .. zhi``.
 
-    MINPACK's Levenberg-Marquardt (``lmder``; J. J. Moré, "The Levenberg-Marquardt
-    algorithm: implementation and theory", *Numerical Analysis*, Lecture Notes in
-    Mathematics 630, 1978) first, unbounded: where it converges strictly inside the box,
-    its answer is a local minimum of the bounded problem too (no bound is active), found
-    at less than half the cost of the bounded trust-region method. Otherwise (a bound
-    active, no convergence, a non-finite answer) the bounded trust-region reflective
-    method (:func:`scipy.optimize.least_squares`, ``"trf"``) solves from ``z0`` again.
+    Levenberg-Marquardt first, unbounded (:func:`robust.sysid.levenberg.levenberg_marquardt`,
+    Moré 1978, deterministic): where it converges strictly inside the box, its answer is a
+    local minimum of the bounded problem too (no bound is active), found at less than half
+    the cost of the bounded trust-region method. Otherwise (a bound active, no convergence,
+    a non-finite answer) the bounded trust-region reflective method
+    (:func:`scipy.optimize.least_squares`, ``"trf"``) solves from ``z0`` again.
     """
     try:
         with np.errstate(all="ignore"):
-            sol = sopt.least_squares(resid, z0, jac=jacobian, x_scale="jac", method="lm")
-    except (ValueError, np.linalg.LinAlgError):  # a non-finite residual on the way
+            sol = levenberg_marquardt(resid, jacobian, z0)
+    except (ParameterError, np.linalg.LinAlgError):  # a non-finite residual on the way
         sol = None
     if (
         sol is not None
-        and sol.status > 0
+        and sol.converged
         and np.isfinite(sol.cost)
         and np.all(np.isfinite(sol.jac))
         and np.all((zlo < sol.x) & (sol.x < zhi))
