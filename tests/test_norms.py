@@ -172,3 +172,51 @@ def test_one_schur_form_gives_the_equation_and_the_eigenvalues():
         lyapunov_solver(np.ones((2, 3)))
     ints = lyapunov_solver(np.array([[-1, 0], [0, -2]]))
     np.testing.assert_allclose(ints.solve(-np.eye(2)), np.diag([0.5, 0.25]))
+
+
+def _osborne_reference(A, B, C, max_sweeps=50):
+    """The state balancing as numpy norms compute it (the compiled sweeps' reference)."""
+    n = A.shape[0]
+    A, B, C = A.copy(), B.copy(), C.copy()
+    for _ in range(max_sweeps):
+        changed = False
+        for i in range(n):
+            c = np.hypot(np.linalg.norm(np.delete(A[:, i], i)), np.linalg.norm(C[:, i]))
+            r = np.hypot(np.linalg.norm(np.delete(A[i, :], i)), np.linalg.norm(B[i, :]))
+            if c == 0.0 or r == 0.0:
+                continue
+            e = int(np.round(0.5 * np.log2(r / c)))
+            if e == 0:
+                continue
+            A[:, i] *= 2.0**e
+            C[:, i] *= 2.0**e
+            A[i, :] /= 2.0**e
+            B[i, :] /= 2.0**e
+            changed = True
+        if not changed:
+            break
+    return A, B, C
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_state_balancing_matches_the_numpy_sweeps_exactly(seed):
+    from robust.analysis.norms import _balance_states
+
+    rng = np.random.default_rng(seed)
+    n, m, p = int(rng.integers(1, 25)), int(rng.integers(1, 4)), int(rng.integers(1, 4))
+    # states scaled over twelve decades, some entries zero (a state without a path is kept)
+    s = 10.0 ** rng.uniform(-6.0, 6.0, n)
+    A = rng.standard_normal((n, n)) * (rng.random((n, n)) < 0.6)
+    A = A * s[:, None] / s[None, :]
+    B = rng.standard_normal((n, m)) * s[:, None]
+    C = rng.standard_normal((p, n)) / s[None, :]
+    if n > 2:
+        B[0], C[:, 1] = 0.0, 0.0
+    got = _balance_states(A, B, C)
+    ref = _osborne_reference(A, B, C)
+    for g, r in zip(got, ref):
+        np.testing.assert_array_equal(g, r)
+    # a similarity by powers of 2: the same transfer function (no rounding at all)
+    d = np.diag(got[0]) - np.diag(A)
+    assert not d.any()
+    assert np.linalg.norm(got[0]) < np.linalg.norm(A)

@@ -29,7 +29,9 @@ refined before the first Hamiltonian test.
 from __future__ import annotations
 
 import itertools
+import math
 
+import numba
 import numpy as np
 import scipy.linalg as sla
 import scipy.optimize as sopt
@@ -241,31 +243,54 @@ def _balance_states(A, B, C, *, max_sweeps: int = 50):
     matrices", J. ACM 7 (1960) 338-345) on the rows and columns of the system
     matrix, as in SLICOT TB01ID: state i is scaled so that the norm of
     column i of ``[A; C]`` and of row i of ``[A, B]`` (off-diagonal parts)
-    become about equal.
+    become about equal (:func:`_osborne`, compiled).
     """
     n = A.shape[0]
     if n == 0:
         return A, B, C
-    A, B, C = A.copy(), B.copy(), C.copy()
+    A, B, C = (np.array(M, float, order="C") for M in (A, B, C))
+    _osborne(A, B, C, max_sweeps)
+    return A, B, C
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _osborne(A, B, C, max_sweeps):  # pragma: no cover - compiled
+    """Osborne's sweeps of :func:`_balance_states`, in place. The exponents are the only
+    decisions: the norms are summed in a fixed order, and a different order could change an
+    exponent only where ``0.5 log2(r / c)`` lies within rounding of a half-integer."""
+    n = A.shape[0]
     for _ in range(max_sweeps):
         changed = False
         for i in range(n):
-            c = np.hypot(np.linalg.norm(np.delete(A[:, i], i)), np.linalg.norm(C[:, i]))
-            r = np.hypot(np.linalg.norm(np.delete(A[i, :], i)), np.linalg.norm(B[i, :]))
+            col, row = 0.0, 0.0
+            for k in range(n):
+                if k != i:
+                    col += A[k, i] * A[k, i]
+                    row += A[i, k] * A[i, k]
+            out, inp = 0.0, 0.0
+            for k in range(C.shape[0]):
+                out += C[k, i] * C[k, i]
+            for k in range(B.shape[1]):
+                inp += B[i, k] * B[i, k]
+            c = math.hypot(math.sqrt(col), math.sqrt(out))
+            r = math.hypot(math.sqrt(row), math.sqrt(inp))
             if c == 0.0 or r == 0.0:
                 continue
             e = int(np.round(0.5 * np.log2(r / c)))
             if e == 0:
                 continue
             f = 2.0**e
-            A[:, i] *= f
-            C[:, i] *= f
-            A[i, :] /= f
-            B[i, :] /= f
+            for k in range(n):
+                A[k, i] *= f
+            for k in range(C.shape[0]):
+                C[k, i] *= f
+            for k in range(n):
+                A[i, k] /= f
+            for k in range(B.shape[1]):
+                B[i, k] /= f
             changed = True
         if not changed:
             break
-    return A, B, C
 
 
 def _candidate_frequencies(A):
