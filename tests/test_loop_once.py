@@ -64,3 +64,52 @@ def test_the_family_and_its_uncertain_system_give_the_same_answers():
     lo, hi = scaled_bounds(fam, 0.01)
     assert certify_box(fam, lo, hi)["certified"]
     assert certify_box(loop, lo, hi)["certified"]
+
+
+def test_recalled_blocks_give_the_enclosures_of_fresh_ones_to_the_bit():
+    # a parent box, its halves in a human and in a structure parameter, and the parent again:
+    # the assembly that recalls the blocks of recent boxes gives each enclosure exactly as a
+    # new assembly (no memory) does, and builds a block only for parameters it has not seen
+    from uncertainty import loop as loopmod
+    from uncertainty.margins import _Assembly
+
+    fam = default_family("physical")
+    K = _controller("f")
+    lo, hi = scaled_bounds(fam, 0.05)
+    names = list(fam.names)
+    boxes = [(lo, hi)]
+    for name in ("human.f_arm_hz", "struct.f1_hz"):
+        j = names.index(name)
+        mid = 0.5 * (lo[j] + hi[j])
+        a_hi, b_lo = hi.copy(), lo.copy()
+        a_hi[j], b_lo[j] = mid, mid
+        boxes += [(lo, a_hi), (b_lo, hi)]
+    boxes.append((lo, hi))
+    calls = {"structure": 0, "human": 0}
+    s_orig, h_orig = loopmod.structure_block, loopmod.physical_human_block
+
+    def s_count(*a):
+        calls["structure"] += 1
+        return s_orig(*a)
+
+    def h_count(*a):
+        calls["human"] += 1
+        return h_orig(*a)
+
+    kept = _Assembly(fam, K)
+    try:
+        loopmod.structure_block, loopmod.physical_human_block = s_count, h_count
+        got = [kept.matrix(a, b, derivatives=True) for a, b in boxes]
+    finally:
+        loopmod.structure_block, loopmod.physical_human_block = s_orig, h_orig
+    for (a, b), g in zip(boxes, got):
+        ref = _Assembly(fam, K).matrix(a, b, derivatives=True)
+        for x, y in ((g.val, ref.val), (g.der, ref.der)):
+            np.testing.assert_array_equal(x.mid, y.mid)
+            np.testing.assert_array_equal(x.rad, y.rad)
+    # the human split's halves keep the parent's structure, the structure split's halves its
+    # human, and the parent again is recalled whole: 3 builds of each block instead of 6
+    assert calls == {"structure": 3, "human": 3}
+    # the recalled arrays are read-only: no later operation can change them in place
+    block = next(iter(kept._recent.values()))
+    assert not block[0].val.mid.flags.writeable

@@ -225,6 +225,34 @@ def fixed_parameters(family: Family) -> dict:
     return fixed
 
 
+#: Varied blocks kept per :class:`LoopAssembly` (the boxes of a few waves of a subdivision).
+_RECENT_BLOCKS = 64
+
+
+def _interval_key(prefix: str, p: dict):
+    """The bytes of every ``prefix`` parameter's interval (or gradient), or None if one is
+    of another kind."""
+    parts: list = [prefix]
+    for name, v in p.items():
+        if not name.startswith(prefix):
+            continue
+        if isinstance(v, Gradient):
+            arrays, tag = (v.val.mid, v.val.rad, v.der.mid, v.der.rad), b"G"
+        elif isinstance(v, Interval):
+            arrays, tag = (v.mid, v.rad), b"I"
+        else:
+            return None
+        parts.append((name, tag, *(np.ascontiguousarray(a).tobytes() for a in arrays)))
+    return tuple(parts)
+
+
+def _freeze(block) -> None:
+    for m in block:
+        for iv in (m.val, m.der) if isinstance(m, Gradient) else (m,):
+            iv.mid.setflags(write=False)
+            iv.rad.setflags(write=False)
+
+
 class LoopAssembly:
     """The family's closed loop over an algebra: the fixed blocks and the interconnection
     built once, the varied blocks from the parameters' values.
@@ -250,6 +278,28 @@ class LoopAssembly:
             if b.name not in ("structure", "human")
         }
         self.M = interconnection(family, blocks, controller)
+        # the varied blocks of recent boxes, keyed by their parameters' intervals (interval
+        # algebra only): a sub-box halved in a human parameter has its parent's structure
+        # block, and the other way round
+        self._recent: dict | None = {} if algebra is INTERVALS else None
+
+    def _varied(self, prefix: str, p: dict, build: Callable):
+        """The block of the ``prefix`` parameters, built or (intervals) recalled: the same
+        arrays for the same intervals, bit for bit, as the arithmetic depends on nothing
+        else; kept read-only."""
+        if self._recent is None:
+            return build()
+        key = _interval_key(prefix, p)
+        if key is None:
+            return build()
+        block = self._recent.pop(key, None)
+        if block is None:
+            block = build()
+            _freeze(block)
+        self._recent[key] = block  # (the most recent last)
+        if len(self._recent) > _RECENT_BLOCKS:
+            del self._recent[next(iter(self._recent))]
+        return block
 
     def state_matrix(self, p: dict):
         """The closed-loop state matrix with every model parameter at ``p[name]``.
@@ -264,12 +314,18 @@ class LoopAssembly:
         mats = []
         for name in self.names:
             if name == "structure":
-                mats.append(structure_block(p, alg))
+                mats.append(self._varied("struct.", p, lambda: structure_block(p, alg)))
             elif name == "human":
                 mats.append(
-                    literal_human_block(p, alg)
-                    if family.human == "literal"
-                    else physical_human_block(p, family, alg)
+                    self._varied(
+                        "human.",
+                        p,
+                        lambda: (
+                            literal_human_block(p, alg)
+                            if family.human == "literal"
+                            else physical_human_block(p, family, alg)
+                        ),
+                    )
                 )
             else:
                 mats.append(self.fixed[name])
