@@ -604,10 +604,14 @@ def _box_variables(parameters, lo, hi, derivatives: bool) -> dict:
     return out
 
 
-def _param_intervals(family: Family, lo: np.ndarray, hi: np.ndarray, derivatives: bool) -> dict:
+def _param_intervals(
+    family: Family, lo: np.ndarray, hi: np.ndarray, derivatives: bool, fixed: dict | None = None
+) -> dict:
     """Every model parameter over the box: the varied ones as :func:`_box_variables`, the
-    others fixed."""
-    out = {n: Interval.point(v) for n, v in fixed_parameters(family).items()}
+    others fixed (``fixed``: their point intervals, when the caller keeps them)."""
+    if fixed is None:
+        fixed = {n: Interval.point(v) for n, v in fixed_parameters(family).items()}
+    out = dict(fixed)
     out.update(_box_variables(family.parameters, lo, hi, derivatives))
     return out
 
@@ -653,11 +657,16 @@ class _Assembly(LoopAssembly):
 
     def __init__(self, family: Family, controller):
         super().__init__(family, controller, INTERVALS)
+        # the fixed parameters' point intervals, the same for every box (read-only)
+        self._fixed = {n: Interval.point(v) for n, v in fixed_parameters(family).items()}
+        for iv in self._fixed.values():
+            iv.mid.setflags(write=False)
+            iv.rad.setflags(write=False)
 
     def matrix(self, lo, hi, derivatives: bool):
         """The enclosure of the closed-loop state matrix over the box ``lo .. hi``."""
         lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-        return self.state_matrix(_param_intervals(self.family, lo, hi, derivatives))
+        return self.state_matrix(_param_intervals(self.family, lo, hi, derivatives, self._fixed))
 
 
 class _FamilyLoop:
