@@ -413,3 +413,24 @@ def test_limit_json_is_the_same_bytes_in_one_or_two_processes(tmp_path, capsys):
         obj.pop("report")
         outs.append(json.dumps(obj, sort_keys=True))
     assert outs[0] == outs[1]
+
+
+def test_the_recheck_response_is_the_resolvent_at_every_frequency():
+    # the re-check's Schur-form response, back-substituted for the whole grid at once:
+    # against a dense solve per frequency, and with states scaled over six decades against
+    # LAPACK's triangular solve of the same Schur form per frequency
+    rng = np.random.default_rng(4)
+    n = 18
+    A = rng.standard_normal((n, n)) - 4.0 * np.eye(n)
+    b, c = rng.standard_normal(n), rng.standard_normal(n)
+    w = np.concatenate([[0.0], np.geomspace(0.01, 1e3, 60)])
+    got = limit._schur_response(A, b, c, w)
+    ref = np.array([c @ np.linalg.solve(1j * x * np.eye(n) - A, b) for x in w])
+    assert got.shape == (w.size,)
+    np.testing.assert_allclose(got, ref, rtol=1e-11)
+    s = 10.0 ** rng.uniform(-3.0, 3.0, n)
+    A, b, c = A * s[:, None] / s[None, :], b * s, c / s
+    T, Z = sla.schur(A, output="complex")
+    bt, ct_ = Z.conj().T @ b, c @ Z
+    ref = np.array([ct_ @ sla.solve_triangular(1j * x * np.eye(n) - T, bt) for x in w])
+    np.testing.assert_allclose(limit._schur_response(A, b, c, w), ref, rtol=1e-12)
