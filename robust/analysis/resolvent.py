@@ -199,6 +199,20 @@ def _solve(U, mult, swap, rd, z):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _scaled_inputs(Q, d, B):  # pragma: no cover - compiled
+    """``Q' D^-1 B`` (``D = diag(d)``, the balancing), summed in one fixed order."""
+    n, k = Q.shape[0], B.shape[1]
+    out = np.zeros((n, k))
+    for i in range(n):
+        for j in range(k):
+            s = 0.0
+            for r in range(n):
+                s += Q[r, i] * (B[r, j] / d[r])
+            out[i, j] = s
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _responses(A, b, c, Bb, Cb, w, crb, cRBb, CbRb):  # pragma: no cover - compiled
     """Fill ``crb[f] = c R_f b``, ``cRBb[f] = c R_f Bb``, ``CbRb[f] = Cb R_f b``; return the
     index of the first frequency where ``j w I - A`` is singular, -1 when none is, or
@@ -224,17 +238,12 @@ def _responses(A, b, c, Bb, Cb, w, crb, cRBb, CbRb):  # pragma: no cover - compi
     # Q' D^-1 b, c D Q, Q' D^-1 Bb, Cb D Q
     qb = np.zeros(n)
     cq = np.zeros(n)
-    qB = np.zeros((n, m))
+    qB = _scaled_inputs(Q, d, Bb)
     Cq = np.zeros((p, n))
     for i in range(n):
         for k in range(n):
             qb[i] += Q[k, i] * (b[k] / d[k])
             cq[i] += (c[k] * d[k]) * Q[k, i]
-        for j in range(m):
-            s = 0.0
-            for k in range(n):
-                s += Q[k, i] * (Bb[k, j] / d[k])
-            qB[i, j] = s
         for r in range(p):
             s = 0.0
             for k in range(n):
@@ -364,13 +373,7 @@ def _resolvent_solve(A, B, w, X):  # pragma: no cover - compiled
     k = B.shape[1]
     H, Q, d = _balanced_hessenberg(A)
     # Q' D^-1 B, and D Q for the way back
-    qB = np.zeros((n, k))
-    for i in range(n):
-        for j in range(k):
-            s = 0.0
-            for r in range(n):
-                s += Q[r, i] * (B[r, j] / d[r])
-            qB[i, j] = s
+    qB = _scaled_inputs(Q, d, B)
     DQ = np.empty((n, n))
     for i in range(n):
         for j in range(n):
