@@ -35,11 +35,11 @@ import dataclasses
 
 import control
 import numpy as np
-import scipy.optimize as so
 
 from robust.analysis.lyapunov import lyapunov, lyapunov_solver
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
+from robust.synthesis.lp import solve_lp
 from robust.synthesis.pk import (
     SynthesisMember,
     eigen_derivatives_many,
@@ -550,8 +550,9 @@ def slp_minimise(
                   |x + D - reference| / unit <= a,  |D| <= radius * unit
 
     and, with ``constraints``, ``c_i + <grad c_i, D> <= 0``, by HiGHS
-    (:func:`scipy.optimize.linprog`); the step is kept when the merit falls by
-    at least a tenth of the fall the linear model predicts (Fletcher's SL1QP test,
+    (:func:`robust.synthesis.lp.solve_lp`: :func:`scipy.optimize.linprog`'s answers); the
+    step is kept when the merit falls by at least a tenth of the fall the linear model
+    predicts (Fletcher's SL1QP test,
     *Practical Methods of Optimization*, 2nd ed., 1987, Sec. 14.5), the radius doubles
     after a step that achieves three quarters of it and halves after a rejected one.
     Unlike a quasi-Newton method, whose inverse-Hessian estimate grows ill-conditioned at
@@ -633,7 +634,7 @@ def slp_minimise(
         )
         b_ub = np.concatenate([-vk, (ref - xf) / unit, (xf - ref) / unit, -cv])
         bounds = [(-radius * u, radius * u) for u in unit] + [(0.0, None)] * n + [(target, None)]
-        res = so.linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs")
+        res = solve_lp(c, A_ub, b_ub, bounds)
         if res.status != 0 or res.x is None:
             radius /= 2
             continue
