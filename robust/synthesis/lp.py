@@ -72,26 +72,38 @@ def _status(model_status) -> int:
 
 
 def _checked(c, A_ub, b_ub, bounds):
-    """The arrays of :func:`solve_lp`, checked as ``linprog`` checks them."""
-    c = np.asarray(c, dtype=float).ravel()
+    """The arrays of :func:`solve_lp`, checked (``linprog`` refuses the same, but for NaN
+    bounds, which it reads as no bound and which are refused here)."""
+    c = np.asarray(c, dtype=float)
+    if c.ndim != 1 or c.size == 0:
+        raise ValueError(f"solve_lp: c must be a non-empty vector; got shape {c.shape}")
     A = np.asarray(A_ub, dtype=float)
-    b = np.asarray(b_ub, dtype=float).ravel()
+    b = np.asarray(b_ub, dtype=float)
     n = c.size
-    if A.ndim != 2 or A.shape != (b.size, n):
+    if b.ndim != 1 or A.ndim != 2 or A.shape != (b.size, n):
         raise ValueError(
-            f"solve_lp: A_ub must have shape ({b.size}, {n}) (b_ub's rows, c's columns); "
-            f"got {A.shape}"
+            f"solve_lp: A_ub must have shape (m, {n}) and b_ub shape (m,) (c's {n} columns); "
+            f"got {A.shape} and {b.shape}"
         )
     if not np.all(np.isfinite(c)):
         raise ValueError("solve_lp: c must be finite; got a NaN or infinite entry")
     if not np.all(np.isfinite(A)):
         raise ValueError("solve_lp: A_ub must be finite; got a NaN or infinite entry")
-    if np.any(np.isnan(b)):
-        raise ValueError("solve_lp: b_ub must not hold NaN")
-    if len(bounds) != n:
-        raise ValueError(f"solve_lp: bounds must give {n} (low, high) pairs; got {len(bounds)}")
-    lb = np.array([-np.inf if lo is None else lo for lo, _ in bounds], dtype=float)
-    ub = np.array([np.inf if hi is None else hi for _, hi in bounds], dtype=float)
+    if not np.all(np.isfinite(b)):
+        raise ValueError("solve_lp: b_ub must be finite; got a NaN or infinite entry")
+    try:
+        pairs = [(lo, hi) for lo, hi in bounds]
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"solve_lp: bounds must be a sequence of {n} (low, high) pairs; got {bounds!r:.80}"
+        ) from None
+    if len(pairs) != n:
+        raise ValueError(f"solve_lp: bounds must give {n} (low, high) pairs; got {len(pairs)}")
+    try:
+        lb = np.array([-np.inf if lo is None else lo for lo, _ in pairs], dtype=float)
+        ub = np.array([np.inf if hi is None else hi for _, hi in pairs], dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError("solve_lp: bounds must be numbers or None") from None
     if np.any(np.isnan(lb)) or np.any(np.isnan(ub)):
         raise ValueError("solve_lp: bounds must not hold NaN")
     return c, A, b, lb, ub
@@ -108,13 +120,14 @@ def solve_lp(c, A_ub, b_ub, bounds) -> LPSolution:
     Parameters
     ----------
     c : array_like, shape (n,)
-        Costs (finite).
+        Costs (finite, ``n >= 1``).
     A_ub : array_like, shape (m, n)
         Inequality rows (finite, dense).
     b_ub : array_like, shape (m,)
-        Their right-hand sides (no NaN).
+        Their right-hand sides (finite).
     bounds : sequence of (float or None, float or None)
-        Each variable's lower and upper bound (``None``: none).
+        Each variable's lower and upper bound (``None``: none; NaN is refused, where
+        ``linprog`` reads it as no bound).
 
     Returns
     -------
@@ -123,7 +136,8 @@ def solve_lp(c, A_ub, b_ub, bounds) -> LPSolution:
     Raises
     ------
     ValueError
-        For arrays of the wrong shape or with non-finite entries, as ``linprog`` refuses them.
+        For arrays of the wrong shape or with non-finite entries (as ``linprog`` refuses
+        them), or malformed bounds.
     """
     c, A, b, lb, ub = _checked(c, A_ub, b_ub, bounds)
     if _highs is None:  # pragma: no cover - a SciPy without the module
@@ -155,7 +169,9 @@ def solve_lp(c, A_ub, b_ub, bounds) -> LPSolution:
     if h.passModel(lp) == _highs.HighsStatus.kError:
         return LPSolution(None, None, 2)  # (linprog: a model error is status 2)
     if h.run() == _highs.HighsStatus.kError:
-        return LPSolution(None, None, _status(h.getModelStatus()))
+        # (linprog: no solution with an "optimal" status counts as numerical difficulties)
+        status = _status(h.getModelStatus())
+        return LPSolution(None, None, 4 if status == 0 else status)
     status = _status(h.getModelStatus())
     if status != 0:
         return LPSolution(None, None, status)
