@@ -43,7 +43,7 @@ from robust.engine import stop_workers  # noqa: E402
 from robust.errors import BDFTError  # noqa: E402
 from robust.version import __version__  # noqa: E402
 
-__all__ = ["main", "program", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
+__all__ = ["main", "program", "console", "build_parser", "COMMANDS", "LOG_DIR_ENV"]
 
 #: Sub-command modules, in the order ``bdft --help`` lists them.
 COMMANDS = (reproduce, validate, margin, sweep, identify, design, limit, report)
@@ -151,51 +151,59 @@ def main(argv: list[str] | None = None) -> int:
 def program() -> int:
     """The ``bdft`` program: :func:`main` on ``sys.argv``, then its worker processes ended.
 
-    The console script and ``python -m bdft`` run this. The local worker processes of a
-    command's ``--jobs`` are idle once :func:`main` returns; ending them at once
-    (:func:`robust.engine.stop_workers`) spares the wait for their interpreters' shutdown.
-    :func:`main` itself leaves them to the next call (a program calling it repeatedly reuses
-    them). The process then ends at once with that code (:func:`_leave`: the exit handlers
-    run, the modules are not torn down), unless a thread that a normal exit waits for is
-    still running.
+    The local worker processes of a command's ``--jobs`` are idle once :func:`main`
+    returns; ending them at once (:func:`robust.engine.stop_workers`) spares the wait for
+    their interpreters' shutdown. :func:`main` itself leaves them to the next call (a
+    program calling it repeatedly reuses them). The console script and ``python -m bdft``
+    run :func:`console`, which also ends the process.
 
     Returns
     -------
     int
-        :func:`main`'s exit code (when the process did not end in :func:`_leave`).
+        :func:`main`'s exit code.
     """
     try:
-        code = main()
+        return main()
     finally:
         stop_workers()
-    _leave(code)
-    return code
 
 
-def _leave(code: int) -> None:
-    """End the process with ``code`` now, without tearing the interpreter down.
+def console() -> int:
+    """The ``bdft`` console script and ``python -m bdft``: :func:`program`, then the exit.
 
-    A command's results are written and its files closed when :func:`main` returns; what
-    remains of a normal exit is the interpreter's finalisation of every module the
-    numerical libraries imported (about 0.4 s after ``bdft validate``, for nothing). So
-    the standard streams are flushed and the exit handlers run (:mod:`atexit`: logging,
-    temporary folders, the worker pools' trackers), and the process ends with
-    :func:`os._exit`. With a thread still running that a normal exit would wait for (not a
-    daemon), or a stream that cannot be flushed (a closed pipe), nothing is cut short: the
-    normal exit follows.
+    A command's results are written and its files closed when :func:`program` returns;
+    what remains of a normal exit is the interpreter's finalisation of every module the
+    numerical libraries imported (0.4-0.6 s, for nothing). So the standard streams are
+    flushed, the exit handlers run (:mod:`atexit`: logging, temporary folders, the worker
+    pools' trackers, Dask's clusters), the streams are flushed again and the process ends
+    with :func:`os._exit`. With a thread still running that a normal exit would wait for
+    (not a daemon), or a stream that cannot be flushed (a closed pipe), nothing is cut
+    short: the normal exit follows.
+
+    Returns
+    -------
+    int
+        :func:`program`'s exit code (when the process did not end here).
     """
+    code = program()
     main_thread = threading.main_thread()
     if any(t is not main_thread and not t.daemon for t in threading.enumerate()):
-        return  # (a normal exit waits for it; daemon threads end with the process either way)
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (OSError, ValueError):
-        return
+        return code  # (a normal exit waits for it; daemon threads end with the process)
+    if not _flushed():
+        return code
     atexit._run_exitfuncs()
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (OSError, ValueError):
-        pass
+    if not _flushed():
+        return code  # (the normal exit reports what could not be written)
     os._exit(code)
+
+
+def _flushed() -> bool:
+    """Flush standard output and error (those the process has); whether both went out."""
+    for stream in (sys.stdout, sys.stderr):
+        if stream is None:
+            continue
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            return False
+    return True

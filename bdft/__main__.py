@@ -2,6 +2,6 @@
 
 import sys
 
-from bdft import program
+from bdft import console
 
-sys.exit(program())
+sys.exit(console())

@@ -1,11 +1,14 @@
 """The ``bdft`` program's exit: its output complete, its code kept, its threads waited for."""
 
 import json
+import shlex
 import subprocess
 import sys
 import textwrap
 
 import pytest
+
+import bdft
 
 
 def _bdft(*args, **kw):
@@ -41,7 +44,7 @@ def test_exit_handlers_run_and_running_threads_are_waited_for(tmp_path, thread):
         sys.argv = ["bdft", "validate", "--samples", "50", "--json"]
         if {thread}:
             threading.Thread(target=late).start()  # not a daemon: the exit waits for it
-        sys.exit(bdft.program())
+        sys.exit(bdft.console())
         """
     )
     done = subprocess.run(
@@ -53,3 +56,24 @@ def test_exit_handlers_run_and_running_threads_are_waited_for(tmp_path, thread):
     assert flag.exists() == thread
     if thread:
         assert flag.read_text() == "done"
+
+
+def test_without_standard_output_the_code_is_kept():
+    # fd 1 closed: sys.stdout is None (print writes nothing); nothing to flush there, the
+    # exit code stays main's
+    done = subprocess.run(
+        f"{shlex.quote(sys.executable)} -m bdft validate --samples 50 >&-",
+        shell=True,
+        capture_output=False,
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_program_returns_its_code_in_process(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["bdft", "validate", "--samples", "0"])
+    assert bdft.program() == 2  # this process goes on: only console() ends it
+    assert "--samples" in capsys.readouterr().err
