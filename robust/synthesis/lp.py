@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 import scipy.optimize as so
+from scipy.sparse import csc_array
 
 try:  # the HiGHS build that scipy.optimize.linprog runs (not a public module of SciPy)
     from scipy.optimize._highspy import _core as _highs
@@ -144,8 +145,8 @@ def solve_lp(c, A_ub, b_ub, bounds) -> LPSolution:
         res = so.linprog(c, A_ub=A, b_ub=b, bounds=bounds, method="highs")
         return LPSolution(res.x, res.fun, int(res.status))
     m, n = A.shape
-    # column-wise sparse storage of the nonzeros, as scipy.sparse.csc_array stores them
-    cols, rows = np.nonzero(A.T)
+    # the column-wise storage linprog hands HiGHS (scipy.sparse.csc_array of the rows)
+    S = csc_array(A)
     lp = _highs.HighsLp()
     lp.num_col_, lp.num_row_ = n, m
     lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, m
@@ -153,9 +154,7 @@ def solve_lp(c, A_ub, b_ub, bounds) -> LPSolution:
     lp.col_cost_ = c
     lp.col_lower_, lp.col_upper_ = lb, ub
     lp.row_lower_, lp.row_upper_ = np.full(m, -np.inf), b
-    lp.a_matrix_.start_ = np.searchsorted(cols, np.arange(n + 1)).astype(np.int32)
-    lp.a_matrix_.index_ = rows.astype(np.int32)
-    lp.a_matrix_.value_ = A.T[cols, rows]
+    lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = S.indptr, S.indices, S.data
     h = _highs._Highs()
     for key, value in (
         ("output_flag", False),
