@@ -102,6 +102,71 @@ def test_the_fits_analytic_derivatives_are_the_central_differences(model):
             np.testing.assert_allclose(D[:, k], fd, rtol=0, atol=1e-7 * np.abs(D[:, k]).max())
 
 
+@pytest.mark.parametrize("model", ["human", "cab"])
+def test_the_compiled_residuals_are_the_models_weighted_log_errors(model):
+    """The fits' compiled residuals and Jacobians are :func:`human_response`'s and
+    :func:`cab_response`'s weighted log errors (real parts, then phases) and their
+    derivatives (:func:`human_log_derivatives`, :func:`cab_log_derivatives`) through the
+    logarithmic axes, to rounding; the Jacobian is also the compiled residual's central
+    differences."""
+    from designs.calibration import (
+        CAB_LOG_AXES,
+        LOG_AXES,
+        _cab_jacobian,
+        _cab_residual,
+        _human_jacobian,
+        _human_residual,
+    )
+
+    rng = np.random.default_rng(11)
+    f = np.geomspace(0.5, 12.0, 60)
+    w = rng.uniform(0.5, 20.0, f.size)
+    p = FAM.physical
+    for _ in range(6):
+        H = np.exp(rng.normal(-6, 1, f.size) + 1j * rng.uniform(-3.1, 3.1, f.size))
+        if model == "human":
+            th = np.array([rng.uniform(1, 4), rng.uniform(0.1, 0.5), 0, rng.uniform(0.1, 0.5)])
+            th[2] = th[0] * rng.uniform(1.05, 3.0)
+            log, mu = np.array(LOG_AXES), rng.uniform(0.05, 0.2)
+            ref = human_response(FAM, th[None, :], f, 0.7, mu)[0]
+            D = human_log_derivatives(FAM, th[None, :], f)[0]
+            z = np.where(log, np.log(th), th)
+            got = _human_residual(z, f, H, w, 1 + mu, -0.7 * p.c_unit * p.h_gain)
+            J = _human_jacobian(z, f, w, 1 + p.m_arm / p.m_trunk)
+
+            def resid(z, H=H):
+                return _human_residual(z, f, H, w, 1 + p.m_arm / p.m_trunk, 1.0)
+        else:
+            th = np.array(
+                [rng.uniform(200, 600), rng.uniform(2, 4), rng.uniform(0.03, 0.2), 0, 0.1]
+            )
+            th[3] = th[1] * rng.uniform(1.02, 2.5)
+            log = np.array(CAB_LOG_AXES)
+            ref = cab_response(th[None, :], f)[0]
+            D = cab_log_derivatives(th[None, :], f)[0]
+            z = np.where(log, np.log(th), th)
+            got = _cab_residual(z, f, H, w)
+            J = _cab_jacobian(z, f, w)
+
+            def resid(z, H=H):
+                return _cab_residual(z, f, H, w)
+
+        d = np.log(ref / H)
+        np.testing.assert_allclose(got[: f.size], d.real * w, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got[f.size :], d.imag * w, rtol=1e-12, atol=1e-12)
+        assert np.all(np.abs(got[f.size :] / w) <= math.pi)
+        Dz = D * np.where(log, th, 1.0)[None, :]
+        np.testing.assert_allclose(J[: f.size], Dz.real * w[:, None], rtol=1e-11, atol=1e-9)
+        np.testing.assert_allclose(J[f.size :], Dz.imag * w[:, None], rtol=1e-11, atol=1e-9)
+        for k in range(z.size):
+            h = 1e-6
+            up, down = z.copy(), z.copy()
+            up[k] += h
+            down[k] -= h
+            fd = (resid(up) - resid(down)) / (2 * h)
+            np.testing.assert_allclose(J[:, k], fd, rtol=0, atol=1e-6 * np.abs(J[:, k]).max())
+
+
 def test_the_response_is_symmetric_in_the_two_modes():
     # h/c = -(D_a + N_t) / (D_t D_a) = -(D_t + N_a) / (D_a D_t) at a vanishing mass ratio,
     # and the swap leaves the response unchanged at a real ratio too (the trunk's
