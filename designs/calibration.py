@@ -1100,6 +1100,8 @@ _kernel = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 @_kernel
 def _human_parts(z, big_r):
+    """The modal quantities at ``z`` and the seated chain's coefficients (``d3 .. d0`` and
+    the numerator's constant, as in :func:`human_response`)."""
     fa, za, ft, zt = math.exp(z[0]), z[1], math.exp(z[2]), z[3]
     wa, wt = 2 * math.pi * fa, 2 * math.pi * ft
     sa, st = 2 * za * wa, 2 * zt * wt
@@ -1121,7 +1123,7 @@ def _human_parts(z, big_r):
 @_kernel
 def _human_residual(z, f, H, w, big_r, gain):
     """The weighted log residual of :func:`human_response` at the fit coordinates ``z``
-    (:data:`LOG_AXES`), compiled: real parts then wrapped phases, shape ``(2 F,)``."""
+    (:data:`LOG_AXES`), compiled: real parts then phases, shape ``(2 F,)``."""
     d3, d2, d1, d0, c0 = _human_parts(z, big_r)[1]
     n = f.size
     out = np.empty(2 * n)
