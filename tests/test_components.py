@@ -149,17 +149,8 @@ def test_blocks_realised_once_per_parameter_set_and_handed_out_as_copies():
     assert (b.input_labels, b.output_labels, b.name) == (["y"], ["c"], "structure")
 
 
-@pytest.mark.parametrize("kind", ["valve_cylinder", "structure", "pi"])
-def test_block_realisation_is_python_controls_to_the_bit(kind):
-    # _realise skips python-control's unused minimal realisation: the same td04ad call, so
-    # the same matrices, bit for bit, as ct.ss of the same transfer function
-    params = {
-        "valve_cylinder": ValveCylinderParams(k_vc=31.0, p1=290.0, wn_hz=4.6, zeta=0.5),
-        "structure": StructureParams(k_s=180.0, zeta1=0.1, zeta2=0.25, f1_hz=6.1, f2_hz=6.9),
-        "pi": PIParams(kp=0.8, ki=0.3),
-    }[kind]
-    comp._realised.cache_clear()
-    got = comp._realised(kind, params)
+def _python_control_block(kind, params) -> ct.StateSpace:
+    """``ct.ss`` of the block's transfer function, multiplied as python-control multiplies."""
     w = 2.0 * math.pi
     if kind == "valve_cylinder":
         wn = w * params.wn_hz
@@ -175,6 +166,41 @@ def test_block_realisation_is_python_controls_to_the_bit(kind):
         )
     else:
         tf = ct.tf([params.kp, params.ki], [1.0, 0.0])
-    want = ct.ss(tf)
-    for a, b in zip(got, (want.A, want.B, want.C, want.D)):
-        np.testing.assert_array_equal(a, np.asarray(b, float))
+    return ct.ss(tf)
+
+
+def _random_params(kind, rng):
+    u = rng.uniform
+    if kind == "valve_cylinder":
+        return ValveCylinderParams(
+            k_vc=u(5.0, 60.0), p1=u(50.0, 600.0), wn_hz=u(1.0, 12.0), zeta=u(0.05, 0.95)
+        )
+    if kind == "structure":
+        return StructureParams(
+            k_s=u(20.0, 400.0),
+            zeta1=u(0.01, 0.6),
+            zeta2=u(0.01, 0.6),
+            f1_hz=u(1.0, 20.0),
+            f2_hz=u(1.0, 20.0),
+        )
+    return PIParams(kp=u(0.05, 2.0), ki=u(0.0, 1.0))
+
+
+@pytest.mark.parametrize("kind", ["valve_cylinder", "structure", "pi"])
+def test_block_realisation_is_python_controls_to_the_bit(kind):
+    # _realise skips python-control's unused minimal realisation (the same td04ad call), and
+    # the blocks' products are formed as python-control's `*` forms them (numpy.polymul, left
+    # to right) without its intermediate systems: the same matrices, bit for bit, as ct.ss of
+    # python-control's product, on a fixed and 40 seeded parameter sets
+    rng = np.random.default_rng(11)
+    fixed = {
+        "valve_cylinder": ValveCylinderParams(k_vc=31.0, p1=290.0, wn_hz=4.6, zeta=0.5),
+        "structure": StructureParams(k_s=180.0, zeta1=0.1, zeta2=0.25, f1_hz=6.1, f2_hz=6.9),
+        "pi": PIParams(kp=0.8, ki=0.3),
+    }[kind]
+    for params in [fixed] + [_random_params(kind, rng) for _ in range(40)]:
+        comp._realised.cache_clear()
+        got = comp._realised(kind, params)
+        want = _python_control_block(kind, params)
+        for a, b in zip(got, (want.A, want.B, want.C, want.D)):
+            np.testing.assert_array_equal(a, np.asarray(b, float))

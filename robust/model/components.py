@@ -136,14 +136,29 @@ class PIParams:
         validate_fields(self, {"kp": POSITIVE, "ki": Spec(low=0.0)})
 
 
-def _second_order(wn: float, zeta: float, num: list[float]) -> ct.TransferFunction:
-    return ct.tf(num, [1.0, 2.0 * zeta * wn, wn * wn])
+def _second_order_coefficients(wn: float, zeta: float, num: list[float]) -> tuple:
+    """``(num, den)`` of ``num(s) / (s^2 + 2 zeta wn s + wn^2)``."""
+    return num, [1.0, 2.0 * zeta * wn, wn * wn]
 
 
 #: Parameter sets whose realisation a process keeps: more than a coverage certificate's
 #: members (2000 by default, the same members for every design), so that the next design a
 #: process checks finds them realised.
 REALISATIONS_KEPT = 8192
+
+
+def _series(*factors) -> ct.TransferFunction:
+    """The product of SISO transfer functions given as ``(num, den)`` coefficient lists.
+
+    The coefficients are multiplied as python-control's ``*`` multiplies them, left to
+    right (``numpy.polymul``; its sum with the zero transfer function and its products
+    with one are exact), into one :class:`control.TransferFunction`: the same polynomials,
+    without a system object per intermediate product (0.8 ms of a realisation's 1.2).
+    """
+    num, den = (np.asarray(c, float) for c in factors[0])
+    for n, d in factors[1:]:
+        num, den = np.polymul(num, n), np.polymul(den, d)
+    return ct.tf(num, den)
 
 
 @functools.lru_cache(maxsize=REALISATIONS_KEPT)
@@ -158,14 +173,17 @@ def _realised(kind: str, params) -> tuple[np.ndarray, ...]:
     """
     if kind == "valve_cylinder":
         wn = TWO_PI * params.wn_hz
-        g = ct.tf([params.k_vc * params.p1], [1.0, params.p1, 0.0]) * _second_order(
-            wn, params.zeta, [wn * wn]
+        g = _series(
+            ([params.k_vc * params.p1], [1.0, params.p1, 0.0]),
+            _second_order_coefficients(wn, params.zeta, [wn * wn]),
         )
     elif kind == "structure":
         w1, w2 = TWO_PI * params.f1_hz, TWO_PI * params.f2_hz
-        m1 = _second_order(w1, params.zeta1, [2.0 * params.zeta1 * w1, w1 * w1])
-        m2 = _second_order(w2, params.zeta2, [2.0 * params.zeta2 * w2, w2 * w2])
-        g = ct.tf([params.k_s, 0.0, 0.0], [1.0]) * m1 * m2
+        g = _series(
+            ([params.k_s, 0.0, 0.0], [1.0]),
+            _second_order_coefficients(w1, params.zeta1, [2.0 * params.zeta1 * w1, w1 * w1]),
+            _second_order_coefficients(w2, params.zeta2, [2.0 * params.zeta2 * w2, w2 * w2]),
+        )
     else:  # the PI controller
         g = (
             ct.tf([params.kp, params.ki], [1.0, 0.0])
