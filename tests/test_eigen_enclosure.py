@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+import robust.analysis.eigen_enclosure as ee
 from robust.analysis.eigen_enclosure import (
     certify_affine_family,
     enclose_eigenvalues,
@@ -229,3 +230,27 @@ def test_subdivision_stops_when_the_tree_cannot_fit_the_budget(wave):
     ok, st = run(400, limit=-1.0)
     assert not ok and st["certified_boxes"] == 0
     assert 200 <= st["boxes"] <= 200 + wave
+
+
+@pytest.mark.parametrize(
+    "complex_r, complex_j", [(True, False), (True, True), (False, True), (False, False)]
+)
+def test_weighted_product_moduli_are_the_sum_of_the_moduli_of_each_product(complex_r, complex_j):
+    # sum_p h_p |R_i J_p| from products in blocks of rows and in real and imaginary parts,
+    # against each product formed on its own; 81 rows of the stacked R: two blocks
+    rng = np.random.default_rng(3)
+    n, d = 9, 4
+    R = rng.standard_normal((n, n, n)) * np.logspace(-8, 8, n)[:, None, None]
+    J = rng.standard_normal((d, n, n))
+    if complex_r:
+        R = R + 1j * rng.standard_normal((n, n, n))
+    if complex_j:
+        J = J - 2j * rng.standard_normal((d, n, n))
+    h = rng.uniform(0.0, 1.0, d)
+    want = np.zeros((n, n, n))
+    for i in range(n):
+        for p in range(d):
+            want[i] += h[p] * np.abs(R[i] @ J[p])
+    got = ee._weighted_product_moduli(R, J, h)
+    assert got.shape == (n, n, n)
+    np.testing.assert_allclose(got, want, rtol=1e-13)
