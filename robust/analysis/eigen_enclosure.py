@@ -574,38 +574,36 @@ def _weighted_product_moduli(R: np.ndarray, J: np.ndarray, h: np.ndarray) -> np.
     """``sum_p h_p |R_i J_p|`` for every ``i``, shape ``(n, n, n)``.
 
     Every ``R_i J_p`` comes out of matrix products of the stacked ``R`` (rows ``(i, a)``, in
-    blocks) and the side-by-side ``J`` (columns ``(c, p)``), in their real and imaginary
-    parts (a real ``J`` in two real products: a complex product would multiply its zeros;
-    the modulus of the parts, not of complex numbers, which costs more than the products);
-    the moduli are weighted over
-    ``p`` in one matrix-vector product. The batched products ``R_i J_p`` this replaces took
-    a third of a Krawczyk step.
+    blocks) and the side-by-side ``J`` (columns ``(c, p)``), in real and imaginary parts (a
+    real ``J`` takes two real products, where a complex product would multiply its zeros;
+    the modulus of the parts costs less than that of complex numbers); the moduli are
+    weighted over ``p`` in one matrix-vector product. The batched products ``R_i J_p`` this
+    replaces took a third of a Krawczyk step.
     """
     n, d = R.shape[0], J.shape[0]
     Js = J.transpose(1, 2, 0).reshape(n, n * d)
     Rs = R.reshape(n * n, n)
-    # contiguous parts: a strided operand would be copied at every product
-    Jr, Ji = (
-        (np.ascontiguousarray(Js.real), np.ascontiguousarray(Js.imag))
-        if np.iscomplexobj(J)
-        else (Js, None)
-    )
-    Rr, Ri = (
-        (np.ascontiguousarray(Rs.real), np.ascontiguousarray(Rs.imag))
-        if np.iscomplexobj(R)
-        else (Rs, None)
-    )
+
+    def parts(M):
+        # contiguous parts: a strided operand would be copied at every product
+        if np.iscomplexobj(M):
+            return np.ascontiguousarray(M.real), np.ascontiguousarray(M.imag)
+        return M, None
+
+    (Rr, Ri), (Jr, Ji) = parts(Rs), parts(Js)
     out = np.empty(n * n * n)
     for a in range(0, n * n, _ROWS_PER_PRODUCT):
         b = min(a + _ROWS_PER_PRODUCT, n * n)
-        # the real and imaginary parts of R_i J_p, then the modulus
         re = Rr[a:b] @ Jr
-        im = None
-        if Ri is not None:
+        if Ri is not None and Ji is not None:
+            re -= Ri[a:b] @ Ji
+            im = Ri[a:b] @ Jr + Rr[a:b] @ Ji
+        elif Ri is not None:
             im = Ri[a:b] @ Jr
-        if Ji is not None:
-            re -= Ri[a:b] @ Ji if Ri is not None else 0.0
-            im = Rr[a:b] @ Ji if im is None else im + Rr[a:b] @ Ji
+        elif Ji is not None:
+            im = Rr[a:b] @ Ji
+        else:
+            im = None
         if im is None:
             np.abs(re, out=re)
         else:
@@ -665,7 +663,6 @@ def _krawczyk(Ac, J, h, E_rad, inflations):
     err = gam * (np.einsum("iab,ib->ia", aR, absBx) + np.abs(zc))
     # first-order term, kept as a rectangle: R_i J_p x_i, shape (n_eig, d, n), from
     # J_p X as one product and R_i (J_p x_i)_p as one batched product (BLAS)
-    d = J.shape[0]
     JX = (J.reshape(d * n, n) @ X).reshape(d, n, n)  # [p, b, i]: J_p x_i
     G = (R @ JX.transpose(2, 1, 0)).transpose(0, 2, 1)
     rho_re = np.einsum("p,ipa->ia", h, np.abs(G.real))
@@ -678,8 +675,8 @@ def _krawczyk(Ac, J, h, E_rad, inflations):
     # |I - R B| with the perturbation of B (column u of E removed) and rounding
     # (first-order part per parameter, so |R_i J_p| is not overestimated by |R_i| |J_p|)
     Cabs = np.abs(eye[None] - R @ B) + gam * (aR @ np.abs(B))
-    # |R_i J_p| by batched products (BLAS), weighted by h; the rounding term sum_p h_p
-    # |R_i| |J_p| is |R_i| (sum_p h_p |J_p|)
+    # sum_p h_p |R_i J_p| (_weighted_product_moduli); the rounding term sum_p h_p |R_i| |J_p|
+    # is |R_i| (sum_p h_p |J_p|)
     RJ = _weighted_product_moduli(R, J, h)
     RJ += gam * (aR @ hJ)
     Er = np.repeat(E_rad[None], n, axis=0)
