@@ -254,3 +254,22 @@ def test_weighted_product_moduli_are_the_sum_of_the_moduli_of_each_product(compl
     got = ee._weighted_product_moduli(R, J, h)
     assert got.shape == (n, n, n)
     np.testing.assert_allclose(got, want, rtol=1e-13)
+
+
+def test_block_norms_are_numpys_norm_of_each_block():
+    """The norms of 1 x 1 blocks taken as magnitudes are numpy's norms to the bit, also for
+    entries whose square under- or overflows (those are computed as numpy computes them)."""
+    rng = np.random.default_rng(12)
+    for _ in range(300):
+        n = int(rng.integers(1, 30))
+        sizes = []
+        while sum(sizes) < n:
+            sizes.append(int(min(rng.choice([1, 1, 1, 2, 3]), n - sum(sizes))))
+        starts = np.cumsum([0, *sizes])
+        F = np.abs(rng.standard_normal((n, n))) * 10.0 ** rng.uniform(-200, 200, (n, n))
+        F[rng.random((n, n)) < 0.2] = 0.0
+        blocks = list(zip(starts[:-1], starts[1:]))
+        with np.errstate(over="ignore"):
+            want = np.array([[np.linalg.norm(F[a:b, c:e]) for c, e in blocks] for a, b in blocks])
+            got = ee._block_norms(F, starts)
+        assert got.tobytes() == want.tobytes()

@@ -21,6 +21,14 @@ largest value during the motion) and a **sustained oscillation** (a limit cycle 
 undamped mode: the RMS of the cylinder position over the last second of the settling
 phase is more than half of its RMS over the first second, and not negligible, above
 1e-6 of its RMS during the motion).
+
+The samples are stepped by a loop compiled with Numba (:func:`_steps`): 30 000 samples of a
+20-state plant in about 10 ms, where the same steps as numpy products took about 0.45 s
+(most of it numpy's per-call overhead on vectors of twenty entries). Its sums run in the
+order of their terms, without fused multiply-adds or reassociation (Numba's default), so it
+gives the same bits on every x86-64 CPU (tested against a build for a generic one); against
+the numpy products, whose BLAS sums run in another order, the outputs agree to the rounding
+of their terms (tested).
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ import dataclasses
 import math
 
 import control as ct
+import numba
 import numpy as np
 
 from robust.analysis.sampled import open_plant
@@ -91,6 +100,110 @@ class SaturationCheck:
         }
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _matvec_into(out, M, x, first):  # pragma: no cover - compiled
+    """``out[i] = sum_j M[i, first + j] x[j]``, the sum in the order of ``j``."""
+    for i in range(M.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += M[i, first + j] * x[j]
+        out[i] = acc
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _steps(
+    Ap, Bp, Cp, Dp, Ak, Bk, Ck, Dk, meas_rows, y_row, f_idx, peak, uu, delayed
+):  # pragma: no cover - compiled
+    """The sampled loop stepped sample by sample (see :func:`saturated_response`).
+
+    Plant ``(Ap, Bp, Cp, Dp)`` with inputs ``[u, controller outputs]``, controller ``(Ak,
+    Bk, Ck, Dk)`` on the plant outputs ``meas_rows``; the controller output ``f_idx`` (-1:
+    none) clipped to ``+- peak`` (a NaN request stays NaN); ``delayed``: the controller's
+    outputs act one sample late. Returns ``(y, force, norms, requests, clipped)``; from a
+    sample whose plant state norm is not finite or beyond 1e300 on, ``norms`` is inf and
+    ``y`` NaN.
+    """
+    N = uu.shape[0]
+    n_p, n_k, n_v = Ap.shape[0], Ak.shape[0], Ck.shape[0]
+    n_z, n_m = Cp.shape[0], meas_rows.shape[0]
+    y = np.zeros(N)
+    force = np.zeros(N)
+    norms = np.zeros(N)
+    requests = np.zeros(N)
+    clipped = 0
+    xp, xk = np.zeros(n_p), np.zeros(n_k)
+    xp_new, xk_new = np.zeros(n_p), np.zeros(n_k)
+    v, v_new, req = np.zeros(n_v), np.zeros(n_v), np.zeros(n_v)
+    z, meas, tmp = np.zeros(n_z), np.zeros(n_m), np.zeros(max(n_z, n_p))
+    w = np.zeros(1 + n_v)
+    for k in range(N):
+        uk = uu[k]
+        w[0] = uk
+        # plant outputs: the controller's current outputs enter unless they act late
+        _matvec_into(z, Cp, xp, 0)
+        for i in range(n_z):
+            z[i] += Dp[i, 0] * uk
+        if delayed:
+            _matvec_into(tmp, Dp, v, 1)
+            for i in range(n_z):
+                z[i] += tmp[i]
+        for i in range(n_m):
+            meas[i] = z[meas_rows[i]]
+        _matvec_into(req, Ck, xk, 0)
+        for i in range(n_v):
+            acc = 0.0
+            for j in range(n_m):
+                acc += Dk[i, j] * meas[j]
+            req[i] += acc
+            v_new[i] = req[i]
+        if f_idx >= 0:
+            r = req[f_idx]
+            requests[k] = r
+            c = r
+            if -peak > c:
+                c = -peak
+            if peak < c:
+                c = peak
+            v_new[f_idx] = c
+            if abs(r) > peak:
+                clipped += 1
+        if not delayed:
+            for i in range(n_v):
+                v[i] = v_new[i]
+            _matvec_into(tmp, Dp, v, 1)
+            for i in range(n_z):
+                z[i] += tmp[i]
+        y[k] = z[y_row]
+        force[k] = v[f_idx] if f_idx >= 0 else 0.0
+        # controller and plant states
+        _matvec_into(xk_new, Ak, xk, 0)
+        for i in range(n_k):
+            acc = 0.0
+            for j in range(n_m):
+                acc += Bk[i, j] * meas[j]
+            xk_new[i] += acc
+        for i in range(n_v):
+            w[1 + i] = v[i]
+        _matvec_into(xp_new, Ap, xp, 0)
+        _matvec_into(tmp[:n_p], Bp, w, 0)
+        nrm2 = 0.0
+        for i in range(n_p):
+            xp[i] = xp_new[i] + tmp[i]
+            nrm2 += xp[i] * xp[i]
+        for i in range(n_k):
+            xk[i] = xk_new[i]
+        if delayed:
+            for i in range(n_v):
+                v[i] = v_new[i]
+        nrm = math.sqrt(nrm2)
+        norms[k] = nrm
+        if not math.isfinite(nrm) or nrm > 1e300:
+            norms[k:] = np.inf
+            y[k:] = np.nan
+            break
+    return y, force, norms, requests, clipped
+
+
 def saturated_response(
     loop,
     Kd: ct.StateSpace,
@@ -147,54 +260,22 @@ def saturated_response(
     n_settle = int(round(settle / dt))
     uu = np.concatenate([u, np.zeros(n_settle)])
     N = len(uu)
-    xp, xk = np.zeros(Ap.shape[0]), np.zeros(Ak.shape[0])
-    v = np.zeros(len(outs))
-    y = np.zeros(N)
-    force = np.zeros(N)
-    norms = np.zeros(N)
-    requests = np.zeros(N)
-    clipped = 0
-    # the same products as stepping the equations literally (the slices, the input vector
-    # and the state norm made once or without numpy's per-call checks: the same bits)
-    Dpu, Dpv = Dp[:, :n_u], Dp[:, n_u:]
-    uk = np.zeros(n_u)
-    w = np.zeros(n_u + len(outs))
-    with np.errstate(over="ignore", invalid="ignore"):
-        for k in range(N):
-            uk[0] = w[0] = uu[k]
-            if delayed:
-                w[n_u:] = v
-                z = Cp @ xp + Dp @ w
-                meas = z[meas_rows]
-                req = Ck @ xk + Dk @ meas
-            else:
-                z0 = Cp @ xp + Dpu @ uk
-                meas = z0[meas_rows]
-                req = Ck @ xk + Dk @ meas
-            v_new = req.copy()
-            if f_idx is not None:
-                r = float(req[f_idx])
-                requests[k] = r
-                # np.clip's value (NaN stays NaN), without its per-call overhead
-                v_new[f_idx] = min(max(r, -peak), peak)
-                clipped += abs(r) > peak
-            if not delayed:
-                v = v_new
-                z = z0 + Dpv @ v
-            y[k] = z[y_row]
-            force[k] = v[f_idx] if f_idx is not None else 0.0
-            xk = Ak @ xk + Bk @ meas
-            w[n_u:] = v
-            xp = Ap @ xp + Bp @ w
-            if delayed:
-                v = v_new
-            # numpy.linalg.norm of a real vector: sqrt(x . x)
-            nrm = math.sqrt(float(xp.dot(xp)))
-            norms[k] = nrm
-            if not math.isfinite(nrm) or nrm > 1e300:
-                norms[k:] = np.inf
-                y[k:] = np.nan
-                break
+    y, force, norms, requests, clipped = _steps(
+        Ap,
+        Bp,
+        Cp,
+        Dp,
+        Ak,
+        Bk,
+        Ck,
+        Dk,
+        np.asarray(meas_rows, np.int64),
+        y_row,
+        -1 if f_idx is None else f_idx,
+        peak,
+        uu,
+        delayed,
+    )
     n_motion = max(len(u), 1)
     motion_max = float(np.max(norms[:n_motion])) if len(u) else 0.0
     diverged = bool(not np.all(np.isfinite(norms)) or norms[-1] > 1e3 * max(motion_max, 1e-300))
