@@ -280,11 +280,14 @@ class _Affine:
         return out
 
     def matrices(self, Om):
+        # (Bb Om) and (D12b Om) once each: the products associate from the left, so these
+        # are the same numbers as writing each term out
+        BO, DO = self.Bb @ Om, self.D12b @ Om
         return (
-            self.A0 + self.Bb @ Om @ self.Cb,
-            self.B0 + self.Bb @ Om @ self.D21b,
-            self.C0 + self.D12b @ Om @ self.Cb,
-            self.D0 + self.D12b @ Om @ self.D21b,
+            self.A0 + BO @ self.Cb,
+            self.B0 + BO @ self.D21b,
+            self.C0 + DO @ self.Cb,
+            self.D0 + DO @ self.D21b,
         )
 
 
