@@ -111,6 +111,16 @@ def _matvec_into(out, M, x, first):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _matvec_add(out, M, x, first):  # pragma: no cover - compiled
+    """``out[i] += sum_j M[i, first + j] x[j]``, the sum formed first (as ``a + M x``)."""
+    for i in range(M.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += M[i, first + j] * x[j]
+        out[i] += acc
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _steps(
     Ap, Bp, Cp, Dp, Ak, Bk, Ck, Dk, meas_rows, y_row, f_idx, peak, uu, delayed
 ):  # pragma: no cover - compiled
@@ -134,7 +144,7 @@ def _steps(
     xp, xk = np.zeros(n_p), np.zeros(n_k)
     xp_new, xk_new = np.zeros(n_p), np.zeros(n_k)
     v, v_new, req = np.zeros(n_v), np.zeros(n_v), np.zeros(n_v)
-    z, meas, tmp = np.zeros(n_z), np.zeros(n_m), np.zeros(max(n_z, n_p))
+    z, meas = np.zeros(n_z), np.zeros(n_m)
     w = np.zeros(1 + n_v)
     for k in range(N):
         uk = uu[k]
@@ -144,18 +154,12 @@ def _steps(
         for i in range(n_z):
             z[i] += Dp[i, 0] * uk
         if delayed:
-            _matvec_into(tmp, Dp, v, 1)
-            for i in range(n_z):
-                z[i] += tmp[i]
+            _matvec_add(z, Dp, v, 1)
         for i in range(n_m):
             meas[i] = z[meas_rows[i]]
         _matvec_into(req, Ck, xk, 0)
-        for i in range(n_v):
-            acc = 0.0
-            for j in range(n_m):
-                acc += Dk[i, j] * meas[j]
-            req[i] += acc
-            v_new[i] = req[i]
+        _matvec_add(req, Dk, meas, 0)
+        v_new[:] = req
         if f_idx >= 0:
             r = req[f_idx]
             requests[k] = r
@@ -168,33 +172,23 @@ def _steps(
             if abs(r) > peak:
                 clipped += 1
         if not delayed:
-            for i in range(n_v):
-                v[i] = v_new[i]
-            _matvec_into(tmp, Dp, v, 1)
-            for i in range(n_z):
-                z[i] += tmp[i]
+            v[:] = v_new
+            _matvec_add(z, Dp, v, 1)
         y[k] = z[y_row]
         force[k] = v[f_idx] if f_idx >= 0 else 0.0
         # controller and plant states
         _matvec_into(xk_new, Ak, xk, 0)
-        for i in range(n_k):
-            acc = 0.0
-            for j in range(n_m):
-                acc += Bk[i, j] * meas[j]
-            xk_new[i] += acc
-        for i in range(n_v):
-            w[1 + i] = v[i]
+        _matvec_add(xk_new, Bk, meas, 0)
+        w[1:] = v
         _matvec_into(xp_new, Ap, xp, 0)
-        _matvec_into(tmp[:n_p], Bp, w, 0)
+        _matvec_add(xp_new, Bp, w, 0)
+        xp[:] = xp_new
+        xk[:] = xk_new
         nrm2 = 0.0
         for i in range(n_p):
-            xp[i] = xp_new[i] + tmp[i]
             nrm2 += xp[i] * xp[i]
-        for i in range(n_k):
-            xk[i] = xk_new[i]
         if delayed:
-            for i in range(n_v):
-                v[i] = v_new[i]
+            v[:] = v_new
         nrm = math.sqrt(nrm2)
         norms[k] = nrm
         if not math.isfinite(nrm) or nrm > 1e300:
