@@ -101,23 +101,14 @@ class SaturationCheck:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _matvec_into(out, M, x, first):  # pragma: no cover - compiled
-    """``out[i] = sum_j M[i, first + j] x[j]``, the sum in the order of ``j``."""
+def _matvec(out, M, x, first, add):  # pragma: no cover - compiled
+    """``out[i] (+)= sum_j M[i, first + j] x[j]``: the sum in the order of ``j``, formed
+    before it is added (``a + M x``) when ``add``, else stored."""
     for i in range(M.shape[0]):
         acc = 0.0
         for j in range(x.shape[0]):
             acc += M[i, first + j] * x[j]
-        out[i] = acc
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _matvec_add(out, M, x, first):  # pragma: no cover - compiled
-    """``out[i] += sum_j M[i, first + j] x[j]``, the sum formed first (as ``a + M x``)."""
-    for i in range(M.shape[0]):
-        acc = 0.0
-        for j in range(x.shape[0]):
-            acc += M[i, first + j] * x[j]
-        out[i] += acc
+        out[i] = out[i] + acc if add else acc
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -150,15 +141,15 @@ def _steps(
         uk = uu[k]
         w[0] = uk
         # plant outputs: the controller's current outputs enter unless they act late
-        _matvec_into(z, Cp, xp, 0)
+        _matvec(z, Cp, xp, 0, False)
         for i in range(n_z):
             z[i] += Dp[i, 0] * uk
         if delayed:
-            _matvec_add(z, Dp, v, 1)
+            _matvec(z, Dp, v, 1, True)
         for i in range(n_m):
             meas[i] = z[meas_rows[i]]
-        _matvec_into(req, Ck, xk, 0)
-        _matvec_add(req, Dk, meas, 0)
+        _matvec(req, Ck, xk, 0, False)
+        _matvec(req, Dk, meas, 0, True)
         v_new[:] = req
         if f_idx >= 0:
             r = req[f_idx]
@@ -173,15 +164,15 @@ def _steps(
                 clipped += 1
         if not delayed:
             v[:] = v_new
-            _matvec_add(z, Dp, v, 1)
+            _matvec(z, Dp, v, 1, True)
         y[k] = z[y_row]
         force[k] = v[f_idx] if f_idx >= 0 else 0.0
         # controller and plant states
-        _matvec_into(xk_new, Ak, xk, 0)
-        _matvec_add(xk_new, Bk, meas, 0)
+        _matvec(xk_new, Ak, xk, 0, False)
+        _matvec(xk_new, Bk, meas, 0, True)
         w[1:] = v
-        _matvec_into(xp_new, Ap, xp, 0)
-        _matvec_add(xp_new, Bp, w, 0)
+        _matvec(xp_new, Ap, xp, 0, False)
+        _matvec(xp_new, Bp, w, 0, True)
         xp[:] = xp_new
         xk[:] = xk_new
         nrm2 = 0.0
