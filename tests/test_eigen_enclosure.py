@@ -232,6 +232,28 @@ def test_subdivision_stops_when_the_tree_cannot_fit_the_budget(wave):
     assert 200 <= st["boxes"] <= 200 + wave
 
 
+@pytest.mark.parametrize("wave", [1, 8])
+def test_subdivision_tries_the_larger_boxes_first(wave):
+    # the right half of the square certifies in boxes of width 1/64 (a subtree of thousands
+    # of boxes), the left half never: a budget of 400 cannot hold the tree, and breadth
+    # first the search finds that out on the large boxes, before any of the small certified
+    # ones (depth first it would dive to the certified boxes of one corner and try them)
+    def certify(a, b):
+        w = b - a
+        small = a[0] >= 0.5 and bool(np.all(w <= 1 / 64 + 1e-12))
+        return {
+            "certified": small,
+            "centre_violates": False,
+            "check": -1.0,
+            "split": int(np.argmax(w)),
+        }
+
+    ok, st = subdivide(certify, np.zeros(2), np.ones(2), max_boxes=400, wave=wave)
+    assert not ok and st["reason"] == "box budget"
+    assert st["certified_boxes"] == 0
+    assert 200 <= st["boxes"] <= 200 + wave and st["boxes"] + st["pending"] > 400
+
+
 @pytest.mark.parametrize(
     "complex_r, complex_j", [(True, False), (True, True), (False, True), (False, False)]
 )

@@ -42,6 +42,7 @@ the centre), which leaves the eigenvalues and the bounds' validity unchanged.
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 from collections.abc import Callable
@@ -806,15 +807,20 @@ def subdivide(
 ) -> tuple[bool, dict]:
     """Branch and bound: certify a box by certifying sub-boxes, halving the ones that fail.
 
-    The boxes wait on a stack (depth first). Each step takes up to ``wave`` boxes from its
-    top and certifies them together (``certify_many``, e.g. on several processes), then
-    reads the answers in the order taken. Whether the box is certified does not depend on
+    The boxes wait in a queue (breadth first: the larger boxes, which fail more often, are
+    tried before their descendants). Each step takes up to ``wave`` boxes from its front
+    and certifies them together (``certify_many``, e.g. on several processes), then reads
+    the answers in the order taken. Whether the box is certified does not depend on
     ``wave``: every sub-box's answer and split depend on that sub-box alone, so the tree
     of sub-boxes is the same, and the box is certified exactly when that tree holds at most
     ``max_boxes`` boxes and none whose centre violates; only the statistics of a failure
     (boxes tried, the reason met first) do. The search stops as soon as the boxes tried
     plus those waiting exceed ``max_boxes``: each waiting box is a box of the tree, so the
-    tree cannot fit, and the boxes it would still try cannot change the verdict.
+    tree cannot fit, and the boxes it would still try cannot change the verdict. Every
+    failed box leaves one more waiting, so that stop comes after about ``max_boxes / 2``
+    failures; breadth first, few certified boxes are tried before them (a scale of the
+    robust margin searches that fails on its budget: about 207 boxes of 400 tried, against
+    207-399 depth first, the same verdicts).
 
     Parameters
     ----------
@@ -830,7 +836,7 @@ def subdivide(
         ``time.perf_counter()`` value after which the search stops (a safety limit; the
         statistics say when it was hit).
     wave : int
-        Boxes taken from the stack per step (1: one at a time).
+        Boxes taken from the queue per step (1: one at a time).
     certify_many : callable, optional
         ``certify_many([(lo, hi), ...])`` returns the answers of ``certify`` for those boxes,
         in order (default: ``certify`` on each in turn).
@@ -844,17 +850,17 @@ def subdivide(
         when the budget is exceeded, ``pending`` (boxes left waiting).
     """
     many = certify_many or (lambda boxes: [certify(a, b) for a, b in boxes])
-    queue = [(np.asarray(lo, float), np.asarray(hi, float))]
+    queue = collections.deque([(np.asarray(lo, float), np.asarray(hi, float))])
     stats = {"boxes": 0, "certified_boxes": 0, "worst_check": -math.inf}
     while queue:
-        # every box waiting on the stack is one more box of the tree: once the boxes tried
+        # every box waiting in the queue is one more box of the tree: once the boxes tried
         # and those waiting exceed the budget, the tree cannot fit in it (the same verdict as
         # trying them, at about half the cost of a failure)
         if stats["boxes"] + len(queue) > max_boxes:
             return False, dict(stats, reason="box budget", pending=len(queue))
         if time.perf_counter() > deadline:
             return False, dict(stats, reason="time limit (result depends on the machine)")
-        batch = [queue.pop() for _ in range(min(wave, len(queue), max_boxes - stats["boxes"]))]
+        batch = [queue.popleft() for _ in range(min(wave, len(queue), max_boxes - stats["boxes"]))]
         stats["boxes"] += len(batch)
         for (a, b), res in zip(batch, many(batch)):
             if res["certified"]:
@@ -870,7 +876,7 @@ def subdivide(
             mid = (a[j] + b[j]) / 2
             b1, a2 = b.copy(), a.copy()
             b1[j], a2[j] = mid, mid
-            queue += [(a, b1), (a2, b)]
+            queue.extend([(a, b1), (a2, b)])
     return True, dict(stats, reason="certified")
 
 
