@@ -295,3 +295,32 @@ def test_block_norms_are_numpys_norm_of_each_block():
             want = np.array([[np.linalg.norm(F[a:b, c:e]) for c, e in blocks] for a, b in blocks])
             got = ee._block_norms(F, starts)
         assert got.tobytes() == want.tobytes()
+
+
+def test_pseudo_radius_stops_where_the_bisection_stands_still():
+    # the bisection ends once a step changes nothing (every later step repeats it): the
+    # radius is the 200-step bisection's to the bit, and it solves its equation
+    def reference(eps, nu, k):
+        def g(r):
+            return sum(nu**m / r ** (m + 1) for m in range(k)) - 1.0 / eps
+
+        lo, hi = eps, eps + k * max(nu, eps)
+        while g(hi) > 0:
+            hi *= 2
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if g(mid) > 0 else (lo, mid)
+        return hi
+
+    rng = np.random.default_rng(7)
+    cases = [(1e-3, 1e-30, 2), (1e-3, 1e-12, 3), (1.0, 1e3, 4), (1e-8, 1.0, 2)]
+    cases += [
+        (10 ** rng.uniform(-9, 0), 10 ** rng.uniform(-12, 3), int(rng.integers(2, 6)))
+        for _ in range(200)
+    ]
+    for eps, nu, k in cases:
+        r = ee._pseudo_radius(eps, nu, k)
+        assert r == reference(eps, nu, k)
+        total = sum(nu**m / r ** (m + 1) for m in range(k))
+        assert total <= 1.0 / eps * (1 + 1e-12)
+        assert r >= eps

@@ -433,7 +433,11 @@ def _pseudo_radius(eps: float, nu: float, k: int) -> float:
         hi *= 2
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if g(mid) > 0 else (lo, mid)
+        new = (mid, hi) if g(mid) > 0 else (lo, mid)
+        if new == (lo, hi):
+            # a step that changes nothing is repeated by every later one
+            break
+        lo, hi = new
     return hi
 
 
