@@ -533,8 +533,7 @@ def check_specification(
         )
     has_force = controller is not None and "f" in controller.output_labels
     limits = spec.limits()
-    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
-    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+    grid = _check_grid(tuple(spec.tracking_band_hz), tuple(spec.feedthrough_band_hz))
 
     n = len(members)
     max_real, damping = np.empty(n), np.empty(n)
@@ -542,7 +541,7 @@ def check_specification(
     tracking, amplification = np.full(n, math.inf), np.full(n, math.inf)
     rms = np.full(n, math.inf) if has_force else np.zeros(n)
     amplitude = np.zeros(n)
-    nt = ft.size
+    nt = N_TRACKING_FREQS
     for i, m in enumerate(members):
         # one closed loop per member gives its poles and its output ratio on both grids
         closed = m.system(bdft=True, controller=controller)
@@ -552,7 +551,7 @@ def check_specification(
         stable[i] = ps.stable
         if not stable[i]:
             continue
-        ratio_k, ratio_0 = output_ratios(m, controller, np.concatenate([ft, fb]), closed=closed)
+        ratio_k, ratio_0 = output_ratios(m, controller, grid, closed=closed)
         tracking[i] = np.max(np.abs(ratio_k[:nt] - 1.0))
         peak_k = np.max(np.abs(ratio_k[nt:] - 1.0))
         peak_0 = np.max(np.abs(ratio_0[nt:] - 1.0))
@@ -581,6 +580,18 @@ def check_specification(
                 f"{duration_s:g} s each"
             )
     return _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, notes)
+
+
+@functools.lru_cache(maxsize=16)
+def _check_grid(tracking_band_hz: tuple, feedthrough_band_hz: tuple) -> np.ndarray:
+    """The frequencies of :func:`check_specification`, Hz: the tracking grid
+    (:data:`N_TRACKING_FREQS`, logarithmic), then the feedthrough grid (linear); made once
+    per pair of bands (the coverage checks thousands of members), kept read-only."""
+    ft = np.geomspace(*tracking_band_hz, N_TRACKING_FREQS)
+    fb = np.linspace(*feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+    grid = np.concatenate([ft, fb])
+    grid.setflags(write=False)
+    return grid
 
 
 def _unstable_note(bad: list, n: int, has_force: bool) -> str:

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 import robust.analysis.eigen_enclosure as ee
 from robust.analysis.eigen_enclosure import (
@@ -324,3 +325,29 @@ def test_pseudo_radius_stops_where_the_bisection_stands_still():
         total = sum(nu**m / r ** (m + 1) for m in range(k))
         assert total <= 1.0 / eps * (1 + 1e-12)
         assert r >= eps
+
+
+def test_one_by_one_blocks_take_their_entry_as_schur_form():
+    # a 1 x 1 block is its own Schur form (what zgees returns) unless LAPACK scales it first
+    # (entries below about 7e-139 or above 1e138): there the form comes from LAPACK
+    rng = np.random.default_rng(11)
+    n = 4000
+    mag = 10.0 ** rng.integers(-300, 300, n)
+    entries = list(rng.standard_normal(n) * mag)
+    entries += list(rng.standard_normal(n) * mag + 1j * rng.standard_normal(n))
+    entries += [0.0, -0.0, 1e-320, 1e-130, 1e130, 2e-140, 5e140, complex(0, 1e-200)]
+    differ = 0
+    for x in entries:
+        B = np.array([[x]])
+        T, _ = sla.schur(B, output="complex")
+        ev, nu = ee._block_schur(B)
+        assert ev.dtype == np.complex128 and ev.tobytes() == np.diag(T).tobytes()
+        assert nu == 0.0
+        differ += T[0, 0] != B[0, 0]
+    assert differ > 100  # the scaled range is exercised: there the entry is not the form
+    for k in (2, 3):
+        B = rng.standard_normal((k, k))
+        T, _ = sla.schur(B, output="complex")
+        ev, nu = ee._block_schur(B)
+        assert ev.tobytes() == np.diag(T).tobytes()
+        assert nu == np.linalg.norm(np.triu(T, 1), 2) > 0

@@ -12,6 +12,7 @@ import control as ct
 import numpy as np
 import pytest
 
+import robust.model.wiring as wiring
 from robust.errors import ModelStructureError
 from robust.model.wiring import CONTROLLER_FORCE, connect, expand, figure5_junctions
 from robust.synthesis.forcefb import as_plant_controller, force_feedback_plant
@@ -182,6 +183,12 @@ def test_connect_refuses_clashes_and_algebraic_loops():
     k2 = ct.ss([], [], [], [[1.0 / 0.3]], inputs="p", outputs="q", name="k2")
     with pytest.raises(ModelStructureError, match="algebraic loop.*condition number"):
         connect([k1, k2], inputs=["u"], outputs=["p"], name="near")
+    # a chain of large static gains closes no loop (no cycle through the feedthroughs): its
+    # series is solved exactly
+    c1 = ct.ss([], [], [], [[1e13]], inputs="u", outputs="q", name="c1")
+    c2 = ct.ss([], [], [], [[1e13]], inputs="q", outputs="p", name="c2")
+    sys = connect([c1, c2], inputs=["u"], outputs=["p", "q"], name="chain")
+    assert sys.D[:, 0].tolist() == [1e26, 1e13]
     # a transfer-function block is converted, keeping its name in the state labels
     tf = ct.tf([1.0], [1.0, 3.0], inputs="y", outputs="z", name="tf")
     sys = connect([a, tf], inputs=["u"], outputs=["z"], name="mixed_types")
@@ -221,3 +228,18 @@ def test_unconnected_inputs_and_unknown_names_fail():
 def test_a_junction_with_a_non_finite_gain_is_refused():
     with pytest.raises(ModelStructureError, match="gain of 'x'"):
         figure5_junctions(k_psf=float("nan"), handle_gain=1.0)
+
+
+def test_feedthrough_cycles_are_found_in_any_pattern():
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        z, v = (int(x) for x in rng.integers(1, 10, 2))
+        D = (rng.random((z, v)) < 0.3) * rng.standard_normal((z, v))
+        K = (rng.random((v, z)) < 0.3).astype(float)
+        P = ((D != 0).astype(int) @ (K != 0).astype(int) > 0).astype(int)
+        # a cycle of some length <= z: a nonzero diagonal in one of the first z powers
+        power, cycle = P, False
+        for _ in range(z):
+            cycle |= bool(np.trace(power))
+            power = (power @ P > 0).astype(int)
+        assert wiring._feedthrough_cycle(D, K) is cycle

@@ -465,6 +465,28 @@ def _block_norms(F: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return N
 
 
+#: Magnitudes of a ``1 x 1`` matrix that ``zgees`` does not scale (its ``SMLNUM`` is
+#: ``sqrt(safe minimum) / eps``, about 6.7e-139, and ``BIGNUM`` its inverse), with room to spare.
+_UNSCALED = (1e-130, 1e130)
+
+
+def _block_schur(B: np.ndarray) -> tuple[np.ndarray, np.float64]:
+    """A diagonal block's eigenvalues from its complex Schur form ``T`` and ``||triu(T, 1)||_2``.
+
+    A ``1 x 1`` block is its own Schur form: LAPACK's ``zgees`` returns the entry as it is,
+    with nothing above the diagonal, unless the entry lies outside the range where it is not
+    scaled first (about 7e-139 to 1e138, :data:`_UNSCALED`; scaled, its last bit may change).
+    In that range, or for 0, the entry and 0 are returned without the call: the same numbers
+    (most blocks are ``1 x 1``, and the call cost more than the rest of the discs).
+    """
+    if B.shape == (1, 1):
+        x = float(np.abs(B[0, 0]))
+        if x == 0.0 or _UNSCALED[0] <= x <= _UNSCALED[1]:
+            return B[0].astype(complex), np.float64(0.0)
+    T, _ = sla.schur(B, output="complex")
+    return np.diag(T), np.linalg.norm(np.triu(T, 1), 2)
+
+
 def _block_discs(res: dict, A1, J1, E1, sizes, lam, h, margin=None) -> dict:
     """Discs about the centre's eigenvalues that hold every eigenvalue of every matrix.
 
@@ -498,10 +520,7 @@ def _block_discs(res: dict, A1, J1, E1, sizes, lam, h, margin=None) -> dict:
         return res
     blocks = list(zip(starts[:-1], starts[1:]))
     N = _block_norms(Fabs, starts)
-    schur = []
-    for a, b in blocks:
-        T, _ = sla.schur(D[a:b, a:b], output="complex")
-        schur.append((np.diag(T), np.linalg.norm(np.triu(T, 1), 2)))
+    schur = [_block_schur(D[a:b, a:b]) for a, b in blocks]
     x = _gershgorin_scaling(N, schur, margin)
     centre = np.empty(n, complex)
     rad = np.empty(n)

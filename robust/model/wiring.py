@@ -315,8 +315,9 @@ def connect(
         )
     A, B, C, D = _stacked(systems)
     M = np.eye(len(z_names)) - D @ K
-    # an algebraic loop of unit gain (or one off unity by rounding) has no solution
-    cond = _equilibrated_condition(M)
+    # an algebraic loop of unit gain (or one off unity by rounding) has no solution; without
+    # a cycle through the feedthroughs there is no algebraic loop (I - D K is unipotent)
+    cond = _equilibrated_condition(M) if _feedthrough_cycle(D, K) else 1.0
     if cond > MAX_LOOP_CONDITION:
         raise ModelStructureError(
             f"{name}: the blocks' direct feedthrough forms an algebraic loop without a "
@@ -342,6 +343,27 @@ def connect(
         states=states,
         name=name,
     )
+
+
+#: :func:`_feedthrough_cycle`'s answers by pattern (the members of a family share theirs)
+_CYCLES: dict[tuple, bool] = {}
+
+
+def _feedthrough_cycle(D: np.ndarray, K: np.ndarray) -> bool:
+    """Whether the pattern of ``D K`` (block output to block output through a direct
+    feedthrough and a wire) has a cycle, i.e. is not nilpotent: its ``2^k``-th power, ``2^k``
+    at least its order, is not zero."""
+    P = (D != 0).astype(float) @ (K != 0).astype(float) > 0
+    key = (P.shape, np.packbits(P).tobytes())
+    found = _CYCLES.get(key)
+    if found is None:
+        power = P
+        for _ in range(max(P.shape[0] - 1, 0).bit_length()):
+            power = power.astype(float) @ power.astype(float) > 0
+        if len(_CYCLES) >= 256:
+            _CYCLES.clear()
+        found = _CYCLES[key] = bool(power.any())
+    return found
 
 
 def _equilibrated_condition(M: np.ndarray) -> float:
