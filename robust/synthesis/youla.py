@@ -540,16 +540,21 @@ class LimitProblem:
     def solve(self, which: str, *, step: str):
         """Solve ``"force"`` or ``"relax"``: ``(theta, objective)``, or ``None`` if infeasible."""
         prob = self.force if which == "force" else self.relax
+        # afresh: the answer must not depend on which members this process solved before.
+        # Clarabel alone first, unrefined (half the cost); where that does not end optimal to
+        # full accuracy (it stalls near the optimum of about one problem in twenty of the map,
+        # its primal residual growing again, and one in eight ends inaccurate), or certifies
+        # infeasibility, again with iterative refinement, after which all but one in several
+        # hundred solve to full accuracy and the rest fall to SCS
         try:
-            # afresh: the answer must not depend on which members this process solved before;
-            # refined: without it Clarabel stalls near the optimum of about one problem in
-            # twenty of the map (its primal residual grows again) and one in eight ends
-            # inaccurate, the failures then left to SCS, whose answers can miss the
-            # re-check; with it, all but one in several hundred solve to full accuracy
-            res = solve_problem(prob, step=step, warm_start=False, refine=True)
-        except InfeasibleError:
-            return None
-        del res
+            res = solve_problem(prob, step=step, warm_start=False, solvers=("CLARABEL",))
+        except (InfeasibleError, SolverError):
+            res = None
+        if res is None or not res.accurate:
+            try:
+                solve_problem(prob, step=step, warm_start=False, refine=True)
+            except InfeasibleError:
+                return None
         return np.asarray(self.theta.value, float), float(prob.value)
 
 
