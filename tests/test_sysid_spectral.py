@@ -271,3 +271,17 @@ def test_kept_transform_gives_a_fresh_transforms_bits():
     assert spectral._short_time_fft.cache_info().hits >= 1
     for a, b in zip(fresh, kept):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("detrend", ["constant", "none", "linear"])
+def test_several_outputs_get_the_numbers_of_one_output_calls(detrend):
+    # the input and the outputs of a record are transformed together (one array, its rows
+    # the signals); every estimate is the one-output call's to the bit
+    rng = np.random.default_rng(9)
+    u = rng.standard_normal(9000)
+    ys = [rng.standard_normal(9000) * s for s in (1e-3, 1.0, 250.0)]
+    many = estimate_frequency_responses(u, ys, 500.0, nperseg=1024, detrend=detrend)
+    for y, est in zip(ys, many):
+        one = estimate_frequency_responses(u, [y], 500.0, nperseg=1024, detrend=detrend)[0]
+        for name in ("h1", "coherence", "g_uu", "g_yy", "g_uy"):
+            assert getattr(est, name).tobytes() == getattr(one, name).tobytes()

@@ -480,15 +480,11 @@ def estimate_frequency_responses(
     for r, a in enumerate(us):
         k = 1 + (a.size - nperseg) // hop
 
-        def transform(x):
-            return sft.stft_detrend(
-                x, detr, 0, (x.size - noverlap) // hop, k_offset=nperseg // 2, axis=-1
-            )
-
-        Su = transform(a)
+        S = _transforms(sft, [a, *(ys[r] for ys in yss)], detr, noverlap, hop, nperseg)
+        Su = S[0]
         acc_uu = acc_uu + k * _averaged(Su.real**2 + Su.imag**2, nperseg).real
-        for j, ys in enumerate(yss):
-            Sy = transform(ys[r])
+        for j in range(n_out):
+            Sy = S[1 + j]
             acc_yy[j] = acc_yy[j] + k * _averaged(Sy.real**2 + Sy.imag**2, nperseg).real
             # csd(u, y) is conj(U) Y, formed as scipy does: Y conj(U)
             acc_uy[j] = acc_uy[j] + k * _averaged(Sy * Su.conj(), nperseg)
@@ -549,6 +545,25 @@ def _short_time_fft(window, nperseg: int, hop: int, fs: float):
         win, hop, fs, fft_mode="onesided", mfft=nperseg, scale_to="psd", phase_shift=None
     )
     return win, sft
+
+
+def _transforms(sft, signals: list, detr, noverlap: int, hop: int, nperseg: int) -> np.ndarray:
+    """The segment transforms of signals of one length, shape ``(signals, f, segments)``.
+
+    Without detrending or with the constant one, all signals go through one transform as the
+    rows of an array: scipy's loop over the segments runs once, not once per signal, and
+    each row gets the numbers its own transform would (the mean and the FFT of a row are
+    those of the row alone; tested). The linear detrend fits the rows together (another
+    rounding), so there each signal is transformed alone.
+    """
+    k = (signals[0].size - noverlap) // hop
+
+    def transform(x):
+        return sft.stft_detrend(x, detr, 0, k, k_offset=nperseg // 2, axis=-1)
+
+    if detr in (None, "constant"):
+        return transform(np.stack(signals))
+    return np.stack([transform(x) for x in signals])
 
 
 def _averaged(P: np.ndarray, nfft: int) -> np.ndarray:
