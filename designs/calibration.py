@@ -91,7 +91,6 @@ from designs.spec import Specification
 from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError
-from robust.model.components import structure
 from robust.model.modal import physical_to_modal
 from robust.model.wiring import connect
 from robust.sysid.levenberg import levenberg_marquardt
@@ -488,7 +487,7 @@ def simulate_calibration(
     # calibration mode: the handle does not command the stick (no BDFT loop to go
     # unstable); the machine's excitation drives the cylinder, the cab and the hand
     blocks = loop.blocks(bdft=False, reference_correction=True)
-    blocks += [structure(loop.struct), loop.human.system()]
+    blocks += [loop.structure_system(), loop.human_system()]
     P = connect(
         blocks,
         inputs=["u", "r_corr"],

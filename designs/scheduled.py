@@ -94,7 +94,6 @@ from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.components import structure
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
 from robust.synthesis.solve import deterministic_solvers
@@ -709,7 +708,7 @@ def _damper_candidates(family, human: dict, cab: dict, spec: Specification) -> _
     Kc = _cancellations(family, np.array([[human[k] for k in IDENTIFIED]]))[0]
     w = 2 * math.pi * hat.struct.f1_hz
     P = connect(
-        hat.blocks(bdft=False, reference_correction=True) + [structure(hat.struct)],
+        hat.blocks(bdft=False, reference_correction=True) + [hat.structure_system()],
         inputs=["u", "r_corr"],
         outputs=["c"],
         name="cab",

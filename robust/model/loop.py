@@ -260,6 +260,26 @@ class BDFTLoop:
             force_terms=force_terms,
         )
 
+    def structure_system(self) -> ct.StateSpace:
+        """The structure's block (:func:`robust.model.components.structure` of ``struct``): the
+        one :meth:`blocks` shares, its matrices read-only.
+
+        Returns
+        -------
+        control.StateSpace
+        """
+        return _shared(structure, self.struct)
+
+    def human_system(self) -> ct.StateSpace:
+        """The human's block (``human.system()``): the one :meth:`blocks` shares, its matrices
+        read-only (a human model that is not hashable is built afresh).
+
+        Returns
+        -------
+        control.StateSpace
+        """
+        return _shared_human(self.human)
+
     def blocks(
         self,
         *,
@@ -309,7 +329,7 @@ class BDFTLoop:
             force_terms.insert(0, "f_ext")
         blocks = [_shared(pi_controller, self.calibration.pi), _shared(valve_cylinder, self.valve)]
         if bdft:
-            blocks += [_shared(structure, self.struct), _shared_human(self.human)]
+            blocks += [self.structure_system(), self.human_system()]
         if controller is not None:
             blocks.append(renamed(controller, {"f": CONTROLLER_FORCE}))
         junctions = self.junctions(
