@@ -47,6 +47,7 @@ import math
 import time
 from collections.abc import Callable
 
+import numba
 import numpy as np
 import scipy.linalg as sla
 
@@ -733,16 +734,19 @@ def _krawczyk(Ac, J, h, E_rad, inflations):
     Cabs += RJ
     base_re, base_im = rho_re + unstr, rho_im + unstr
     w_re, w_im = base_re * 1.1 + 1e-300, base_im * 1.1 + 1e-300
-    verified = np.zeros(n, bool)
-    with np.errstate(over="ignore", invalid="ignore"):  # a diverging row just fails
-        for _ in range(inflations):
-            _, new_re, new_im = _inflate(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam)
-            verified |= np.all((new_re < w_re) & (new_im < w_im), axis=1)
-            if verified.all():
-                break
-            grow = ~verified
-            w_re = np.where(grow[:, None], new_re * 1.1 + 1e-300, w_re)
-            w_im = np.where(grow[:, None], new_im * 1.1 + 1e-300, w_im)
+    w_re, w_im, verified = _inflation(
+        np.ascontiguousarray(zc),
+        w_re,
+        w_im,
+        u.astype(np.int64),
+        np.ascontiguousarray(Cabs),
+        np.ascontiguousarray(aR),
+        base_re,
+        base_im,
+        gam,
+        int(inflations),
+        np.finfo(float).tiny,
+    )
     idx = np.arange(n)
     centre = lam + zc[idx, u]
     rad_re = np.where(verified, w_re[idx, u] + gam * np.abs(centre), np.inf)
@@ -765,16 +769,52 @@ def _krawczyk(Ac, J, h, E_rad, inflations):
     }
 
 
-def _inflate(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam):
-    """One application of the operator's bound to the rectangle ``zc +- (w_re, w_im)``."""
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _inflation(zc, w_re, w_im, u, Cabs, aR, base_re, base_im, gam, inflations, tiny):
+    """Epsilon-inflation of every eigenvalue's operator: ``(w_re, w_im, verified)``.
+
+    Per eigenvalue ``i`` (the rows are independent), up to ``inflations`` times: the
+    operator's bound over the rectangle ``zc_i +- (w_re_i, w_im_i)``,
+    ``s = (Cabs_i |Y| + |R_i| (|Y_u| |Y| with entry u zeroed)) (1 + gam) + tiny`` with
+    ``|Y| = |zc_i| + hypot(w_re_i, w_im_i)``; the rectangle is verified when
+    ``base + s`` lies strictly inside it, else it is inflated to ``1.1 (base + s)``. A
+    diverging row (overflow, NaN) just fails. The sums of ``n`` non-negative terms have a
+    relative rounding error below ``gam`` in any order. Compiled: the loop in NumPy, a
+    dozen small array operations per step, took a third of an enclosure.
+    """
     n = zc.shape[0]
-    absY = np.abs(zc) + np.hypot(w_re, w_im)
-    absY_u = absY[np.arange(n), u]
-    absY0 = absY.copy()
-    absY0[np.arange(n), u] = 0.0
-    s = np.einsum("iab,ib->ia", Cabs, absY) + np.einsum("iab,ib->ia", aR, absY_u[:, None] * absY0)
-    s = s * (1 + gam) + np.finfo(float).tiny
-    return s, base_re + s, base_im + s
+    w_re = w_re.copy()
+    w_im = w_im.copy()
+    verified = np.zeros(n, np.bool_)
+    absY = np.empty(n)
+    new_re = np.empty(n)
+    new_im = np.empty(n)
+    for i in range(n):
+        ui = u[i]
+        for _ in range(inflations):
+            for a in range(n):
+                absY[a] = abs(zc[i, a]) + np.hypot(w_re[i, a], w_im[i, a])
+            yu = absY[ui]
+            inside = True
+            for a in range(n):
+                lin = 0.0
+                quad = 0.0
+                for b in range(n):
+                    lin += Cabs[i, a, b] * absY[b]
+                    if b != ui:
+                        quad += aR[i, a, b] * (yu * absY[b])
+                s = (lin + quad) * (1 + gam) + tiny
+                new_re[a] = base_re[i, a] + s
+                new_im[a] = base_im[i, a] + s
+                if not (new_re[a] < w_re[i, a] and new_im[a] < w_im[i, a]):
+                    inside = False
+            if inside:
+                verified[i] = True
+                break
+            for a in range(n):
+                w_re[i, a] = new_re[a] * 1.1 + 1e-300
+                w_im[i, a] = new_im[a] * 1.1 + 1e-300
+    return w_re, w_im, verified
 
 
 def split_coordinate(
