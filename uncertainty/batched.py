@@ -265,6 +265,15 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     return _const("controller", *mats, ins, internal)
 
 
+@functools.lru_cache(maxsize=16)
+def _valve_block(valve) -> Block:
+    """The valve/cylinder's block (it does not vary within a family), realised once per
+    parameter set and process (the margins' searches assemble loops of a few members tens of
+    thousands of times; the realisation cost more than the rest of such an assembly)."""
+    v = valve_cylinder(valve)
+    return _const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"])
+
+
 def _check_family(family, where: str) -> None:
     if not isinstance(family, Family):
         raise ParameterError(
@@ -336,8 +345,9 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
                 ["e"],
             )
         )
-    v = valve_cylinder(family.valve)
-    blocks.append(_const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"]))
+    v = _valve_block(family.valve)
+    # (copies: the cached block stays as it was whatever a caller does with the list)
+    blocks.append(dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy()))
     blocks.append(
         structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")))
     )
@@ -372,15 +382,26 @@ def interconnection(family: Family, blocks: list[Block], controller=None) -> np.
     ctrl_outs = () if controller is None else tuple(controller.output_labels)
     force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
     cal = family.calibration
+    return _interconnection(  # (a copy: the cached matrix stays as it was)
+        float(family.k_psf),
+        float(cal.handle_sign * cal.loop_scale),
+        "r_corr" in ctrl_outs,
+        force if family.human == "physical" else (),
+        tuple(s for b in blocks for s in b.inputs),
+        tuple(s for b in blocks for s in b.outputs),
+    ).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _interconnection(k_psf, handle_gain, reference_correction, force_terms, ins, outs):
+    """:func:`interconnection`'s matrix from what it depends on, made once per process."""
     junctions = figure5_junctions(
-        k_psf=family.k_psf,
-        handle_gain=cal.handle_sign * cal.loop_scale,
-        reference_correction="r_corr" in ctrl_outs,
-        force_terms=force if family.human == "physical" else (),
+        k_psf=k_psf,
+        handle_gain=handle_gain,
+        reference_correction=reference_correction,
+        force_terms=force_terms,
     )
-    ins = [s for b in blocks for s in b.inputs]
-    outs = [s for b in blocks for s in b.outputs]
-    return interconnection_matrix(ins, outs, junctions)
+    return interconnection_matrix(list(ins), list(outs), junctions)
 
 
 def closed_loop_matrices(
