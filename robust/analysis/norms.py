@@ -139,29 +139,53 @@ def sigma_max(sys, omega) -> np.ndarray:
     """
     A, B, C, D = _abcd(sys)
     omega = check_vector("sigma_max: omega", omega, min_size=0)
-    n = A.shape[0]
-    out = np.empty(omega.shape)
-    if n == 0:
-        out[:] = np.linalg.norm(D, 2) if D.size else 0.0
+    return _Sigma(A, B, C, D)(omega)
+
+
+class _Sigma:
+    """:func:`sigma_max` of one (checked) system, at any frequencies: the Hessenberg form is
+    made once. The H-infinity iteration evaluates one system at hundreds of single
+    frequencies (its scalar searches), where making the form and checking the system again
+    took half of each evaluation; the numbers are those of :func:`sigma_max`.
+
+    Parameters
+    ----------
+    A, B, C, D : numpy.ndarray
+        Finite, conformal matrices (not checked).
+    """
+
+    def __init__(self, A, B, C, D):
+        self.A, self.B, self.C, self.D = A, B, C, D
+        n = A.shape[0]
+        if n:
+            # Hessenberg form makes each resolvent solve cheaper and better conditioned.
+            self.H, Q = sla.hessenberg(A, calc_q=True)
+            self.Bq, self.Cq = Q.T @ B, C @ Q
+            self.eye = np.eye(n)
+            self.Bc = self.Bq.astype(complex)
+
+    def __call__(self, omega) -> np.ndarray:
+        omega = np.asarray(omega, dtype=float).reshape(-1)
+        D = self.D
+        out = np.empty(omega.shape)
+        if self.A.shape[0] == 0:
+            out[:] = np.linalg.norm(D, 2) if D.size else 0.0
+            return out
+        H, Cq, eye = self.H, self.Cq, self.eye
+        if min(D.shape) == 0:
+            for i, w in enumerate(omega):
+                out[i] = np.linalg.norm(D + Cq @ np.linalg.solve(1j * w * eye - H, self.Bq), 2)
+            return out
+        # the frequencies in stacks: LAPACK solves and decomposes each matrix of a stack as
+        # it does a single one, so the numbers are those of one frequency at a time
+        Bc = self.Bc
+        for a in range(0, omega.size, _SIGMA_STACK):
+            w = omega[a : a + _SIGMA_STACK]
+            X = np.linalg.solve(
+                1j * w[:, None, None] * eye - H, np.broadcast_to(Bc, (w.size, *Bc.shape))
+            )
+            out[a : a + w.size] = np.linalg.svd(D + Cq @ X, compute_uv=False)[:, 0]
         return out
-    # Hessenberg form makes each resolvent solve cheaper and better conditioned.
-    H, Q = sla.hessenberg(A, calc_q=True)
-    Bq, Cq = Q.T @ B, C @ Q
-    eye = np.eye(n)
-    if min(D.shape) == 0:
-        for i, w in enumerate(omega):
-            out[i] = np.linalg.norm(D + Cq @ np.linalg.solve(1j * w * eye - H, Bq), 2)
-        return out
-    # the frequencies in stacks: LAPACK solves and decomposes each matrix of a stack as it
-    # does a single one, so the numbers are those of one frequency at a time
-    Bc = Bq.astype(complex)
-    for a in range(0, omega.size, _SIGMA_STACK):
-        w = omega[a : a + _SIGMA_STACK]
-        X = np.linalg.solve(
-            1j * w[:, None, None] * eye - H, np.broadcast_to(Bc, (w.size, *Bc.shape))
-        )
-        out[a : a + w.size] = np.linalg.svd(D + Cq @ X, compute_uv=False)[:, 0]
-    return out
 
 
 #: Frequencies per stack of :func:`sigma_max` (bounds the stack's memory).
@@ -216,22 +240,12 @@ def hinf_norm(sys, *, method: str = "bb", rtol: float = 1e-9, return_frequency: 
 
         val = float(control.norm(control.ss(A, B, C, D), "inf"))
         return (val, np.nan) if return_frequency else val
-    bal = _SS(A, B, C, D)
+    bal = _Sigma(A, B, C, D)
     if method == "grid":
         val, w = _grid_norm(A, B, C, D, bal)
     else:
         val, w = _bb_norm(A, B, C, D, bal, rtol)
     return (val, w) if return_frequency else val
-
-
-class _SS:
-    """Minimal continuous-time state-space container accepted by :func:`sigma_max`."""
-
-    def __init__(self, A, B, C, D):
-        self.A, self.B, self.C, self.D = A, B, C, D
-
-    def isctime(self):
-        return True
 
 
 def _balance_states(A, B, C, *, max_sweeps: int = 50):
@@ -306,20 +320,20 @@ def _candidate_frequencies(A):
     return np.unique(np.asarray(w))
 
 
-def _bb_norm(A, B, C, D, sys, rtol):
-    val, w = _bb_iteration(A, B, C, D, sys, rtol)
+def _bb_norm(A, B, C, D, sigma, rtol):
+    val, w = _bb_iteration(A, B, C, D, sigma, rtol)
     if np.isinf(w):
         # The supremum was attributed to infinite frequency: the Hamiltonian was then built
         # with gamma close to sigma_max(D), where D'D - gamma^2 I is nearly singular and an
         # imaginary-axis crossing can be lost to rounding.  Cross-check with a dense grid and
         # restart from its peak if it is higher.
-        gval, gw = _grid_norm(A, B, C, D, sys)
+        gval, gw = _grid_norm(A, B, C, D, sigma)
         if gval > val and np.isfinite(gw):
-            val, w = _bb_iteration(A, B, C, D, sys, rtol, start=(gval, gw))
+            val, w = _bb_iteration(A, B, C, D, sigma, rtol, start=(gval, gw))
     return val, w
 
 
-def _refined_peak(sys, w, s, *, limit: int | None = None):
+def _refined_peak(sigma, w, s, *, limit: int | None = None):
     """Largest ``sigma_max`` over the local maxima of a frequency grid, each refined.
 
     Every local maximum ``i`` of ``s`` on the grid ``w`` (the ``limit`` highest if
@@ -339,7 +353,7 @@ def _refined_peak(sys, w, s, *, limit: int | None = None):
         a, b = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
         if b > a:
             res = sopt.minimize_scalar(
-                lambda x: -sigma_max(sys, [x])[0],
+                lambda x: -sigma([x])[0],
                 bounds=(a, b),
                 method="bounded",
                 options={"xatol": 1e-10 * max(b, 1e-12)},
@@ -351,7 +365,7 @@ def _refined_peak(sys, w, s, *, limit: int | None = None):
     return best, wbest
 
 
-def _bb_iteration(A, B, C, D, sys, rtol, start=None):
+def _bb_iteration(A, B, C, D, sigma, rtol, start=None):
     """Bruinsma-Steinbuch (1990) two-step iteration; returns (upper bound, peak frequency)."""
     lam = np.abs(np.linalg.eigvals(A))
     lam = lam[lam > 0]
@@ -359,12 +373,12 @@ def _bb_iteration(A, B, C, D, sys, rtol, start=None):
     wc = np.concatenate([_candidate_frequencies(A), coarse])
     order = np.argsort(wc)
     wc = wc[order]
-    vals = sigma_max(sys, wc)
+    vals = sigma(wc)
     i = int(np.argmax(vals))
     glb, wpk = float(vals[i]), float(wc[i])
     # refine the highest local maxima of the start grid: an estimate close to the peak makes
     # the first Hamiltonian test decisive, where its imaginary-axis eigenvalues are least accurate
-    pk, wk = _refined_peak(sys, wc, vals, limit=N_REFINE)
+    pk, wk = _refined_peak(sigma, wc, vals, limit=N_REFINE)
     if pk > glb:
         glb, wpk = pk, wk
     if start is not None and start[0] > glb:
@@ -381,11 +395,11 @@ def _bb_iteration(A, B, C, D, sys, rtol, start=None):
         if imag.size == 0:
             return g, wpk
         mids = imag if imag.size == 1 else 0.5 * (imag[:-1] + imag[1:])
-        sv = sigma_max(sys, mids)
+        sv = sigma(mids)
         j = int(np.argmax(sv))
         if sv[j] <= glb * (1.0 + rtol):
             # midpoints do not improve: maximise inside each interval between crossings
-            best, wbest = _refine_intervals(sys, imag)
+            best, wbest = _refine_intervals(sigma, imag)
             if best <= glb * (1.0 + rtol):
                 return g, wpk
             glb, wpk = best, wbest
@@ -415,14 +429,14 @@ def _imaginary_eigenvalues(A, B, C, D, g, scale):
     return np.sort(np.unique(np.round(ev[sel].imag, 12)))
 
 
-def _refine_intervals(sys, imag):
+def _refine_intervals(sigma, imag):
     pts = np.concatenate([[0.0], imag, [2.0 * imag[-1] + 1.0]])
     best, wbest = -np.inf, np.nan
     for a, b in itertools.pairwise(pts):
         if b <= a:
             continue
         res = sopt.minimize_scalar(
-            lambda x: -sigma_max(sys, [x])[0],
+            lambda x: -sigma([x])[0],
             bounds=(a, b),
             method="bounded",
             options={"xatol": 1e-10 * b},
@@ -432,15 +446,15 @@ def _refine_intervals(sys, imag):
     return best, wbest
 
 
-def _grid_norm(A, B, C, D, sys, n_points: int = 2000):
+def _grid_norm(A, B, C, D, sigma, n_points: int = 2000):
     lam = np.abs(np.linalg.eigvals(A))
     lam = lam[lam > 0]
     lo = 1e-3 * (lam.min() if lam.size else 1.0)
     hi = 1e3 * (lam.max() if lam.size else 1.0)
     w = np.concatenate([[0.0], np.geomspace(lo, hi, n_points)])
-    s = sigma_max(sys, w)
+    s = sigma(w)
     best, wbest = float(np.linalg.norm(D, 2)), np.inf
-    pk, wk = _refined_peak(sys, w, s)
+    pk, wk = _refined_peak(sigma, w, s)
     if pk > best:
         best, wbest = pk, wk
     return best, wbest
