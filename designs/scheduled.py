@@ -94,6 +94,7 @@ from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.components import realise_siso
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
 from robust.synthesis.solve import deterministic_solvers
@@ -487,16 +488,17 @@ def cab_damper(f_hz: float, gain: float, phase: float) -> ct.StateSpace:
         Phase shift at ``f_hz``, rad, in (-pi, pi).
     """
     w = 2 * math.pi * float(f_hz)
+    num, den = np.array([gain * w, 0.0]), np.array([1.0, w, w * w])
     if abs(phase) > 1e-9:
-        # the realisation the candidates are evaluated with (:func:`_damper_states`), built
-        # directly: python-control's products of transfer functions and their conversion took
-        # a hundred times as long
-        A, B, C = (m[0] for m in _damper_states(w, [gain], [phase]))
-    else:
-        A = np.array([[0.0, 1.0], [-w * w, -w]])
-        B = np.array([[0.0], [1.0]])
-        C = np.array([[0.0, float(gain) * w]])
-    return ct.ss(A, B, C, np.zeros((1, 1)))
+        a = w / math.tan(abs(phase) / 2)
+        # the coefficients python-control's product of the two transfer functions has (and
+        # its realisation below): the certified margins over a damped cancellation depend on
+        # the controller's coordinates, so they are the same as ever; the products of
+        # python-control's objects and their conversion took six times as long
+        num, den = np.polymul(num, [-1.0, a]), np.polymul(den, [1.0, a])
+        if phase > 0:
+            num = num * -1.0
+    return ct.ss(*realise_siso(num, den))
 
 
 def _cab_names(cab: dict) -> dict:

@@ -293,3 +293,18 @@ def test_operator_family_is_the_calibrations_box(calibrated):
     assert p["struct.k_s"].nominal == pytest.approx(c["k_s"])
     ref = {q.name: q for q in FAM.parameters}
     assert p["human.m_arm"] == ref["human.m_arm"]
+
+
+def test_cab_damper_keeps_the_realisation_of_its_transfer_function_product():
+    # the certified margins over a damped cancellation depend on the controller's
+    # coordinates: the damper's matrices are python-control's realisation of the product of
+    # the band-pass and the all-pass, to the bit
+    for f, g, ph in [(4.0, 0.1, -1.0), (2.7, 0.4, 2.5), (11.3, 0.05, 0.0), (6.1, 1.3, -2.9)]:
+        w = 2 * np.pi * f
+        K = ct.tf([g * w, 0.0], [1.0, w, w * w])
+        if ph != 0.0:
+            a = w / np.tan(abs(ph) / 2)
+            K = K * ct.tf([-1.0, a], [1.0, a]) * (-1.0 if ph > 0 else 1.0)
+        ref, got = ct.ss(K), cab_damper(f, g, ph)
+        for x, y in zip((ref.A, ref.B, ref.C, ref.D), (got.A, got.B, got.C, got.D)):
+            assert x.shape == y.shape and x.tobytes() == y.tobytes()

@@ -41,6 +41,7 @@ __all__ = [
     "structure",
     "pi_controller",
     "position_scale",
+    "realise_siso",
     "K_PSF_NOMINAL",
     "STRUCTURE_SPECS",
 ]
@@ -208,6 +209,23 @@ def _realise(g: ct.TransferFunction) -> tuple:
     num, den, denorder = common()
     n, A, B, C, D = td04ad("C", 1, 1, denorder, den, num, tol=0)
     return A[:n, :n], B[:n, :1], C[:1, :n], D
+
+
+def realise_siso(num, den) -> tuple[np.ndarray, ...]:
+    """``ct.ss(ct.tf(num, den))``'s matrices ``(A, B, C, D)``, without its discarded work.
+
+    Parameters
+    ----------
+    num, den : array_like
+        Numerator and denominator coefficients, highest power first (proper).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``A`` (n x n), ``B`` (n x 1), ``C`` (1 x n), ``D`` (1 x 1): the realisation
+        python-control gives (SLICOT's ``td04ad`` where installed).
+    """
+    return tuple(np.array(m, float) for m in _realise(ct.tf(num, den)))
 
 
 def _block(kind: str, params, inputs: str, outputs: str, name: str) -> ct.StateSpace:
