@@ -519,7 +519,7 @@ def check_abcd(
             arr = np.atleast_2d(arr) if arr.size else arr.reshape(0, 0)
         if arr.ndim != 2:
             raise error(f"{name}.{label} must be a 2-D matrix; got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             n_bad = int(arr.size - np.count_nonzero(np.isfinite(arr)))
             raise error(f"{name}.{label} contains {n_bad} non-finite entries (NaN or inf)")
         mats.append(arr)
