@@ -53,7 +53,6 @@ from joblib import delayed
 
 from designs.evaluate import intended_motion, output_ratio
 from designs.spec import (
-    N_FEEDTHROUGH_FREQS,
     N_TRACKING_FREQS,
     SIMULATION_RATE_HZ,
     Specification,
@@ -326,9 +325,8 @@ def sensor_noise(loop, sensors, *, encoder_mm: float, accel_rms: float) -> np.nd
 
 
 def _grids(spec: Specification):
-    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
-    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
-    return ft, fb
+    grid = spec.check_frequencies_hz()
+    return grid[:N_TRACKING_FREQS], grid[N_TRACKING_FREQS:]
 
 
 def _problem(cache: dict, n_theta: int, n_track: int, n_feed: int) -> LimitProblem:

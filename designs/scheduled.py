@@ -88,7 +88,7 @@ from designs.calibration import (
 from designs.cancellation import cancellation_controller
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
-from designs.spec import N_FEEDTHROUGH_FREQS, N_TRACKING_FREQS, Specification
+from designs.spec import N_TRACKING_FREQS, Specification
 from robust.analysis.loops import resolvent_times
 from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
@@ -536,9 +536,7 @@ class _OpenLoop:
 
 
 def _spec_grid(spec: Specification) -> tuple[np.ndarray, int]:
-    ft = np.geomspace(*spec.tracking_band_hz, N_TRACKING_FREQS)
-    fb = np.linspace(*spec.feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
-    return 2j * math.pi * np.concatenate([ft, fb]), len(ft)
+    return 2j * math.pi * spec.check_frequencies_hz(), N_TRACKING_FREQS
 
 
 def _freq_resp(A, B, C, D, s) -> np.ndarray:

@@ -222,6 +222,19 @@ class Specification:
             peak_force_n=self.peak_force_n, continuous_force_n=self.continuous_force_n
         )
 
+    def check_frequencies_hz(self) -> np.ndarray:
+        """The frequencies of the tracking and feedthrough checks, Hz.
+
+        Returns
+        -------
+        numpy.ndarray
+            :data:`N_TRACKING_FREQS` log-spaced over ``tracking_band_hz``, then
+            :data:`N_FEEDTHROUGH_FREQS` linearly spaced over ``feedthrough_band_hz``;
+            read-only, made once per pair of bands (the coverage checks thousands of
+            members).
+        """
+        return _check_grid(tuple(self.tracking_band_hz), tuple(self.feedthrough_band_hz))
+
     def to_json(self) -> dict:
         """Every field, JSON-ready (bands as lists)."""
         return to_jsonable(self)
@@ -533,7 +546,7 @@ def check_specification(
         )
     has_force = controller is not None and "f" in controller.output_labels
     limits = spec.limits()
-    grid = _check_grid(tuple(spec.tracking_band_hz), tuple(spec.feedthrough_band_hz))
+    grid = spec.check_frequencies_hz()
 
     n = len(members)
     max_real, damping = np.empty(n), np.empty(n)
@@ -584,9 +597,7 @@ def check_specification(
 
 @functools.lru_cache(maxsize=16)
 def _check_grid(tracking_band_hz: tuple, feedthrough_band_hz: tuple) -> np.ndarray:
-    """The frequencies of :func:`check_specification`, Hz: the tracking grid
-    (:data:`N_TRACKING_FREQS`, logarithmic), then the feedthrough grid (linear); made once
-    per pair of bands (the coverage checks thousands of members), kept read-only."""
+    """:meth:`Specification.check_frequencies_hz` of a pair of bands."""
     ft = np.geomspace(*tracking_band_hz, N_TRACKING_FREQS)
     fb = np.linspace(*feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
     grid = np.concatenate([ft, fb])

@@ -155,8 +155,8 @@ class _Sigma:
     """
 
     def __init__(self, A, B, C, D):
-        self.A, self.B, self.C, self.D = A, B, C, D
-        n = A.shape[0]
+        self.D = D
+        self.n = n = A.shape[0]
         if n:
             # Hessenberg form makes each resolvent solve cheaper and better conditioned.
             self.H, Q = sla.hessenberg(A, calc_q=True)
@@ -168,7 +168,7 @@ class _Sigma:
         omega = np.asarray(omega, dtype=float).reshape(-1)
         D = self.D
         out = np.empty(omega.shape)
-        if self.A.shape[0] == 0:
+        if self.n == 0:
             out[:] = np.linalg.norm(D, 2) if D.size else 0.0
             return out
         H, Cq, eye = self.H, self.Cq, self.eye

@@ -45,6 +45,7 @@ __all__ = [
     "expand",
     "interconnection_matrix",
     "connect",
+    "algebraic_cycle",
     "MAX_LOOP_CONDITION",
     "renamed",
     "CONTROLLER_FORCE",
@@ -350,20 +351,39 @@ _CYCLES: dict[tuple, bool] = {}
 
 
 def _feedthrough_cycle(D: np.ndarray, K: np.ndarray) -> bool:
-    """Whether the pattern of ``D K`` (block output to block output through a direct
-    feedthrough and a wire) has a cycle, i.e. is not nilpotent: its ``2^k``-th power, ``2^k``
-    at least its order, is not zero."""
+    """:func:`algebraic_cycle` of the pattern of ``D K`` (block output to block output through
+    a direct feedthrough and a wire), kept per pattern."""
     P = (D != 0).astype(float) @ (K != 0).astype(float) > 0
     key = (P.shape, np.packbits(P).tobytes())
     found = _CYCLES.get(key)
     if found is None:
-        power = P
-        for _ in range(max(P.shape[0] - 1, 0).bit_length()):
-            power = power.astype(float) @ power.astype(float) > 0
         if len(_CYCLES) >= 256:
             _CYCLES.clear()
-        found = _CYCLES[key] = bool(power.any())
+        found = _CYCLES[key] = algebraic_cycle(P)
     return found
+
+
+def algebraic_cycle(pattern: np.ndarray) -> bool:
+    """Whether a square sparsity pattern's graph has a cycle (some matrix with it is not
+    nilpotent).
+
+    Parameters
+    ----------
+    pattern : ndarray of bool, shape (p, p)
+        Where ``D M`` can be nonzero.
+
+    Returns
+    -------
+    bool
+        False when every matrix with this pattern is nilpotent.
+    """
+    P = np.asarray(pattern, bool).astype(np.int64)
+    Q = P.copy()
+    for _ in range(P.shape[0]):
+        if not Q.any():
+            return False
+        Q = np.minimum(Q @ P, 1)
+    return bool(Q.any())
 
 
 def _equilibrated_condition(M: np.ndarray) -> float:
