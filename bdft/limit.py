@@ -57,7 +57,7 @@ def register(sub) -> None:
         "--samples",
         type=integer("--samples", low=1, high=100_000),
         default=LIMIT_SAMPLES,
-        help="Latin-hypercube members, 1 to 100000 (default: %(default)s; about 1 s each per core)",
+        help="Latin-hypercube members, 1 to 100000 (default: %(default)s; about 4 s each per core)",
     )
     p.add_argument(
         "--seed", type=seed("--seed"), default=0, help="sampling seed (default: %(default)s)"

@@ -532,7 +532,7 @@ class _OpenLoop:
     G: np.ndarray  # (n_freq, 2, 2): [y, c] / [u, r_corr] at the grid
     y_ref: np.ndarray  # y / u without BDFT at the grid
     n_track: int  # the first n_track frequencies are the tracking grid
-    peak0: float  # largest |Y/Y_ref - 1| of the uncompensated loop, feedthrough grid
+    bound: np.ndarray  # the specification's bound on |Y/Y_ref - 1| at the grid
 
 
 def _spec_grid(spec: Specification) -> tuple[np.ndarray, int]:
@@ -559,8 +559,8 @@ def _open_loop(loop, spec: Specification) -> _OpenLoop:
     s, nt = _spec_grid(spec)
     G = _freq_resp(A, B, C, D, s)
     y_ref = _freq_resp(*(np.asarray(m, float) for m in (R.A, R.B, R.C, R.D)), s)[:, 0, 0]
-    peak0 = float(np.max(np.abs(G[nt:, 0, 0] / y_ref[nt:] - 1.0)))
-    return _OpenLoop(A, B[:, [1]], C[[1]], G, y_ref, nt, peak0)
+    bound = spec.deviation_bound(s.imag, G[:, 0, 0] / y_ref - 1.0)
+    return _OpenLoop(A, B[:, [1]], C[[1]], G, y_ref, nt, bound)
 
 
 def _damper_states(w: float, gain, phase) -> tuple:
@@ -645,10 +645,8 @@ def _utilisations(ol: _OpenLoop, spec: Specification, Kc, w: float, gain, phase)
     zeta = damping_in_band(p, spec.damping_band_hz)
     out[:, 1] = np.where(zeta > 0, spec.min_damping / np.where(zeta > 0, zeta, 1.0), math.inf)
     out[:, 1] = np.where(np.isinf(zeta), 0.0, out[:, 1])
-    trk = np.abs(ratio[:, :nt] - 1.0).max(axis=1) / spec.tracking_error
-    feed = (
-        np.abs(ratio[:, nt:] - 1.0).max(axis=1) / ol.peak0 / 10 ** (spec.max_amplification_db / 20)
-    )
+    util = np.abs(ratio - 1.0) / ol.bound
+    trk, feed = util[:, :nt].max(axis=1), util[:, nt:].max(axis=1)
     out[stable, 2] = trk[stable]
     out[stable, 3] = feed[stable]
     return out

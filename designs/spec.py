@@ -1,12 +1,35 @@
-"""The handle-force design specification as named parameters, and its check on a family.
+"""The design specification as named parameters, and its check on a family.
 
-:class:`Specification` collects the numbers a compensator must meet: the device's
-force limits (peak, and continuous compared with the RMS force), the realistic
-intended motion the forces are measured under, the closed-loop pole region (decay
-rate, damping ratio in a band), the tracking of intended motion and the allowed
-change of the feedthrough near the structure mode. :func:`check_specification`
-checks one controller against it on a list of family members and names the
-*binding* constraint (the one with the largest utilisation).
+:class:`Specification` collects what a compensator must meet, each requirement a bound on
+a closed-loop map that is checked at every frequency or exactly as a stationary RMS value
+(never on a grid that leaves bands unchecked): the closed-loop pole region, the cylinder's
+response to the operator's intended motion against the BDFT-free response, the noise, and
+the effort on each actuator against its device (the Omni's forces, the valve's flow and
+command range). :func:`check_specification` checks one controller on a list of family
+members and names the *binding* constraint (the one with the largest utilisation) and,
+for the frequency-wise bounds, the frequency where it binds.
+
+The intended-motion response
+----------------------------
+With ``Y`` the cylinder's response to the intended motion ``u`` and ``Y_ref`` the response
+without BDFT and without compensation, the deviation ``R = Y/Y_ref - 1`` is the closed-loop
+map ``u -> (x - u) + r_corr / K_PSF`` (:func:`deviation_maps`), a proper rational function.
+The specification bounds it, at every frequency, by two stable rational weights (Skogestad
+& Postlethwaite, *Multivariable Feedback Control*, ch. 2-3):
+
+* up to :attr:`Specification.split_hz`, ``|R(jw)| <= |W_t(jw)|``: the tracking tolerance
+  (``tracking_error``, 20 %) through the operator's band, rolling off to
+  ``tracking_floor`` (2 %) above it;
+* above it, ``|R(jw)| <= max(|W_t(jw)|, |W_f(jw) R0(jw)|)`` with ``R0`` the uncompensated
+  loop's deviation (its *formal* response, also where that loop is unstable) and ``W_f`` a
+  notch: over the structure modes' band the feedthrough must be reduced by
+  ``feedthrough_reduction_db`` (6 dB), far from it the compensated deviation may exceed the
+  uncompensated one by ``max_amplification_db`` (1 dB) at most.
+
+So a controller that amplifies the cylinder's response anywhere, at 3.5 Hz or at 20 Hz,
+beyond the larger of the BDFT-free and the uncompensated response fails. Each bound is
+checked by :func:`robust.analysis.bounds.bound_ratio`: the imaginary-axis crossings of
+``|R| = gamma |B|`` from a Hamiltonian pencil, exact between grid points.
 
 Constraints and their worst value over the members
 --------------------------------------------------
@@ -19,43 +42,37 @@ Constraints and their worst value over the members
     ``|Im p| / (2 pi)`` lies in ``damping_band_hz`` (``inf`` without such a pole);
     the band test is that of :class:`uncertainty.margins.Region`, so the check agrees
     with :meth:`Specification.region`. Holds when it is at least ``min_damping``.
-``"tracking"``
-    ``max |Y/Y_ref - 1|`` over 80 log-spaced frequencies of ``tracking_band_hz``
-    (:func:`designs.evaluate.output_ratio`).
-``"feedthrough"``
-    Growth of the feedthrough peak near the structure mode, dB: the feedthrough is
-    what BDFT adds to the cylinder response, ``|Y/Y_ref - 1|``, and its peak over 60
-    linearly spaced frequencies of ``feedthrough_band_hz`` is compared with that of
-    the uncompensated loop, ``20 log10(max |ratio_K - 1| / max |ratio_0 - 1|)``;
-    ``ratio_0`` is ``output_ratio(member, None, f)``, the *formal* frequency response
-    of the uncompensated loop, used even when that loop is unstable. (A comparison
-    frequency by frequency of ``|Y/Y_ref|`` itself would count as amplification the
-    return of ``|Y/Y_ref|`` towards 1 beside a damped resonance, where the
-    uncompensated loop's feedthrough happens to attenuate the command.)
-``"continuous force"``
-    RMS handle force under the realistic intended motion, N, computed exactly: the
-    motion is white noise through the unit intent filter ``F``
-    (:func:`robust.synthesis.forcefb.intent_filter`) scaled to the RMS
-    ``amplitude / sqrt(2)`` (:func:`designs.evaluate.intended_motion`), so the
-    stationary RMS force is ``amplitude / sqrt(2) * ||G_f F||_2 / ||F||_2`` with
-    ``G_f`` the closed-loop ``u -> f``; H2 norms by the controllability Gramian.
 ``"peak force"``
     Largest ``|f|`` of a simulated realistic intended motion
     (:func:`designs.evaluate.intended_motion`, 1 kHz, seed ``seed + i`` for member
     ``i``) on the ``simulate_peak`` stable members with the largest RMS force, N.
+``"continuous force"``
+    Stationary RMS handle force under the intended motion, the operator's remnant and the
+    sensor noise (:mod:`designs.effort`), N, exact (Lyapunov).
+``"tracking"``, ``"feedthrough"``
+    ``sup |R(jw)| / bound(w)`` below and above :attr:`Specification.split_hz` (the
+    bounds above), with the frequency where it is reached; holds at most 1.
+``"noise"``
+    The larger of the RMS cylinder position and the RMS handle force that the sensor noise
+    alone causes, over ``noise_cylinder_mm`` and ``noise_force_n``; holds at most 1.
+``"reference effort"``
+    ``peak_factor`` times the RMS cylinder speed and valve command that a cylinder-reference
+    correction asks for, over ``correction_flow_share`` of the flow limit and of the
+    valve's command range (:class:`robust.model.components.HydraulicLimits`); holds at
+    most 1.
 
-Tracking, feedthrough and the forces are undefined on a member whose closed loop is
-unstable: their value there is ``inf`` (the constraint fails) and a note says so. A
-controller that does not drive ``f`` (or no controller) exerts no force: both force
-values are 0.
+Everything but the poles is undefined on a member whose closed loop is unstable: its value
+there is ``inf`` (the constraint fails) and a note says so. A controller that does not
+drive ``f`` (or no controller) exerts no force: both force values are 0; without a
+controller there is no sensor noise and no correction.
 
 Utilisation
 -----------
 A ratio that is 1 at the limit, above 1 when violated and increases monotonically
 as the value gets worse:
 
-* peak force, continuous force, tracking: ``value / limit``;
-* feedthrough: the ratio of the linear magnitudes, ``10 ** ((value - limit) / 20)``;
+* peak force, continuous force: ``value / limit``;
+* tracking, feedthrough, noise, reference effort: the value itself (already a ratio);
 * decay rate: required over achieved decay rate, ``decay_rate / (-value)`` (``inf``
   when a pole has ``Re p >= 0``; 0 for ``decay_rate = 0`` and a stable loop);
 * damping: required over achieved damping ratio, ``min_damping / value`` (``inf``
@@ -77,12 +94,19 @@ from collections.abc import Sequence
 import control as ct
 import numpy as np
 
+from designs.effort import Noise, member_effort
 from designs.evaluate import (
     INTENT_FRACTION,
     SUPPRESSION_BAND_HZ,
     TRACKING_BAND_HZ,
     intended_motion,
-    output_ratios,
+)
+from designs.response import (
+    check_weight,
+    default_feedthrough_weight,
+    default_tracking_weight,
+    deviation_checks,
+    weight_system,
 )
 from robust.analysis.loops import closed_loop_poles
 from robust.analysis.realization import minimal_realization
@@ -105,6 +129,7 @@ from robust.checks import (
 )
 from robust.errors import ModelStructureError, ParameterError
 from robust.jsonio import to_jsonable
+from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
 from robust.synthesis.forcefb import intent_filter
@@ -132,10 +157,13 @@ CONSTRAINTS = (
     "continuous force",
     "tracking",
     "feedthrough",
+    "noise",
+    "reference effort",
 )
-#: Frequencies of the tracking (log-spaced) and feedthrough (linear) grids.
-N_TRACKING_FREQS = 80
-N_FEEDTHROUGH_FREQS = 60
+#: Frequencies of the design grids below and above :attr:`Specification.split_hz` (the
+#: checks are exact at every frequency; designs that optimise on frequencies use these).
+N_TRACKING_FREQS = 60
+N_FEEDTHROUGH_FREQS = 90
 #: Sampling rate of the peak-force simulations, Hz (the device's servo rate).
 SIMULATION_RATE_HZ = 1000.0
 
@@ -164,17 +192,51 @@ class Specification:
     damping_band_hz : (float, float)
         Band of the damping requirement, Hz (poles with ``|Im p| / (2 pi)`` in it).
     tracking_error : float
-        Largest ``|Y/Y_ref - 1|`` allowed over ``tracking_band_hz`` (> 0).
+        Allowed ``|Y/Y_ref - 1|`` through the operator's band (> 0): the level of the
+        default tracking weight ``W_t``.
     tracking_band_hz : (float, float)
-        Band of the tracking requirement, Hz
-        (default :data:`designs.evaluate.TRACKING_BAND_HZ`).
+        The operator's band, Hz (default :data:`designs.evaluate.TRACKING_BAND_HZ`); its top
+        is :attr:`split_hz` and places ``W_t``'s corner (an octave above).
     feedthrough_band_hz : (float, float)
-        Band of the feedthrough requirement near the structure mode, Hz
-        (default :data:`designs.evaluate.SUPPRESSION_BAND_HZ`).
+        Band of the structure modes, Hz (default
+        :data:`designs.evaluate.SUPPRESSION_BAND_HZ`): where the default feedthrough weight
+        ``W_f`` asks for the reduction.
     max_amplification_db : float
-        Largest growth of the feedthrough peak ``max |Y/Y_ref - 1|`` over
-        ``feedthrough_band_hz`` relative to the uncompensated loop, dB (finite; 0: no
-        amplification).
+        Far from the structure band, how much the deviation from the BDFT-free response
+        may exceed the uncompensated loop's, dB (1: the compensated loop is nowhere worse
+        than doing nothing, to 12 %).
+    feedthrough_reduction_db : float
+        Required reduction of the feedthrough over ``feedthrough_band_hz`` against the
+        uncompensated loop, dB (6: half. The paper's own remedy, doubling the workspace,
+        halves the BDFT loop gain; on the nominal member of the default family it lowers the
+        feedthrough peak over 5-7.5 Hz from 2.28 to 0.57 of the BDFT-free response, 12 dB. A
+        compensator that keeps the workspace is asked for half of that).
+    tracking_floor : float
+        Allowed ``|Y/Y_ref - 1|`` far above the operator's band where the feedthrough bound
+        does not apply (``W_t``'s high-frequency level, 0.02).
+    tracking_weight, feedthrough_weight : (num, den) or control system, optional
+        The weights themselves, stable and proper rational functions with no zero on the
+        imaginary axis (coefficients in descending powers of ``s``); by default
+        :func:`default_tracking_weight` and :func:`default_feedthrough_weight` of the fields
+        above. Stored as coefficient tuples.
+    noise : designs.effort.Noise
+        Sensor noise and the operator's remnant.
+    noise_cylinder_mm : float
+        Largest RMS cylinder position caused by the sensor noise alone, mm of cylinder travel
+        (1).
+    noise_force_n : float
+        Largest RMS handle force caused by the sensor noise alone, N (0.1).
+    correction_flow_share : float
+        Share of the valve's flow and command range a reference correction may use, in
+        (0, 1] (0.5: the rest is the operator's).
+    peak_factor : float
+        Peaks of the effort are taken as this many RMS values (3: a Gaussian signal exceeds
+        it 0.27 % of the time).
+    reference_k_psf : float or None
+        ``K_PSF`` of the uncompensated loop the feedthrough is compared with (default the
+        paper's, 0.1097: every design is judged against the machine as built, so a design
+        that enlarges the workspace gets credit for the feedthrough it removes); ``None``:
+        each member's own.
 
     Raises
     ------
@@ -193,7 +255,17 @@ class Specification:
     tracking_error: float = 0.2
     tracking_band_hz: tuple[float, float] = TRACKING_BAND_HZ
     feedthrough_band_hz: tuple[float, float] = SUPPRESSION_BAND_HZ
-    max_amplification_db: float = 0.0
+    max_amplification_db: float = 1.0
+    feedthrough_reduction_db: float = 6.0
+    tracking_floor: float = 0.02
+    tracking_weight: tuple | None = None
+    feedthrough_weight: tuple | None = None
+    noise: Noise = Noise()
+    noise_cylinder_mm: float = 1.0
+    noise_force_n: float = 0.1
+    correction_flow_share: float = 0.5
+    peak_factor: float = 3.0
+    reference_k_psf: float | None = K_PSF_NOMINAL
 
     def __post_init__(self):
         validate_fields(
@@ -207,10 +279,79 @@ class Specification:
                 "min_damping": Spec(low=0.0, high=1.0, high_open=True),
                 "tracking_error": POSITIVE,
                 "max_amplification_db": FINITE,
+                "feedthrough_reduction_db": FINITE,
+                "tracking_floor": POSITIVE,
+                "noise_cylinder_mm": POSITIVE,
+                "noise_force_n": POSITIVE,
+                "correction_flow_share": Spec(low=0.0, high=1.0, low_open=True),
+                "peak_factor": POSITIVE,
             },
         )
+        if self.reference_k_psf is not None:
+            object.__setattr__(
+                self,
+                "reference_k_psf",
+                check_scalar("Specification.reference_k_psf", self.reference_k_psf, POSITIVE),
+            )
+        if not isinstance(self.noise, Noise):
+            raise ParameterError(
+                "Specification.noise must be a designs.effort.Noise; "
+                f"got {type(self.noise).__name__}"
+            )
         for name in _BANDS:
             object.__setattr__(self, name, _band(name, getattr(self, name)))
+        if self.tracking_weight is None:
+            w = default_tracking_weight(
+                self.tracking_error, self.tracking_floor, self.tracking_band_hz[1]
+            )
+        else:
+            w = check_weight("tracking_weight", self.tracking_weight)
+        object.__setattr__(self, "tracking_weight", w)
+        if self.feedthrough_weight is None:
+            w = default_feedthrough_weight(
+                self.feedthrough_band_hz, self.feedthrough_reduction_db, self.max_amplification_db
+            )
+        else:
+            w = check_weight("feedthrough_weight", self.feedthrough_weight)
+        object.__setattr__(self, "feedthrough_weight", w)
+        if not self.tracking_band_hz[1] < self.feedthrough_band_hz[0]:
+            raise ParameterError(
+                "Specification.tracking_band_hz must lie below feedthrough_band_hz (the two "
+                f"checks split the axis between them); got {self.tracking_band_hz} and "
+                f"{self.feedthrough_band_hz}"
+            )
+
+    @property
+    def split_hz(self) -> float:
+        """Frequency that splits the intent-response bound between the ``"tracking"`` check
+        (up to it) and the ``"feedthrough"`` check (above), Hz: the top of
+        ``tracking_band_hz``, the operator's band."""
+        return self.tracking_band_hz[1]
+
+    def weight_systems(self) -> tuple[ct.StateSpace, ct.StateSpace]:
+        """``(W_t, W_f)`` as python-control state-space systems (module notes)."""
+        return weight_system(self.tracking_weight), weight_system(self.feedthrough_weight)
+
+    def deviation_bound(self, omega, r0) -> np.ndarray:
+        """The bound on ``|R(jw)|`` at ``omega``: ``|W_t|`` up to :attr:`split_hz`,
+        ``max(|W_t|, |W_f R0|)`` above it.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        r0 : array_like of complex
+            The uncompensated deviation ``R0(jw) = Y_0/Y_ref - 1`` at ``omega``
+            (broadcast against ``omega``'s last axis).
+        """
+        s = 1j * np.asarray(omega, float)
+        wt = np.abs(np.polyval(self.tracking_weight[0], s) / np.polyval(self.tracking_weight[1], s))
+        wf = np.abs(
+            np.polyval(self.feedthrough_weight[0], s) / np.polyval(self.feedthrough_weight[1], s)
+        )
+        above = np.asarray(omega, float) > 2 * math.pi * self.split_hz
+        # (r0: the deviation of the uncompensated loop at reference_k_psf)
+        return np.where(above, np.maximum(wt, wf * np.abs(r0)), wt)
 
     def region(self) -> Region:
         """The pole region: ``Region(decay_rate, min_damping, damping_band_hz)``."""
@@ -223,15 +364,20 @@ class Specification:
         )
 
     def check_frequencies_hz(self) -> np.ndarray:
-        """The frequencies of the tracking and feedthrough checks, Hz.
+        """The design grid of the intent-response bounds, Hz.
+
+        For designs that optimise or choose on frequencies (the limit map, the scheduled
+        damper); the checks themselves (:func:`deviation_checks`) hold at every frequency.
 
         Returns
         -------
         numpy.ndarray
-            :data:`N_TRACKING_FREQS` log-spaced over ``tracking_band_hz``, then
-            :data:`N_FEEDTHROUGH_FREQS` linearly spaced over ``feedthrough_band_hz``;
-            read-only, made once per pair of bands (the coverage checks thousands of
-            members).
+            :data:`N_TRACKING_FREQS` from 0 Hz, then log-spaced from 0.01 Hz (or a fifth
+            of the tracking band's bottom) up to :attr:`split_hz`, then
+            :data:`N_FEEDTHROUGH_FREQS` from :attr:`split_hz` up to :data:`GRID_TOP_HZ`,
+            log-spaced, with a third of them
+            linearly spaced over ``feedthrough_band_hz``; read-only, made once per pair of
+            bands.
         """
         return _check_grid(tuple(self.tracking_band_hz), tuple(self.feedthrough_band_hz))
 
@@ -273,6 +419,10 @@ class ConstraintCheck:
     utilisation : float
         1 at the limit, above 1 when violated, increasing as the value gets worse
         (definitions in the module notes).
+    frequency_hz : float
+        Where the worst member's value is attained, Hz, for the frequency-wise bounds
+        (``"tracking"``, ``"feedthrough"``; ``inf`` for the limit at infinite frequency);
+        ``nan`` for the others.
     """
 
     name: str
@@ -282,12 +432,16 @@ class ConstraintCheck:
     holds: bool
     worst_member: int
     utilisation: float
+    frequency_hz: float = math.nan
 
     def describe(self) -> str:
-        """One line: name, value, limit, utilisation and verdict."""
+        """One line: name, value, limit, utilisation, where it binds and verdict."""
         verdict = "holds" if self.holds else "VIOLATED"
+        where = f" at {self.frequency_hz:.4g} Hz" if math.isfinite(self.frequency_hz) else ""
+        if self.frequency_hz == math.inf:
+            where = " at infinite frequency"
         return (
-            f"{self.name}: {self.value:.4g} {self.units} (limit {self.limit:.4g}), "
+            f"{self.name}: {self.value:.4g} {self.units} (limit {self.limit:.4g}){where}, "
             f"utilisation {self.utilisation:.3g}, member {self.worst_member}: {verdict}"
         )
 
@@ -546,7 +700,6 @@ def check_specification(
         )
     has_force = controller is not None and "f" in controller.output_labels
     limits = spec.limits()
-    grid = spec.check_frequencies_hz()
 
     n = len(members)
     max_real, damping = np.empty(n), np.empty(n)
@@ -554,7 +707,8 @@ def check_specification(
     tracking, amplification = np.full(n, math.inf), np.full(n, math.inf)
     rms = np.full(n, math.inf) if has_force else np.zeros(n)
     amplitude = np.zeros(n)
-    nt = N_TRACKING_FREQS
+    freqs = np.full((2, n), math.nan)
+    noise, effort = np.full(n, math.inf), np.full(n, math.inf)
     for i, m in enumerate(members):
         # one closed loop per member gives its poles and its output ratio on both grids
         closed = m.system(bdft=True, controller=controller)
@@ -564,14 +718,13 @@ def check_specification(
         stable[i] = ps.stable
         if not stable[i]:
             continue
-        ratio_k, ratio_0 = output_ratios(m, controller, grid, closed=closed)
-        tracking[i] = np.max(np.abs(ratio_k[:nt] - 1.0))
-        peak_k = np.max(np.abs(ratio_k[nt:] - 1.0))
-        peak_0 = np.max(np.abs(ratio_0[nt:] - 1.0))
-        amplification[i] = 20 * np.log10(peak_k / peak_0)
+        tr, fb = deviation_checks(m, spec, closed=closed)
+        tracking[i], freqs[0, i] = tr.value, tr.frequency_hz
+        amplification[i], freqs[1, i] = fb.value, fb.frequency_hz
+        amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
+        rms_f, noise[i], effort[i] = member_effort(m, controller, spec, amplitude[i])
         if has_force:
-            amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
-            rms[i] = rms_force(m, controller, amplitude[i], spec.intent_bandwidth_hz, closed=closed)
+            rms[i] = rms_f
 
     notes = []
     if not stable.all():
@@ -592,14 +745,31 @@ def check_specification(
                 f"largest RMS force (members {simulated}), "
                 f"{duration_s:g} s each"
             )
-    return _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, notes)
+    return _spec_check(
+        spec, max_real, damping, peak, rms, tracking, amplification, notes, freqs, noise, effort
+    )
+
+
+#: Top of the design grids, Hz (the checks themselves have no top).
+GRID_TOP_HZ = 1000.0
 
 
 @functools.lru_cache(maxsize=16)
 def _check_grid(tracking_band_hz: tuple, feedthrough_band_hz: tuple) -> np.ndarray:
     """:meth:`Specification.check_frequencies_hz` of a pair of bands."""
-    ft = np.geomspace(*tracking_band_hz, N_TRACKING_FREQS)
-    fb = np.linspace(*feedthrough_band_hz, N_FEEDTHROUGH_FREQS)
+    split = tracking_band_hz[1]
+    # from DC (where the deviation of a loop with integral action is decided) up to the split
+    lo = min(0.01, tracking_band_hz[0] / 5)
+    ft = np.concatenate([[0.0], np.geomspace(lo, split, N_TRACKING_FREQS - 1, endpoint=False)])
+    n_band = N_FEEDTHROUGH_FREQS // 3
+    fb = np.sort(
+        np.concatenate(
+            [
+                np.geomspace(split, GRID_TOP_HZ, N_FEEDTHROUGH_FREQS - n_band),
+                np.linspace(*feedthrough_band_hz, n_band),
+            ]
+        )
+    )
     grid = np.concatenate([ft, fb])
     grid.setflags(write=False)
     return grid
@@ -662,7 +832,19 @@ def unstable_member_check(
     )
 
 
-def _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, notes) -> SpecCheck:
+def _spec_check(
+    spec,
+    max_real,
+    damping,
+    peak,
+    rms,
+    tracking,
+    amplification,
+    notes,
+    freqs=None,
+    noise=None,
+    effort=None,
+) -> SpecCheck:
     """The :class:`SpecCheck` of the members' figures (see :func:`check_specification`)."""
     checks = []
     a = spec.decay_rate
@@ -686,25 +868,34 @@ def _spec_check(spec, max_real, damping, peak, rms, tracking, amplification, not
     for name, vals, limit, units in (
         ("peak force", peak, spec.peak_force_n, "N"),
         ("continuous force", rms, spec.continuous_force_n, "N"),
-        ("tracking", tracking, spec.tracking_error, ""),
     ):
         value, worst = _worst(vals)
         checks.append(
             ConstraintCheck(name, value, limit, units, bool(value <= limit), worst, value / limit)
         )
-    value, worst = _worst(amplification)
-    lim_db = spec.max_amplification_db
-    checks.append(
-        ConstraintCheck(
-            "feedthrough",
-            value,
-            lim_db,
-            "dB",
-            bool(value <= lim_db),
-            worst,
-            10 ** ((value - lim_db) / 20) if math.isfinite(value) else math.inf,
+    if freqs is None:
+        freqs = np.full((2, len(max_real)), math.nan)
+    for k, (name, vals) in enumerate((("tracking", tracking), ("feedthrough", amplification))):
+        value, worst = _worst(vals)
+        checks.append(
+            ConstraintCheck(
+                name,
+                value,
+                1.0,
+                "x bound",
+                bool(value <= 1.0),
+                worst,
+                value,
+                float(freqs[k, worst]),
+            )
         )
-    )
+    n = len(max_real)
+    for name, vals in (("noise", noise), ("reference effort", effort)):
+        vals = np.full(n, math.inf) if vals is None else vals
+        value, worst = _worst(vals)
+        checks.append(
+            ConstraintCheck(name, value, 1.0, "x limit", bool(value <= 1.0), worst, value)
+        )
     util = [c.utilisation for c in checks]
     binding = checks[int(np.argmax(util))].name
     return SpecCheck(

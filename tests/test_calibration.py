@@ -303,19 +303,18 @@ def test_bad_calibration_input():
 
 
 def test_calibration_is_worth_something_to_the_cancellation():
-    # eight operators: the shipped cancellation (nominal human) holds on none; built from
-    # each operator's identified modes it holds on about as many as with the true human
-    # (measured on these 8: nominal 0, identified 7, exact 7; on 400 members in
-    # benchmarks/bench_calibration.py: see its output)
+    # eight operators: the shipped cancellation (nominal human) destabilises most of them;
+    # built from each operator's identified modes it keeps every loop stable, as the true
+    # human's does. None meets the whole specification: cancelling the hand's motion through
+    # the cylinder reference asks more of the valve than half its flow (the reference
+    # effort binds; measured on these 8: nominal 5 unstable, identified and exact 0)
     rows = sample(FAM.parameters, 8, method="mc", seed=21).values
     g = cancellation_gap(FAM, rows, seed=1000)
-    assert g["nominal"].sum() == 0
-    assert g["identified"].sum() >= 3
-    assert g["identified"].sum() <= g["exact"].sum() + 1
-    # where the exact human's cancellation fails, the structure's damping binds: the
-    # cancellation cannot add damping the cab does not have
-    fails = [b for ok, b in zip(g["exact"], g["binding_exact"]) if not ok]
-    assert all(b == "damping" for b in fails)
+    assert g["nominal"].sum() == 0 and g["identified"].sum() == 0 and g["exact"].sum() == 0
+    assert g["binding_nominal"].count("decay rate") >= 3
+    assert "decay rate" not in g["binding_identified"]
+    assert "decay rate" not in g["binding_exact"]
+    assert set(g["binding_identified"]) == set(g["binding_exact"]) == {"reference effort"}
     assert list(g) == [
         "nominal",
         "identified",

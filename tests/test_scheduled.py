@@ -9,6 +9,7 @@ import pytest
 from bdft import main
 from designs.calibration import CAB_IDENTIFIED, IDENTIFIED, operator_row
 from designs.cancellation import cancellation_controller
+from designs.coverage import member_verdicts
 from designs.scheduled import (
     LIMIT_SET,
     _damper_candidates,
@@ -23,7 +24,7 @@ from designs.scheduled import (
     damped_cancellation,
     operator_family,
 )
-from designs.spec import Specification, check_specification
+from designs.spec import CONSTRAINTS, Specification, check_specification
 from robust.errors import ParameterError
 from uncertainty import default_family, member_metrics, sample
 
@@ -71,17 +72,14 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
     assert cov.right_cell == pytest.approx(np.mean(bank.select(est) == bank.select(truth)))
     assert cov.bound.samples == 24 and cov.cells == 16
     assert sum(cov.binding.values()) == cov.bound.failures
-    # a cancellation needs the operator's modes to within a few percent: the 16-cell bank
-    # covers almost nobody (measured 1 of these 24; 3 % of 400 in bdft design scheduled),
-    # the compensator built from each operator's own estimate most (19 of 24; 74 % of 400)
-    cont = continuous_coverage(FAM, rows, est)
-    assert cov.bound.fraction <= 0.25
-    assert cont.mean() >= 0.5
-    assert cont.mean() > cov.bound.fraction + 0.2
-    # the design delivered (the cab's damper added at each calibration): 22 of these 24
-    # (92.0 % of the command's 2000), the plain cancellation 19
-    damped = continuous_coverage(FAM, rows, est, cabs=cal.cabs)
-    assert damped.sum() >= 20 and damped.sum() > cont.sum()
+    # under the specification at every frequency with the valve's limits, no cancellation of
+    # the hand's motion through the cylinder reference holds: built from each operator's own
+    # estimate it asks more than half the valve's flow (the reference effort binds on every
+    # member); the bank's cells, a wrong cell's cancellation, also break the loop or tracking
+    cont, why = continuous_coverage(FAM, rows, est, binding=True)
+    assert cov.bound.fraction == 0.0 and not cont.any()
+    assert set(why) == {"reference effort"}
+    assert "reference effort" in cov.binding
 
 
 def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
@@ -143,17 +141,24 @@ def test_cli_design_scheduled_bad_options(tmp_path, capsys):
 
 def test_the_cab_damper_designed_at_calibration_rescues_lightly_damped_cabs():
     # three machines whose cab's first mode is damped below the specification's 0.1: the
-    # cancellation of the identified human alone leaves that mode and fails; with the
-    # damper designed from the same record (identified cab, phase and gain picked on the
-    # identified member) the whole specification holds on the true member (measured: 3 of 3)
+    # cancellation of the identified human alone leaves that mode and fails the damping; with
+    # the damper designed from the same record (identified cab, phase and gain picked on the
+    # identified member) the damping holds on the true member (measured: 3 of 3). The whole
+    # specification does not: the reference effort binds (see the bank's test)
     rows = sample(FAM.parameters, 300, method="mc", seed=5).values
     rows = rows[rows[:, FAM.names.index("struct.zeta1")] < 0.09][:3]
     cal = calibrate_members(FAM, rows, seed=77)
-    est, cabs = cal.estimates, cal.cabs
-    plain = continuous_coverage(FAM, rows, est)
-    damped, binding = continuous_coverage(FAM, rows, est, cabs=cabs, binding=True)
-    assert not plain.any()
-    assert damped.sum() >= 2
+    spec = Specification()
+    k = CONSTRAINTS.index("damping")
+    plain, damped = [], []
+    for row, e, cb in zip(rows, cal.estimates, cal.cabs, strict=True):
+        h, c = dict(zip(IDENTIFIED, e)), dict(zip(CAB_IDENTIFIED, cb))
+        Kc = _damper_candidates(FAM, h, c, spec).cancellation
+        K = damped_cancellation(FAM, h, c, spec)
+        plain.append(member_verdicts(FAM, row[None, :], Kc, spec).violated[0, k])
+        damped.append(member_verdicts(FAM, row[None, :], K, spec).violated[0, k])
+    assert all(plain)
+    assert sum(damped) <= 1
     # the damper is the band-pass at its mode: unit gain and zero phase there
     D = cab_damper(4.0, 1.0, 0.0)
     g = complex(D(2j * np.pi * 4.0))
@@ -184,7 +189,13 @@ def test_damper_candidates_evaluated_as_the_specification_defines_them(calibrate
             ref = np.array([r.utilisation for r in ref.constraints if r.name in keys])
             np.testing.assert_array_equal(np.isinf(U[k]), np.isinf(ref))
             ok = np.isfinite(ref)
-            np.testing.assert_allclose(U[k][ok], ref[ok], rtol=1e-6, atol=1e-9)
+            # the poles' figures exactly; the frequency-wise bounds on the design grid, whose
+            # values are those of the exact check at the grid's frequencies: at most its
+            # supremum (measured within 40 % of it; the choice among candidates is made on
+            # the grid, the verdict by the exact check)
+            np.testing.assert_allclose(U[k][:2][ok[:2]], ref[:2][ok[:2]], rtol=1e-6, atol=1e-9)
+            assert np.all(U[k][2:][ok[2:]] <= ref[2:][ok[2:]] * (1 + 1e-9))
+            assert np.all(U[k][2:][ok[2:]] >= 0.5 * ref[2:][ok[2:]])
             finite += int(ok.all())
         assert finite >= 3  # stable candidates were compared, not only unstable ones
         K = damped_cancellation(FAM, h, c, spec)

@@ -35,6 +35,7 @@ from robust.checks import DAMPING_RATIO, POSITIVE, Spec, check_scalar, validate_
 
 __all__ = [
     "ValveCylinderParams",
+    "HydraulicLimits",
     "StructureParams",
     "PIParams",
     "valve_cylinder",
@@ -87,6 +88,45 @@ class ValveCylinderParams:
     def __post_init__(self):
         validate_fields(
             self, {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING}
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class HydraulicLimits:
+    """What the linear Eqn 3 leaves out of the valve and the cylinder.
+
+    The linear analyses use Eqn 3; the saturated 1 kHz simulation
+    (:func:`robust.analysis.saturation.saturated_response`) applies these, and the
+    specification's effort checks compare the loop's signals with them.
+
+    Parameters
+    ----------
+    max_speed_m_s : float
+        Flow saturation: the largest cylinder speed, m/s (0.4, stated assumption: a backhoe
+        stick cylinder of about 100 mm bore on a pump of about 120 l/min). A proportional
+        valve's full opening gives it, so the valve command saturates at
+        ``max_speed / K_VC`` (in the loop's units).
+    deadband : float
+        Spool deadband as a fraction of the valve's command range (0.05, stated assumption;
+        the paper names the deadband, not its width; proportional valves without deadband
+        compensation have 5-20 %).
+    stroke_m : float
+        Cylinder travel, m: the paper defines ``K_PSF`` as the Omni's fore-aft workspace
+        over the cylinder's travel, so 71 mm / 0.1097 = 0.647 m.
+    """
+
+    max_speed_m_s: float = 0.4
+    deadband: float = 0.05
+    stroke_m: float = 0.071 / K_PSF_NOMINAL
+
+    def __post_init__(self):
+        validate_fields(
+            self,
+            {
+                "max_speed_m_s": POSITIVE,
+                "deadband": Spec(low=0.0, high=1.0, high_open=True),
+                "stroke_m": POSITIVE,
+            },
         )
 
 

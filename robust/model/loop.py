@@ -35,6 +35,7 @@ from robust.errors import ModelStructureError, ParameterError
 from robust.model.components import (
     K_PSF_NOMINAL,
     REALISATIONS_KEPT,
+    HydraulicLimits,
     PIParams,
     StructureParams,
     ValveCylinderParams,
@@ -140,6 +141,9 @@ class BDFTLoop:
         Human variant (default: the paper's Eqn 5 as printed).
     calibration : LoopCalibration
         PI gains, junction sign and loop-scale factor.
+    hydraulics : HydraulicLimits
+        Flow saturation, deadband and stroke of the valve/cylinder (used by the saturated
+        simulation and the effort checks; the linear loop is Eqn 3).
     """
 
     k_psf: float = K_PSF_NOMINAL
@@ -147,6 +151,7 @@ class BDFTLoop:
     struct: StructureParams = dataclasses.field(default_factory=StructureParams)
     human: HumanModel = dataclasses.field(default_factory=LiteralHuman)
     calibration: LoopCalibration = DEFAULT_CALIBRATION
+    hydraulics: HydraulicLimits = HydraulicLimits()
 
     def __post_init__(self):
         validate_fields(self, {"k_psf": POSITIVE})
@@ -154,6 +159,7 @@ class BDFTLoop:
             ("valve", ValveCylinderParams),
             ("struct", StructureParams),
             ("calibration", LoopCalibration),
+            ("hydraulics", HydraulicLimits),
         ):
             if not isinstance(getattr(self, field), cls):
                 raise ParameterError(
@@ -213,6 +219,26 @@ class BDFTLoop:
             )
         g = self.handle_gain * h_gain
         return g if signed else abs(g)
+
+    def cylinder_units_per_m(self) -> float:
+        """Units of ``y`` (the paper's cylinder position) per metre of cylinder travel.
+
+        The paper defines ``K_PSF`` as the Omni's workspace over the cylinder's travel, and
+        the reference is ``r = K_PSF x``: at the nominal scale a metre of handle is
+        ``1 / K_PSF_NOMINAL`` metres of cylinder, so a metre of cylinder is
+        ``K_PSF_NOMINAL^2`` times the handle units per metre (:meth:`handle_units_per_m`).
+
+        Raises
+        ------
+        ModelStructureError
+            If the human variant has no metric unit gain (the literal Eqn 5).
+        """
+        return K_PSF_NOMINAL**2 * self.handle_units_per_m()
+
+    def valve_command_limit(self) -> float:
+        """The valve command at full opening, loop units: the flow limit's cylinder speed over
+        ``K_VC`` (Eqn 3's steady speed per unit command)."""
+        return self.hydraulics.max_speed_m_s * self.cylinder_units_per_m() / self.valve.k_vc
 
     def intended_amplitude(self, limits: DeviceLimits, fraction: float) -> float:
         """Amplitude of the operator's intended motion ``u``, in handle units.
