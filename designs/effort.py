@@ -165,6 +165,17 @@ def noisy_loop(loop: BDFTLoop, controller, outputs) -> ct.StateSpace:
     )
 
 
+@functools.lru_cache(maxsize=16)
+def _unit_intent(bandwidth_hz: float) -> tuple:
+    """``A, B, C`` of the unit intent filter (read-only) and its H2 norm, per bandwidth."""
+    F = intent_filter(bandwidth_hz, 1.0)
+    Af, Bf, Cf = (np.array(m, float) for m in (F.A, F.B, F.C))
+    Pf = sla.solve_continuous_lyapunov(Af, -Bf @ Bf.T)
+    for m in (Af, Bf, Cf):
+        m.setflags(write=False)
+    return Af, Bf, Cf, math.sqrt(float((Cf @ Pf @ Cf.T)[0, 0]))
+
+
 def operator_filter(bandwidth_hz: float, amplitude: float, noise: Noise):
     """``(A, B, C)`` of the operator's command, intent plus remnant, from two unit white
     noises (states of ``F``, then the remnant's one).
@@ -178,11 +189,9 @@ def operator_filter(bandwidth_hz: float, amplitude: float, noise: Noise):
     noise : Noise
         The remnant's parameters.
     """
-    F = intent_filter(bandwidth_hz, 1.0)
-    Af, Bf, Cf = (np.asarray(m, float) for m in (F.A, F.B, F.C))
-    Pf = sla.solve_continuous_lyapunov(Af, -Bf @ Bf.T)
+    Af, Bf, Cf, norm_f = _unit_intent(float(bandwidth_hz))
     rms_u = amplitude / math.sqrt(2.0)
-    k = rms_u / math.sqrt(float((Cf @ Pf @ Cf.T)[0, 0]))
+    k = rms_u / norm_f
     a = 2 * math.pi * noise.remnant_bandwidth_hz
     # remnant: sqrt(2 a) / (s + a) has unit RMS from unit white noise
     kr = noise.remnant_fraction * rms_u * math.sqrt(2 * a)

@@ -222,7 +222,7 @@ def _ratio_at_infinity(g, bounds) -> float:
     return num / den if den > 0 else math.inf
 
 
-def _refine(ratio, a, b, w0=None, *, points: int = 25, stages: int = 5):
+def _refine(ratio, a, b, w0=None, *, points: int = 25, stages: int = 4):
     """Largest ratio on ``[a, b]`` by nested grids (``(value, w)``): each stage evaluates
     ``points`` frequencies at once (log-spaced where ``a > 0``) and narrows the bracket to the
     best one's neighbours, so the bracket shrinks about ``points / 2`` times a stage."""
