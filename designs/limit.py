@@ -588,6 +588,7 @@ def _member_limit_body(
     bt, bb = _bounds(loop, spec)
     cut_t, cut_b = np.zeros(0), np.zeros(0)
     step = f"limit map ({actuators}, {sensors})"
+    tight = TIGHTENING
     for cut_round in range(CUT_ROUNDS + 1):
         out = _solve_on_grid(
             plant,
@@ -601,6 +602,7 @@ def _member_limit_body(
             (R, r0, effort),
             problems,
             step,
+            tight,
         )
         if isinstance(out, SetLimit):
             return dataclasses.replace(out, actuators=actuators, sensors=sensors)
@@ -621,6 +623,9 @@ def _member_limit_body(
         new_t, new_b = _cuts(r_cl, loop, spec, checks)
         cut_t = np.concatenate([cut_t, new_t])[-N_CUTS:]
         cut_b = np.concatenate([cut_b, new_b])[-N_CUTS:]
+        # and the grid's limits lowered by the excess found (the optimum sits on them, and
+        # between the grid's frequencies it overshoots by about as much again)
+        tight /= max(c.value for c in checks)
     sysl = _loop_system(loop, plant, A, B, Cx, acts, s_u, s_m)
     res = _verify(
         sysl,
@@ -655,7 +660,8 @@ def _member_limit_body(
 
 
 #: Rounds of cutting planes: frequencies where the exact re-check finds a bound exceeded
-#: are added to the design grid and the problem solved again.
+#: are added to the design grid, the grid's limits are lowered by the excess found, and the
+#: problem is solved again.
 CUT_ROUNDS = 3
 #: Rows reserved for those frequencies per grid (unused rows are zero: no constraint).
 N_CUTS = 16
@@ -776,13 +782,14 @@ def _loop_system(loop, plant, A, B, Cx, acts, s_u, s_m) -> ct.StateSpace:
     return ct.ss(A, Bl, C, D)
 
 
-def _solve_on_grid(plant, meas, K0, L, basis, spec, gt, gb, grams, problems, step):
+def _solve_on_grid(plant, meas, K0, L, basis, spec, gt, gb, grams, problems, step, tight=None):
     """The limit problem on the grids ``gt``, ``gb`` (``(omega, bound)`` each): ``(Theta,
     relaxation, predicted RMS force)``, or a :class:`SetLimit` (actuators and sensors left
     blank) where tracking and feedthrough cannot be met or a solver fails."""
     nan = math.nan
     (wt, bt), (wb, bb) = gt, gb
     R, r0, effort = grams
+    tight = TIGHTENING if tight is None else tight
     if meas is None:
         mt, mb = affine_maps(plant, K0, basis, wt), affine_maps(plant, K0, basis, wb)
     else:
@@ -813,16 +820,20 @@ def _solve_on_grid(plant, meas, K0, L, basis, spec, gt, gb, grams, problems, ste
         track=track @ T,
         feed0=feed0,
         feed=feed @ T,
-        lim_t=TIGHTENING,
-        lim_f=TIGHTENING,
+        lim_t=tight,
+        lim_f=tight,
         R=None if R is None else R @ T,
         r0=r0,
     )
     effort_z = [(name, _in_coordinates(W, T)) for name, W in effort]
 
     def effort_values(z):
+        # per constraint name, the largest of its Grams (the noise has two: force, cylinder)
         v = np.concatenate([[1.0], z])
-        return {name: math.sqrt(max(float(v @ W @ v), 0.0)) for name, W in effort_z}
+        out = {}
+        for name, W in effort_z:
+            out[name] = max(out.get(name, 0.0), math.sqrt(max(float(v @ W @ v), 0.0)))
+        return out
 
     # the effort and noise constraints rarely bind with a handle force: solved without them
     # first (a problem a quarter of the size), with them where that answer breaks one
@@ -845,11 +856,11 @@ def _solve_on_grid(plant, meas, K0, L, basis, spec, gt, gb, grams, problems, ste
                 worst.update(effort_values(z))
             if rho > 1.0:
                 binding = max(worst, key=worst.get)
-                return _set_limit("", "", math.inf, nan, nan, rho / TIGHTENING, binding, False, "")
-            out = (z, rho / TIGHTENING, None)
+                return _set_limit("", "", math.inf, nan, nan, rho / tight, binding, False, "")
+            out = (z, rho / tight, None)
         else:
             out = (sol[0], nan, sol[1] * spec.continuous_force_n)
-        if with_effort or max(effort_values(out[0]).values(), default=0.0) <= TIGHTENING:
+        if with_effort or max(effort_values(out[0]).values(), default=0.0) <= tight:
             break
     z, relaxation, predicted = out
     return T @ z, relaxation, predicted

@@ -1022,7 +1022,8 @@ def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult
         )
     if d.failed is not None:
         notes.append(
-            f"the specification holds on the checked members up to family scale {d.scale:.3g}; "
+            "the ladder's constraints (pole region, forces, tracking) hold on the checked "
+            f"members up to family scale {d.scale:.3g}; "
             f"at scale {d.failed.scale:.3g} it fails: {d.failed.reason} (binding constraint: "
             f"{d.failed.binding}, utilisation {d.failed.utilisation:.3g})"
         )

@@ -604,7 +604,8 @@ def _tradeoff_section(page: HtmlPage, tradeoff) -> None:
         fig,
         "tradeoff",
         "Pareto curve of the robust handle-force LMI design: the largest scale of the "
-        "family's box on which the specification holds on the checked members, and on which "
+        "family's box on which the ladder's constraints (pole region, forces, tracking) hold "
+        "on the checked members, and on which "
         "the pole region is certified, against the force limits (0 drawn at 1e-4).",
     )
     plt.close(fig)
