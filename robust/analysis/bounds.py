@@ -45,6 +45,9 @@ __all__ = ["BoundRatio", "bound_ratio", "crossing_frequencies", "siso_response"]
 
 #: Points of the estimating grid per band.
 N_GRID = 240
+#: Local maxima of the estimating grid refined before the exact test (a higher peak the
+#: refinement passes over is found by the test, which then refines its interval).
+N_REFINED = 3
 #: Relative real part below which a zero of ``Phi`` counts as an imaginary-axis crossing.
 CROSSING_RTOL = 1e-4
 
@@ -222,7 +225,7 @@ def _ratio_at_infinity(g, bounds) -> float:
     return num / den if den > 0 else math.inf
 
 
-def _refine(ratio, a, b, w0=None, *, points: int = 25, stages: int = 4):
+def _refine(ratio, a, b, w0=None, *, points: int = 25, stages: int = 3):
     """Largest ratio on ``[a, b]`` by nested grids (``(value, w)``): each stage evaluates
     ``points`` frequencies at once (log-spaced where ``a > 0``) and narrows the bracket to the
     best one's neighbours, so the bracket shrinks about ``points / 2`` times a stage."""
@@ -315,7 +318,7 @@ def bound_ratio(
         for i in range(len(w))
         if (i == 0 or r[i] >= r[i - 1]) and (i == len(w) - 1 or r[i] >= r[i + 1])
     ]
-    for i in sorted(peaks, key=lambda i: -r[i])[:6]:
+    for i in sorted(peaks, key=lambda i: -r[i])[:N_REFINED]:
         a, b = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
         v, x = _refine(ratio, a, b, w[i])
         if r[i] >= v:
