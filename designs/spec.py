@@ -13,7 +13,8 @@ The intended-motion response
 ----------------------------
 With ``Y`` the cylinder's response to the intended motion ``u`` and ``Y_ref`` the response
 without BDFT and without compensation, the deviation ``R = Y/Y_ref - 1`` is the closed-loop
-map ``u -> (x - u) + r_corr / K_PSF`` (:func:`deviation_maps`), a proper rational function.
+map ``u -> (x - u) + r_corr / K_PSF`` (:func:`designs.response.deviation_maps`), a proper
+rational function.
 The specification bounds it, at every frequency, by two stable rational weights (Skogestad
 & Postlethwaite, *Multivariable Feedback Control*, ch. 2-3):
 
@@ -21,7 +22,8 @@ The specification bounds it, at every frequency, by two stable rational weights 
   (``tracking_error``, 20 %) through the operator's band, rolling off to
   ``tracking_floor`` (2 %) above it;
 * above it, ``|R(jw)| <= max(|W_t(jw)|, |W_f(jw) R0(jw)|)`` with ``R0`` the uncompensated
-  loop's deviation (its *formal* response, also where that loop is unstable) and ``W_f`` a
+  deviation of the machine as built (the member at ``reference_k_psf``; its *formal*
+  response, also where that loop is unstable) and ``W_f`` a
   notch: over the structure modes' band the feedthrough must be reduced by
   ``feedthrough_reduction_db`` (6 dB), far from it the compensated deviation may exceed the
   uncompensated one by ``max_amplification_db`` (1 dB) at most.
