@@ -38,6 +38,7 @@ from robust.model.components import REALISATIONS_KEPT
 from robust.model.loop import BDFTLoop
 from robust.model.wiring import Junction, connect, renamed
 from robust.synthesis.forcefb import intent_filter
+from robust.synthesis.pk import h2_norm
 
 __all__ = [
     "Noise",
@@ -46,6 +47,7 @@ __all__ = [
     "effort_utilisations",
     "correction_limits",
     "operator_filter",
+    "unit_intent",
     "operator_spectrum",
     "SERVO_RATE_HZ",
     "noisy_loop",
@@ -166,14 +168,20 @@ def noisy_loop(loop: BDFTLoop, controller, outputs) -> ct.StateSpace:
 
 
 @functools.lru_cache(maxsize=16)
-def _unit_intent(bandwidth_hz: float) -> tuple:
-    """``A, B, C`` of the unit intent filter (read-only) and its H2 norm, per bandwidth."""
+def unit_intent(bandwidth_hz: float) -> tuple:
+    """``A, B, C`` of the unit intent filter (read-only) and its H2 norm, made once per
+    bandwidth (every member checked at one bandwidth shares them).
+
+    Parameters
+    ----------
+    bandwidth_hz : float
+        The intent's bandwidth, Hz (:func:`robust.synthesis.forcefb.intent_filter`).
+    """
     F = intent_filter(bandwidth_hz, 1.0)
     Af, Bf, Cf = (np.array(m, float) for m in (F.A, F.B, F.C))
-    Pf = sla.solve_continuous_lyapunov(Af, -Bf @ Bf.T)
     for m in (Af, Bf, Cf):
         m.setflags(write=False)
-    return Af, Bf, Cf, math.sqrt(float((Cf @ Pf @ Cf.T)[0, 0]))
+    return Af, Bf, Cf, h2_norm(Af, Bf, Cf)
 
 
 def operator_filter(bandwidth_hz: float, amplitude: float, noise: Noise):
@@ -189,7 +197,7 @@ def operator_filter(bandwidth_hz: float, amplitude: float, noise: Noise):
     noise : Noise
         The remnant's parameters.
     """
-    Af, Bf, Cf, norm_f = _unit_intent(float(bandwidth_hz))
+    Af, Bf, Cf, norm_f = unit_intent(float(bandwidth_hz))
     rms_u = amplitude / math.sqrt(2.0)
     k = rms_u / norm_f
     a = 2 * math.pi * noise.remnant_bandwidth_hz

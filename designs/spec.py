@@ -96,7 +96,7 @@ from collections.abc import Sequence
 import control as ct
 import numpy as np
 
-from designs.effort import Noise, member_effort
+from designs.effort import Noise, member_effort, unit_intent
 from designs.evaluate import (
     INTENT_FRACTION,
     SUPPRESSION_BAND_HZ,
@@ -134,7 +134,6 @@ from robust.jsonio import to_jsonable
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
-from robust.synthesis.forcefb import intent_filter
 from robust.synthesis.pk import h2_norm
 from uncertainty.margins import Region
 
@@ -498,17 +497,6 @@ class SpecCheck:
         return to_jsonable(self)
 
 
-@functools.lru_cache(maxsize=16)
-def _unit_intent(bandwidth_hz: float) -> tuple:
-    """``A, B, C`` of the unit intent filter (read-only) and its H2 norm: the same for every
-    member checked at one bandwidth."""
-    F = intent_filter(bandwidth_hz, 1.0)
-    Af, Bf, Cf = (np.array(m, float) for m in (F.A, F.B, F.C))
-    for m in (Af, Bf, Cf):
-        m.setflags(write=False)
-    return Af, Bf, Cf, h2_norm(Af, Bf, Cf)
-
-
 def rms_force(
     loop: BDFTLoop,
     controller,
@@ -560,7 +548,7 @@ def rms_force(
     sys = closed if closed is not None else loop.system(bdft=True, controller=controller)
     iu, jf = sys.input_labels.index("u"), sys.output_labels.index("f")
     g = minimal_realization(sys.A, sys.B[:, [iu]], sys.C[[jf]], sys.D[[jf]][:, [iu]])
-    Af, Bf, Cf, norm_f = _unit_intent(bandwidth_hz)
+    Af, Bf, Cf, norm_f = unit_intent(bandwidth_hz)
     n, nf = g.A.shape[0], Af.shape[0]
     # cascade F then G_f: states (x_g, x_f); strictly proper since F is
     A = np.block([[g.A, g.B @ Cf], [np.zeros((nf, n)), Af]])
