@@ -31,6 +31,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
+from robust.analysis.bounds import siso_response
 from robust.analysis.realization import minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, validate_fields
 from robust.errors import ModelStructureError
@@ -285,13 +286,11 @@ def operator_spectrum(omega, amplitude: float, bandwidth_hz: float, noise: Noise
     noise : Noise
     """
     A, B, C = operator_filter(bandwidth_hz, amplitude, noise)
-    s = 1j * np.asarray(omega, float)
-    n = A.shape[0]
-    out = np.zeros(s.shape)
-    for k, sk in enumerate(s):
-        x = np.linalg.solve(sk * np.eye(n) - A, B)
-        out[k] = float(np.sum(np.abs(C @ x) ** 2))
-    return out
+    omega = np.asarray(omega, float)
+    zero = np.zeros((1, 1))
+    return sum(
+        np.abs(siso_response((A, B[:, [j]], C, zero), omega)) ** 2 for j in range(B.shape[1])
+    )
 
 
 @functools.lru_cache(maxsize=REALISATIONS_KEPT)

@@ -67,6 +67,7 @@ from designs.effort import (
     sensor_intensities,
 )
 from designs.evaluate import intended_motion
+from designs.relaxation import effort_lower_bound
 from designs.response import deviation_bound_checks, deviation_maps
 from designs.spec import N_TRACKING_FREQS, Specification, peak_time_grid
 from robust.analysis.bounds import siso_response
@@ -194,6 +195,14 @@ class SetLimit:
         ``(re-checked - predicted) / predicted`` RMS force: how far the solver's optimum of
         the basis problem is from the force of the controller it returned (the re-checked
         force is the one reported; ``nan`` without force).
+    force_lower : float
+        Lower bound of the force multiple *any* compensator with these actuators needs
+        (:mod:`designs.relaxation`; 0 without a force actuator): ``required_force`` is
+        never below it.
+    reference_lower : float
+        Lower bound of the reference-effort utilisation of a reference correction alone
+        (``nan`` with a force actuator); above 1, no compensator of the set meets the
+        specification at any force.
     """
 
     actuators: str
@@ -206,6 +215,8 @@ class SetLimit:
     verified: bool
     note: str = ""
     gap: float = math.nan
+    force_lower: float = math.nan
+    reference_lower: float = math.nan
 
     def covered(self, force_scale: float) -> bool:
         """Whether this member is covered at ``force_scale`` times the device's force limits."""
@@ -513,11 +524,25 @@ def member_controller(
     return out if isinstance(out, tuple) else (out, None)
 
 
-def _member_limit(*args, **kwargs):
+def _member_limit(loop, actuators, spec, *args, **kwargs):
     # one BLAS and one solver thread wherever it is called from: the cached gains, observers
     # and responses a process keeps are then the same digits in this process or a worker
     with deterministic_solvers():
-        return _member_limit_body(*args, **kwargs)
+        out = _member_limit_body(loop, actuators, spec, *args, **kwargs)
+        spec = Specification() if spec is None else spec
+        lb = _lower_bound(loop, actuators, spec)
+    res = out[0] if isinstance(out, tuple) else out
+    res = dataclasses.replace(res, force_lower=lb.force, reference_lower=lb.reference)
+    return (res, out[1]) if isinstance(out, tuple) else res
+
+
+@functools.lru_cache(maxsize=8)
+def _lower_bound(loop, actuators, spec):
+    """The frequency-wise relaxation's bounds of a member and actuator set (shared by its
+    sensor sets: the relaxation knows ``u`` whatever the set measures)."""
+    acts = ACTUATOR_SETS[actuators]
+    plant, _, (s_u, _) = _member_plant(loop, acts, scales=True)
+    return effort_lower_bound(loop, plant, s_u, acts, spec)
 
 
 def _member_limit_body(
@@ -1119,6 +1144,25 @@ class LimitMap:
         own = [self.own_required(x) for x in self.sets if set_contains(name, x)]
         return np.min(np.vstack(own), axis=0)
 
+    def lower(self, name: str) -> np.ndarray:
+        """Lower bound of the force multiple any compensator of the set needs, per member.
+
+        The frequency-wise relaxation of the set's actuators (:mod:`designs.relaxation`;
+        it holds for every sensor set and for the sets it contains): with a force actuator
+        its ``force_lower``; a reference correction alone needs no force, or is ``inf``
+        where its effort bound exceeds the limits (no force makes it feasible).
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        """
+        j = self.sets.index(name)
+        a, _ = split_set(name)
+        if "f" in ACTUATOR_SETS[a]:
+            return np.array([row[j].force_lower for row in self.limits])
+        return np.array([0.0 if row[j].reference_lower <= 1.0 else math.inf for row in self.limits])
+
     def coverage(self, name: str, force_scale: float) -> float:
         """Fraction of the Latin hypercube covered by one set at ``force_scale``.
 
@@ -1162,9 +1206,23 @@ class LimitMap:
         fraction : float
             Coverage wanted, in (0, 1].
         """
-        req = np.sort(self.required(name)[self.lhs_index()])
-        k = int(math.ceil(fraction * req.size)) - 1
-        return float(req[max(k, 0)])
+        return _quantile(self.required(name)[self.lhs_index()], fraction)
+
+    def bracket_for(self, name: str, fraction: float = 0.95) -> dict:
+        """``{"lower", "upper"}`` of the force multiple covering ``fraction`` of the Latin
+        hypercube: the upper from verified controllers (:meth:`scale_for`), the lower from
+        the relaxation's bounds (:meth:`lower`: a member no compensator covers below its
+        bound, so the fraction with bounds below ``s`` bounds the coverage at ``s``).
+
+        Parameters
+        ----------
+        name : str
+            A set of :attr:`sets`.
+        fraction : float
+            Coverage wanted, in (0, 1].
+        """
+        low = _quantile(self.lower(name)[self.lhs_index()], fraction)
+        return {"lower": low, "upper": self.scale_for(name, fraction)}
 
     def sets_json(self) -> list:
         """Per set and force multiple: name, force_scale, coverage, samples, seed, binding."""
@@ -1186,6 +1244,8 @@ class LimitMap:
                         "samples": self.samples,
                         "seed": self.seed,
                         "binding": self.binding(name, sc),
+                        # members that no compensator of the set covers at this multiple
+                        "proven_uncovered": int(np.sum(self.lower(name)[lhs] > sc)),
                     }
                 )
         return out
@@ -1208,7 +1268,7 @@ class LimitMap:
         ]
         return {
             "sets": self.sets_json(),
-            "force_for_95": {name: self.scale_for(name, 0.95) for name in self.sets},
+            "force_for_95": {name: self.bracket_for(name, 0.95) for name in self.sets},
             "critical": crit,
             "samples": self.samples,
             "seed": self.seed,
@@ -1221,6 +1281,13 @@ class LimitMap:
             },
             "specification": self.specification,
         }
+
+
+def _quantile(values: np.ndarray, fraction: float) -> float:
+    """The smallest value at or below which ``fraction`` of ``values`` lie."""
+    v = np.sort(np.asarray(values, float))
+    k = int(math.ceil(fraction * v.size)) - 1
+    return float(v[max(k, 0)])
 
 
 def limit_map(

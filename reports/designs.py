@@ -322,7 +322,9 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
             "compensator with the design's actuators and sensors, knowing the member exactly, "
             "can protect within the Omni's force limits (for a set the map did not compute, "
             "the smallest computed set containing it). A design cannot exceed it beyond the "
-            "sampling error of both fractions. Best set at the Omni's limits: "
+            "sampling error of both fractions; the design's is bounded (its Clopper-Pearson "
+            "bound, independent members), the limit's is not (a Latin hypercube's fraction has "
+            "no tail bound), so the check uses the design's alone. Best set at the Omni's limits: "
             f"{limit['conclusions'][0] if limit.get('conclusions') else '-'}",
             cls="note",
         )
@@ -367,7 +369,7 @@ def _scheduled_section(page: HtmlPage, sched: dict, limit: dict | None) -> None:
     consistent = None
     if found is not None:
         _, e = found
-        consistent = coverage_consistent(c["fraction"], c["samples"], e["coverage"], e["samples"])
+        consistent = coverage_consistent(c["fraction"], c["samples"], e["coverage"])
         row += [
             f"{100 * e['coverage']:.1f} % of {e['samples']}",
             f"{c['fraction'] / e['coverage']:.3f}" if e["coverage"] > 0 else "-",
@@ -376,7 +378,7 @@ def _scheduled_section(page: HtmlPage, sched: dict, limit: dict | None) -> None:
         head += [
             "limit coverage of the set, Omni's force",
             "fraction of the limit",
-            "within the limit (sampling errors)",
+            "within the limit (the design's sampling error)",
         ]
     page.table(head, [row], row_classes=["holds" if c["failures"] == 0 else "fails"])
     wb = sched.get("wrong_within_bound")

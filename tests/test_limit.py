@@ -258,6 +258,15 @@ def test_member_limits_of_the_nominal_member(nominal):
     # (measured 0.24 x against 0.64 x)
     both = limit.member_limit(nominal, "force+reference", spec, problems={})
     assert both.verified and both.required_force < 0.6 * force.required_force
+    # the relaxation's lower bounds bracket the verified figures: handle force 0.53 x below
+    # the verified 0.64 x, both actuators 0.18 x below 0.25 x (measured); the reference alone
+    # needs 3.1 x its effort limits whatever it measures, so no controller meets the bounds
+    assert 0.8 * force.required_force < force.force_lower < force.required_force
+    assert 0.5 * both.required_force < both.force_lower < both.required_force
+    assert both.force_lower < force.force_lower
+    assert ref.force_lower == 0.0 and 2.5 < ref.reference_lower < 4.0
+    assert math.isnan(force.reference_lower) and math.isnan(both.reference_lower)
+    assert whole.reference_lower == pytest.approx(ref.reference_lower / 2, rel=1e-9)
 
 
 def test_member_controller_realises_the_limit_on_the_loop(nominal):
@@ -393,6 +402,17 @@ def test_limit_map_and_its_json(family):
         assert e["coverage"] == pytest.approx(np.mean(req <= e["force_scale"]))
         assert e["samples"] == 4 and e["seed"] == 3
         assert sum(e["binding"].values()) == 4 - e["covered"]
+        low = lm.lower(e["name"])
+        assert e["proven_uncovered"] == np.sum(low > e["force_scale"])
+        assert e["proven_uncovered"] <= 4 - e["covered"]
+    # every member's verified requirement lies above its lower bound
+    for name in lm.sets:
+        req, low = lm.required(name), lm.lower(name)
+        assert np.all(np.isfinite(low) | np.isinf(req)) and np.all(low <= req)
+        br = j["force_for_95"][name]
+        assert br["lower"] <= br["upper"] and br["upper"] == lm.scale_for(name, 0.95)
+    assert j["force_for_95"]["reference/full"]["lower"] == math.inf
+    assert 0 < j["force_for_95"]["force/full"]["lower"] < j["force_for_95"]["force/full"]["upper"]
     # more force never covers fewer members; full information contains the handle's
     # controllers, so it never needs more force than the handle set
     cov = [lm.coverage("force/full", s) for s in (1.0, 2.0, 4.0)]
@@ -474,3 +494,54 @@ def test_the_recheck_response_is_the_resolvent_at_every_frequency():
     bt, ct_ = Z.conj().T @ b, c @ Z
     ref = np.array([ct_ @ sla.solve_triangular(1j * x * np.eye(n) - T, bt) for x in w])
     np.testing.assert_allclose(limit._schur_response(A, b, c, w), ref, rtol=1e-12)
+
+
+def test_least_effort_closed_form_against_a_solver():
+    """The relaxation's per-frequency minimum (designs.relaxation.least_effort) against
+    cvxpy with Clarabel on random complex data: one and two actuators, a free actuator, a
+    bound already met."""
+    import cvxpy as cp
+
+    from designs.relaxation import least_effort
+
+    rng = np.random.default_rng(5)
+    for m in (1, 2, 3):
+        for _ in range(4):
+            a0 = complex(*rng.normal(size=2))
+            b = rng.normal(size=m) + 1j * rng.normal(size=m)
+            w = rng.uniform(0.1, 3.0, size=m)
+            beta = 0.3 * abs(a0)
+            q = cp.Variable(m, complex=True)
+            prob = cp.Problem(
+                cp.Minimize(cp.sum(cp.multiply(w, cp.abs(q) ** 2))),
+                [cp.abs(a0 + b @ q) <= beta],
+            )
+            prob.solve(solver=cp.CLARABEL)
+            got = least_effort(np.array([a0]), np.array([beta]), b[None, :], w[None, :])[0]
+            assert got == pytest.approx(prob.value, rel=1e-5)
+    # a bound met without effort, a free actuator, an actuator that cannot reach R
+    a0, beta = np.array([2.0, 2.0, 2.0]), np.array([3.0, 1.0, 1.0])
+    b = np.array([[1.0, 1.0], [1.0, 1.0], [0.0, 0.0]])
+    w = np.array([[1.0, 1.0], [0.0, 1.0], [1.0, 1.0]])
+    np.testing.assert_array_equal(least_effort(a0, beta, b, w), [0.0, 0.0, math.inf])
+
+
+def test_relaxation_quadrature_and_its_bad_input(nominal):
+    from designs.relaxation import effort_lower_bound
+
+    spec = Specification()
+    plant, _, (s_u, _) = limit._member_plant(nominal, ("f",), scales=True)
+    fine = effort_lower_bound(nominal, plant, s_u, ("f",), spec)
+    coarse = effort_lower_bound(nominal, plant, s_u, ("f",), spec, n_freq=400)
+    # halving the grid moves the bound by less than 1e-3 relative
+    assert coarse.force == pytest.approx(fine.force, rel=1e-3)
+    assert fine.rms_force_n == pytest.approx(0.88 * fine.force, rel=1e-12)
+    # a stricter specification needs more: the feedthrough reduced by 12 dB, not 6
+    strict = effort_lower_bound(
+        nominal, plant, s_u, ("f",), Specification(feedthrough_reduction_db=12.0)
+    )
+    assert strict.force > 1.05 * fine.force
+    with pytest.raises(ParameterError, match="n_freq"):
+        effort_lower_bound(nominal, plant, s_u, ("f",), spec, n_freq=10)
+    with pytest.raises(ParameterError, match="actuators"):
+        effort_lower_bound(nominal, plant, s_u, ("x",), spec)

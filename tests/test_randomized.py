@@ -104,5 +104,12 @@ def test_hoeffding_and_consistency():
     rng = np.random.default_rng(3)
     frac = rng.binomial(400, 0.5, size=20000) / 400
     assert np.mean(np.abs(frac - 0.5) > hoeffding_halfwidth(400, 0.99)) < 0.01
-    assert coverage_consistent(0.31, 2000, 0.30, 256)
-    assert not coverage_consistent(0.60, 2000, 0.30, 256)
+    # the design's Clopper-Pearson lower bound against the limit's fraction as it is: 620 of
+    # 2000 covered has the lower bound 0.277 at confidence 0.999 (scipy's beta quantile)
+    lower = 1 - stats.beta.ppf(0.999, 1381, 620)
+    assert 0.27 < lower < 0.29
+    assert coverage_consistent(0.31, 2000, lower + 1e-3)
+    assert not coverage_consistent(0.31, 2000, lower - 1e-3)
+    assert not coverage_consistent(0.60, 2000, 0.30)
+    # few members: 6 of 6 covered proves only 0.316 (1 - 0.001^(1/6))
+    assert coverage_consistent(1.0, 6, 0.32) and not coverage_consistent(1.0, 6, 0.31)

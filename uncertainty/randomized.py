@@ -184,10 +184,11 @@ class CoverageBound:
 def hoeffding_halfwidth(samples: int, confidence: float = DEFAULT_CONFIDENCE) -> float:
     """Two-sided half-width of an observed fraction: ``sqrt(ln(2/beta) / (2 N))``.
 
-    Hoeffding's inequality: the fraction of ``N`` independent Bernoulli trials lies within
-    this of its mean with probability at least ``1 - beta``. A Latin hypercube's fraction
-    has at most ``N / (N - 1)`` times the variance of independent draws (Owen 1997), so
-    the half-width serves it too with that factor.
+    Hoeffding's inequality: the fraction of ``N`` *independent* Bernoulli trials lies within
+    this of its mean with probability at least ``1 - beta``. It needs independent (Monte
+    Carlo) draws. A Latin hypercube's fraction has at most ``N / (N - 1)`` times their
+    variance (Owen 1997), but a variance bound is no tail bound: Hoeffding's does not hold
+    for its dependent members, and no half-width is given for it.
 
     Parameters
     ----------
@@ -209,33 +210,34 @@ def coverage_consistent(
     design: float,
     design_samples: int,
     limit: float,
-    limit_samples: int,
     confidence: float = DEFAULT_CONFIDENCE,
 ) -> bool:
-    """Whether a design's coverage is at most a limit coverage plus both sampling errors.
+    """Whether a design's coverage is consistent with a limit coverage that bounds it.
 
-    ``design <= limit + h(design_samples) + h(limit_samples) * sqrt(L / (L - 1))`` with
-    ``h`` :func:`hoeffding_halfwidth` (``L`` the limit's members, a Latin hypercube).
+    The design's coverage is observed on ``design_samples`` independent (Monte Carlo)
+    members: its one-sided Clopper-Pearson lower bound at ``confidence`` (:func:`failure_bound`)
+    must not exceed ``limit``. The limit's coverage, a fraction of a Latin hypercube's
+    members, is taken as it is: it carries no tail bound (:func:`hoeffding_halfwidth`), so
+    no sampling error of its own is added (a design that covers more than its limit only
+    within the limit's unquantified sampling error is reported inconsistent).
 
     Parameters
     ----------
     design : float
-        The design's observed coverage (independent draws).
+        The design's observed coverage, in [0, 1].
     design_samples : int
-        Its members.
+        Its members (>= 1).
     limit : float
         The limit's observed coverage.
-    limit_samples : int
-        Its members (>= 2).
     confidence : float
-        Confidence of each half-width.
+        Confidence of the design's bound, in (0, 1).
 
     Returns
     -------
     bool
     """
-    lim_n = check_int("limit_samples", limit_samples, low=2, owner="coverage_consistent")
-    slack = hoeffding_halfwidth(design_samples, confidence) + hoeffding_halfwidth(
-        lim_n, confidence
-    ) * math.sqrt(lim_n / (lim_n - 1))
-    return float(design) <= float(limit) + slack
+    n = check_int("design_samples", design_samples, low=1, owner="coverage_consistent")
+    frac = check_scalar("coverage_consistent: design", design, Spec(low=0.0, high=1.0))
+    failures = int(round((1.0 - frac) * n))
+    lower = 1.0 - failure_bound(n, failures, confidence)
+    return lower <= float(limit)
