@@ -17,7 +17,7 @@ import pytest
 import designs.limit as limit
 from designs.evaluate import output_ratio
 from designs.spec import Specification, check_specification
-from robust.analysis.bounds import bound_ratio, crossing_frequencies
+from robust.analysis.bounds import bound_ratio, crossing_frequencies, siso_response
 from robust.analysis.loops import loop_poles
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.youla import (
@@ -188,3 +188,25 @@ def test_bound_ratio_against_hand_derived_crossings():
     bm = np.maximum(0.1, np.abs(ct.frequency_response(B2, w).complex.ravel()))
     r3 = bound_ratio(G, [B, B2])
     assert np.max(gm / bm) <= r3.value * (1 + 1e-9) <= np.max(gm / bm) * (1 + 1e-6)
+
+
+def test_responses_in_modal_and_schur_form_against_direct_solves():
+    """siso_response's two routes (modal sums for well-conditioned eigenvectors, complex Schur
+    back substitution for a defective double pole) against numpy solves per frequency."""
+    from robust.analysis.bounds import _Response, _siso
+
+    rng = np.random.default_rng(11)
+    good = ct.ss(ct.tf([1.0, 3.0, 40.0], [1.0, 0.4, 30.0, 2.0]))
+    # critically damped notch: a double pole (Jordan block), eigenvectors nearly parallel
+    bad = ct.ss(ct.tf([1.0, 2.0, 100.0], [1.0, 40.0, 400.0])) * ct.ss(
+        ct.tf([rng.uniform(1, 2)], [1.0, 3.0])
+    )
+    w = np.geomspace(1e-2, 1e4, 500)
+    for sys, modal in ((good, True), (bad, False)):
+        A, B, C, D = _siso("sys", sys)
+        r = _Response((A, B, C, D))
+        assert r.modal == modal
+        ref = np.array(
+            [(C @ np.linalg.solve(1j * x * np.eye(A.shape[0]) - A, B))[0, 0] + D[0, 0] for x in w]
+        )
+        np.testing.assert_allclose(siso_response(sys, w), ref, rtol=1e-9)

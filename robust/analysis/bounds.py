@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numba
 import numpy as np
 import scipy.linalg as sla
 
@@ -68,31 +69,81 @@ def _siso(name, sys):
     return A, B, C, np.array(D, float).reshape(1, 1)
 
 
+#: Largest condition number of ``A``'s eigenvector matrix for which responses are evaluated
+#: in modal form (relative error about this times the rounding unit, 2e-10, far below any
+#: tolerance of the checks); above it, the complex Schur form.
+MODAL_COND = 1e6
+
+
 class _Response:
-    """``C (j w I - A)^-1 B + D`` of one SISO system at any frequencies, through the complex
-    Schur form of ``A`` (made once; back substitution over a vector of frequencies)."""
+    """``C (j w I - A)^-1 B + D`` of one SISO system at any frequencies.
+
+    In modal form, ``sum_i c_i b_i / (j w - lambda_i)``, when ``A``'s eigenvectors are well
+    conditioned (:data:`MODAL_COND`): one vectorised expression for every frequency.
+    Otherwise through the complex Schur form of ``A`` (made once; back substitution over a
+    vector of frequencies), which needs no eigenvector basis.
+    """
 
     def __init__(self, abcd):
         A, B, C, D = abcd
         self.d = complex(D[0, 0])
         self.n = A.shape[0]
-        if self.n:
-            T, Z = sla.schur(A.astype(complex), output="complex")
-            self.T, self.b, self.c = T, Z.conj().T @ B[:, 0], C[0] @ Z
-            self.poles = np.diag(T).copy()
-        else:
+        self.modal = False
+        if not self.n:
             self.poles = np.zeros(0, complex)
+            return
+        lam, V = np.linalg.eig(A)
+        if np.all(np.isfinite(lam)) and np.linalg.cond(V) < MODAL_COND:
+            self.modal = True
+            self.poles = lam
+            self.r = np.ascontiguousarray((C[0] @ V) * np.linalg.solve(V, B[:, 0]))
+            return
+        T, Z = sla.schur(A.astype(complex), output="complex")
+        self.T = np.ascontiguousarray(T)
+        self.b = np.ascontiguousarray(Z.conj().T @ B[:, 0])
+        self.c = np.ascontiguousarray(C[0] @ Z + 0j)
+        self.poles = np.diag(T).copy()
 
     def __call__(self, w) -> np.ndarray:
         s = 1j * np.asarray(w, float).reshape(-1)
         out = np.full(s.shape, self.d)
         if not self.n:
             return out
-        X = np.zeros((self.n, s.size), complex)
-        T = self.T
-        for k in range(self.n - 1, -1, -1):
-            X[k] = (self.b[k] + T[k, k + 1 :] @ X[k + 1 :]) / (s - T[k, k])
-        return out + self.c @ X
+        if self.modal:
+            return _modal_sum(self.r, self.poles, self.d, s)
+        return _back_substitution(self.T, self.b, self.c, self.d, s)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _modal_sum(r, poles, d, s):  # pragma: no cover - compiled
+    """``d + sum_i r_i / (s_j - poles_i)`` for every ``s_j`` (sums in the order of ``i``)."""
+    out = np.empty(s.size, np.complex128)
+    for j in range(s.size):
+        acc = d
+        for i in range(r.size):
+            acc += r[i] / (s[j] - poles[i])
+        out[j] = acc
+    return out
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _back_substitution(T, b, c, d, s):  # pragma: no cover - compiled
+    """``d + c (s_j I - T)^-1 b`` for upper triangular ``T``, for every ``s_j`` (back
+    substitution, sums in a fixed order: no BLAS, so no thread pool on small systems)."""
+    n = b.size
+    out = np.empty(s.size, np.complex128)
+    x = np.empty(n, np.complex128)
+    for j in range(s.size):
+        sj = s[j]
+        acc = d
+        for k in range(n - 1, -1, -1):
+            v = b[k]
+            for m in range(k + 1, n):
+                v += T[k, m] * x[m]
+            x[k] = v / (sj - T[k, k])
+            acc += c[k] * x[k]
+        out[j] = acc
+    return out
 
 
 def siso_response(sys, omega) -> np.ndarray:
@@ -242,6 +293,20 @@ def _refine(ratio, a, b, w0=None, *, points: int = 25, stages: int = 3):
         a, b = x[max(i - 1, 0)], x[min(i + 1, points - 1)]
         if not b > a:
             break
+    if 0 < i < points - 1 and a > 0:
+        # the vertex of the parabola through the best point and its neighbours (in log w):
+        # a smooth peak's maximum to the cube of the last stage's spacing
+        u = np.log(x[i - 1 : i + 2])
+        f = r[i - 1 : i + 2]
+        den = (u[1] - u[0]) * (f[1] - f[2]) - (u[1] - u[2]) * (f[1] - f[0])
+        if den != 0.0:
+            num = (u[1] - u[0]) ** 2 * (f[1] - f[2]) - (u[1] - u[2]) ** 2 * (f[1] - f[0])
+            v = u[1] - 0.5 * num / den
+            if u[0] < v < u[2]:
+                xv = float(np.exp(v))
+                rv = float(ratio([xv])[0])
+                if rv > best:
+                    best, wbest = rv, xv
     return best, wbest
 
 
