@@ -14,8 +14,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
-import numpy as np
-
 from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck, Specification
 from robust.analysis.sampled import SampledDataCheck
@@ -82,8 +80,7 @@ class SaturatedRun:
         linear_stable : bool
             Whether the member's linear 1 kHz loop is stable.
         """
-        empty = np.zeros(0)
-        return cls(dataclasses.replace(check, t=empty, y=empty, force=empty), bool(linear_stable))
+        return cls(check.without_histories(), bool(linear_stable))
 
     def to_json(self) -> dict:
         """The check's JSON and ``linear_stable``."""
