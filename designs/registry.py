@@ -135,7 +135,8 @@ def _saturation_checks(family, worst: dict, margin, K, Kd, limits, seed: int) ->
 
     The nominal member, the worst sampled member and the margin search's critical member
     (where it is a member of the family), each driven by the seeded realistic intended
-    motion for 20 s, then left to settle, with the handle force clipped at the peak.
+    motion for 20 s, then left to settle, with every actuator clipped (the handle force at
+    the peak, the reference correction) and the hydraulic limits applied.
     Each entry also says whether that member's linear (unsaturated) 1 kHz loop is stable
     (``linear_stable``), so a divergence the saturation causes is told apart from a member
     the controller does not stabilise at all.
@@ -305,7 +306,7 @@ def _build_design(
         prewarp = math.sqrt(fam.struct.f1_hz * fam.struct.f2_hz)
         Kd = discretize(K, lim.sample_time_s, prewarp_hz=prewarp)
         checks = dataclasses.replace(checks, sampled_data=_sampled_checks(fam, ev.worst, K, Kd))
-        if "f" in K.output_labels:
+        if {"f", "r_corr"} & set(K.output_labels):
             checks = dataclasses.replace(
                 checks,
                 saturation=_saturation_checks(fam, ev.worst, checks.margin, K, Kd, lim, seed),

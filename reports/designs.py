@@ -533,6 +533,11 @@ def _saturation_section(page: HtmlPage, runs: dict) -> None:
                     "stable" if c.linear_stable else "unstable",
                     c.check.saturated_fraction,
                     c.check.peak_request_n,
+                    c.check.correction_clipped_fraction,
+                    c.check.valve_clipped_fraction,
+                    c.check.flow_limited_fraction,
+                    c.check.stroke_end_fraction,
+                    c.check.final_amplitude_mm,
                     c.check.decay_ratio,
                 ]
             )
@@ -542,16 +547,26 @@ def _saturation_section(page: HtmlPage, runs: dict) -> None:
             "member",
             "outcome",
             "linear 1 kHz loop",
-            "time saturated",
+            "force clipped",
             "peak force asked [N]",
+            "correction clipped",
+            "valve at full opening",
+            "flow-limited",
+            "at a stroke end",
+            "amplitude left [mm]",
             "decay ratio",
         ],
         rows,
     )
     page.p(
         "Each member driven by 20 s of the seeded realistic intended motion, then left to "
-        "settle, with the discrete (1 kHz) controller and the handle force clipped at the "
-        "device's peak; 'sustained' means the response did not die out after the motion "
+        "settle, with the discrete (1 kHz) controller, the handle force clipped at the "
+        "device's peak, the reference correction at a quarter of the stroke, and the "
+        "hydraulics the linear model leaves out (the valve command at full opening and "
+        "through the spool's dead zone, the flow limit on the cylinder's speed, the stroke "
+        "ends; robust.model.components.HydraulicLimits). The clipped and limited columns "
+        "are fractions of the samples; 'amplitude left' is the cylinder's oscillation in the "
+        "last second. 'Sustained' means the response did not die out after the motion "
         "stopped (the limit cycles the paper's hardware showed). 'Linear 1 kHz loop': the "
         "same member's loop without saturation; a member that diverges with an unstable "
         "linear loop lies outside what the controller stabilises (for the LMI designs: "
