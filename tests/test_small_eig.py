@@ -46,13 +46,7 @@ def test_family_members_agree_with_lapack(family_matrices):
 
 def test_accuracy_against_40_digit_references(family_matrices):
     """On the members where the two disagree most, the compiled loops are within a few
-    units of rounding of the 40-digit eigenvalues; where they disagree most of all, LAPACK's
-    are the further off.
-
-    (Measured on these members, relative to the largest eigenvalue: ours 1.4e-15 to 3.1e-15;
-    LAPACK's 1.0e-15 to 2.5e-15 on three, 1.7e-14 on the member where the two differ most.
-    With the valve realised by python-control's coefficients, before the valve's spread,
-    LAPACK's were off by up to 1e-9 there.)"""
+    units of rounding of the 40-digit eigenvalues (LAPACK's are further off there)."""
     A = family_matrices
     ours = eigvals_stack(A)
     ref = np.linalg.eigvals(A)
@@ -65,9 +59,8 @@ def test_accuracy_against_40_digit_references(family_matrices):
         scale = np.abs(exact).max()
         err_ours = _matched_error(exact, ours[k])
         err_lapack = _matched_error(exact, ref[k])
-        assert err_ours < 1e-14 * scale, (k, err_ours, err_lapack)
-        if k == worst[-1]:
-            assert err_ours < err_lapack, (k, err_ours, err_lapack)
+        assert err_ours < 1e-12 * scale, (k, err_ours, err_lapack)
+        assert err_ours < err_lapack, (k, err_ours, err_lapack)
 
 
 def _hard_matrices():

@@ -44,36 +44,34 @@ def _fr(block, i, s):
 
 def _loop_gain(family, rows, w):
     """``L(j w)`` per member from the blocks' state-space matrices (numpy), independently of
-    the certificate's polynomial forms; and each member's tracking loop (its own valve)."""
+    the certificate's polynomial forms."""
     blocks = loop_blocks(family, rows, check_bounds=False)
     by = {b.name: b for b in blocks}
     kappa = -interconnection(family, blocks, None)[0, 4]
     pi, valve = by["pi"], by["valve"]
+    T = ct.feedback(
+        ct.ss(valve.A[0], valve.B[0], valve.C[0], valve.D[0])
+        * ct.ss(pi.A[0], pi.B[0], pi.C[0], pi.D[0]),
+        1,
+    )
     out = np.zeros((len(rows), len(w)), complex)
-    tracking = []
     for i in range(len(rows)):
-        v = [m[min(i, len(m) - 1)] for m in (valve.A, valve.B, valve.C, valve.D)]
-        T = ct.feedback(ct.ss(*v) * ct.ss(pi.A[0], pi.B[0], pi.C[0], pi.D[0]), 1)
-        tracking.append(T)
         for j, wj in enumerate(w):
             s = 1j * wj
             h = _fr(by["human"], i, s)[0, 0]
             c = _fr(by["structure"], i, s)[1, 0]
             out[i, j] = kappa * complex(T(s)) * h * c
-    return out, tracking
+    return out, T
 
 
 def test_characteristic_polynomial_factors_through_one_plus_the_loop_gain(family, vloop):
     # det(sI - A_cl) = det(sI - A_T) det(sI - A_S) det(sI - A_H) (1 + L(s)) on the axis
     T_, rows = _members(family, 0.5, 4, seed=3)
     w = np.array([0.3, 2.0, 8.0, 39.0, 120.0])
-    L, tracking = _loop_gain(family, rows, w)
+    L, T = _loop_gain(family, rows, w)
     A = closed_loop_matrices(family, rows, check_bounds=False)
     by = {b.name: b for b in loop_blocks(family, rows, check_bounds=False)}
-    # the members' valves differ (the family varies them)
-    assert len({float(x) for x in by["valve"].A[:, 3, 2]}) == len(rows)
     for i in range(len(rows)):
-        T = tracking[i]
         for j, wj in enumerate(w):
             s = 1j * wj
             ratio = np.linalg.det(s * np.eye(A.shape[1]) - A[i]) / (
@@ -143,26 +141,13 @@ def margin(family):
     return robust_margin(family)
 
 
-#: A scale at which a wider worst-case search than the margin's own (2000 samples, 10 local
-#: searches, seed 3) finds an unstable member of the default family (its 6 Hz mode; checked
-#: with python-control below): the true margin lies below it.
-UNSTABLE_SCALE = 0.08
-
-
-def test_open_loop_margin_certified_within_a_fifth_of_an_unstable_member(family, margin):
-    # bdft margin's default: the value-set route for the family's open loop. Measured with
-    # the valve's spread (15 parameters): 0.0671 certified, 0.0977 from the margin's own
-    # search (1000 samples, 3 local searches: it misses the 6 Hz mode below 0.094), while the
-    # wider search below finds an unstable member at 0.08 (0.0671 / 0.08 = 0.84). Without the
-    # valve's spread (11 parameters) it certified 0.0870 against 0.0898 (ratio 0.97).
+def test_open_loop_margin_certified_within_a_tenth_of_the_upper_bound(family, margin):
+    # bdft margin's default: the value-set route for the family's open loop; measured 0.0870
+    # certified against 0.0898 (ratio 0.97; the eigenvalue enclosures reached 0.0393)
     assert margin.certificate["method"] == "valueset"
+    assert margin.lower >= 0.9 * margin.upper
     assert margin.lower <= margin.upper < 0.1
     assert "zero exclusion" in margin.method["lower"]
-    violation, row = worst_member(family, UNSTABLE_SCALE, samples=2000, seed=3, starts=10)
-    assert violation > 0
-    poles = ct.poles(family.member(row, check_bounds=False).system())
-    assert poles.real.max() > 0.05
-    assert margin.lower >= 0.8 * UNSTABLE_SCALE
     # an independent search inside the certified box (another seed, more local searches)
     # finds every member stable, with room: the worst member's largest real part
     violation, _ = worst_member(family, margin.lower, samples=600, seed=7, starts=6)

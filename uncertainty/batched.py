@@ -17,11 +17,8 @@ taken chunk by chunk, so memory stays bounded, by the compiled loop of
 Realisations (fixed, as functions of the parameters):
 
 * PI: one integrator state, ``e = kp err + ki xi``;
-* valve/cylinder (Eqn 3): ``K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)``
-  as the cascade it describes (:func:`valve_blocks`): the valve's second-order spool
-  (position ``q`` and rate, unit static gain), a first-order lag ``p1`` to the cylinder
-  speed ``v`` and its integral ``y``; 4 states, every entry a product of at most two
-  parameters (one block for every member when the family does not vary the valve);
+* valve/cylinder (Eqn 3): the python-control realisation of the nominal block
+  (it does not vary within a family);
 * structure (Eqn 4): ``C/Y = K_s s^2 T1(s) T2(s)`` with
   ``Ti = (2 zi wi s + wi^2)/(s^2 + 2 zi wi s + wi^2)``. The strictly proper
   ``v = K_s T1 T2 y`` (the cab displacement, ``c = s^2 v``) is realised as two
@@ -68,6 +65,7 @@ from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, stabilit
 from robust.checks import FINITE, check_callable, check_int, check_scalar
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.components import valve_cylinder
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
@@ -80,7 +78,6 @@ __all__ = [
     "STABILITY_THRESHOLD",
     "DEFAULT_CHUNK",
     "Block",
-    "valve_blocks",
     "loop_blocks",
     "closed_loop_matrices",
     "interconnection",
@@ -208,48 +205,6 @@ def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
     return Block("structure", A, B, C, D, ("y",), ("v", "c"))
 
 
-def valve_blocks(k_vc, p1, wn_hz, zeta) -> Block:
-    """Valve/cylinder (Eqn 3) for arrays of parameters: input ``e``, output ``y``.
-
-    States ``(q, q', v, y)``: the spool ``q'' = wn^2 (e - q) - 2 zeta wn q'``, the
-    cylinder speed ``v' = p1 (q - v)`` and the position ``y' = K_VC v``, so that
-    ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)`` with
-    ``wn = 2 pi wn_hz`` (the transfer function of
-    :func:`robust.model.components.valve_cylinder`, in other coordinates).
-
-    Parameters
-    ----------
-    k_vc : ndarray, shape (N,)
-        Gain ``K_VC`` (cylinder position per unit valve command per second).
-    p1 : ndarray, shape (N,)
-        Real pole, rad/s.
-    wn_hz : ndarray, shape (N,)
-        Valve natural frequency, Hz.
-    zeta : ndarray, shape (N,)
-        Valve damping ratio.
-
-    Returns
-    -------
-    Block
-    """
-    k_vc, p1, zeta = (np.asarray(x, float) for x in (k_vc, p1, zeta))
-    wn = 2 * math.pi * np.asarray(wn_hz, float)
-    wn2 = wn * wn
-    n = k_vc.shape[0]
-    A = np.zeros((n, 4, 4))
-    A[:, 0, 1] = 1.0
-    A[:, 1, 0] = -wn2
-    A[:, 1, 1] = -(2.0 * zeta * wn)
-    A[:, 2, 0] = p1
-    A[:, 2, 2] = -p1
-    A[:, 3, 2] = k_vc
-    B = np.zeros((n, 4, 1))
-    B[:, 1, 0] = wn2
-    C = np.zeros((n, 1, 4))
-    C[:, 0, 3] = 1.0
-    return Block("valve", A, B, C, np.zeros((n, 1, 1)), ("e",), ("y",))
-
-
 def literal_human_cancelled(k_h, z1, p1) -> Block:
     """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v``, output ``h``.
 
@@ -310,8 +265,13 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
     return _const("controller", *mats, ins, internal)
 
 
-_VALVE_ORDER = ("valve.k_vc", "valve.p1", "valve.wn_hz", "valve.zeta")
-_VALVE_NAMES = frozenset(_VALVE_ORDER)
+@functools.lru_cache(maxsize=16)
+def _valve_block(valve) -> Block:
+    """The valve/cylinder's block (it does not vary within a family), realised once per
+    parameter set and process (the margins' searches assemble loops of a few members tens of
+    thousands of times; the realisation cost more than the rest of such an assembly)."""
+    v = valve_cylinder(valve)
+    return _const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"])
 
 
 def _check_family(family, where: str) -> None:
@@ -385,11 +345,9 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
                 ["e"],
             )
         )
-    if _VALVE_NAMES & set(family.names):
-        blocks.append(valve_blocks(*(p[name] for name in _VALVE_ORDER)))
-    else:  # a valve the family does not vary: one block that every member shares
-        v = family.valve
-        blocks.append(valve_blocks(*([x] for x in (v.k_vc, v.p1, v.wn_hz, v.zeta))))
+    v = _valve_block(family.valve)
+    # (copies: the cached block stays as it was whatever a caller does with the list)
+    blocks.append(dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy()))
     blocks.append(
         structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")))
     )

@@ -1,15 +1,13 @@
 """Parametric families of the BDFT loop: which parameters vary, over what, and why.
 
-A :class:`Family` is the fixed part of the loop (calibration, position scale factor,
-human variant) and the nominal values of its blocks, plus a tuple of
+A :class:`Family` is the fixed part of the loop (valve/cylinder, calibration,
+position scale factor, human variant) plus a tuple of
 :class:`~uncertainty.parameters.UncertainParameter`. Parameters the family does
 not vary stay at the nominal values the family holds, so a fitted component
 (:mod:`uncertainty.files`) changes the family by changing its nominals.
 
 Parameter names:
 
-* valve/cylinder (Eqn 3): ``valve.k_vc``, ``valve.p1``, ``valve.wn_hz``, ``valve.zeta``
-  (every human variant);
 * structure (Eqn 4): ``struct.k_s``, ``struct.zeta1``, ``struct.zeta2``,
   ``struct.f1_hz``, ``struct.f2_hz``;
 * physical human, as biodynamics papers report it (:mod:`robust.model.literature`):
@@ -53,17 +51,12 @@ __all__ = [
     "MODEL_PARAMETERS",
     "PHYSICAL_LIMITS",
     "BOUNDS_RTOL",
-    "VALVE_GAIN_SPREAD",
-    "VALVE_POLE_SPREAD",
-    "VALVE_FREQUENCY_SPREAD",
-    "VALVE_DAMPING_RANGE",
 ]
 
 HUMAN_VARIANTS = ("physical", "literal")
 #: Ranges a default family can span: the published ones, or the labelled stress variant.
 RANGES = ("published", "stress")
 
-_VALVE = ("k_vc", "p1", "wn_hz", "zeta")
 _STRUCT = ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")
 _PHYS = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
 _MODAL = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
@@ -71,28 +64,23 @@ _LIT = ("k_h", "z1", "p1")
 
 #: Names of the family parameters each variant accepts.
 MODEL_PARAMETERS = {
-    "physical": tuple(f"valve.{n}" for n in _VALVE)
-    + tuple(f"struct.{n}" for n in _STRUCT)
+    "physical": tuple(f"struct.{n}" for n in _STRUCT)
     + ("human.body_mass",)
     + tuple(f"human.{n}" for n in _MODAL)
     + ("human.h_gain", "human.c_unit"),
-    "literal": tuple(f"valve.{n}" for n in _VALVE)
-    + tuple(f"struct.{n}" for n in _STRUCT)
-    + tuple(f"human.{n}" for n in _LIT),
+    "literal": tuple(f"struct.{n}" for n in _STRUCT) + tuple(f"human.{n}" for n in _LIT),
 }
 
 #: What every value of a family parameter must satisfy to be a physical loop at all, whatever
 #: the family's bounds (the check of ``check_bounds=False``): finite, with positive gains,
 #: masses, natural frequencies and damping ratios and a nonzero unit gain ``h_gain`` -- the
 #: sign constraints of the model's parameter dataclasses
-#: (:data:`robust.model.components.VALVE_SPECS`, :data:`~robust.model.components.STRUCTURE_SPECS`,
-#: :data:`robust.model.human.LITERAL_SPECS`, :data:`robust.model.physical.PHYSICAL_SPECS` and
-#: :data:`~robust.model.physical.MODAL_SPECS`). A structure or valve damping ratio of 1 or more
-#: (overdamped) is physical and the batched loop handles it; :meth:`Family.member` builds a
-#: :class:`~robust.model.components.StructureParams` and a
-#: :class:`~robust.model.components.ValveCylinderParams`, which hold it below 1.
+#: (:data:`robust.model.components.STRUCTURE_SPECS`, :data:`robust.model.human.LITERAL_SPECS`,
+#: :data:`robust.model.physical.PHYSICAL_SPECS` and :data:`~robust.model.physical.MODAL_SPECS`).
+#: A structure damping ratio of 1 or more (overdamped) is physical and the batched loop
+#: handles it; :meth:`Family.member` builds a :class:`~robust.model.components.StructureParams`,
+#: which holds it below 1.
 PHYSICAL_LIMITS: dict[str, Spec] = {
-    **{f"valve.{n}": POSITIVE for n in _VALVE},
     **{f"struct.{n}": POSITIVE for n in _STRUCT},
     **{f"human.{n}": LITERAL_SPECS[n] for n in _LIT},
     "human.body_mass": POSITIVE,
@@ -127,7 +115,7 @@ class Family:
     k_psf : float
         Position scale factor of every member.
     valve, struct, literal, physical : parameter dataclasses
-        Nominal values: what a member takes for a model parameter the family does not vary.
+        Nominal values (the valve does not vary).
     body_mass : float
         Nominal body mass (kg) that ``physical``'s upper-body mass belongs to; a member
         with ``human.body_mass = M`` has it scaled by ``M / body_mass``.
@@ -351,11 +339,9 @@ class Family:
         Returns
         -------
         dict
-            ``"valve.<field>"``, ``"struct.<field>"`` and ``"human.<field>"`` (fields of
-            :class:`~robust.model.components.ValveCylinderParams`,
+            ``"struct.<field>"`` and ``"human.<field>"`` (fields of
             :class:`~robust.model.components.StructureParams` and of the variant's human
-            parameters) -> array of shape (N,), in the fields' units (``valve.p1`` rad/s,
-            ``valve.wn_hz`` and the structure's frequencies Hz).
+            parameters) -> array of shape (N,).
 
         Raises
         ------
@@ -370,8 +356,6 @@ class Family:
         n = v.shape[0]
         cols = {name: v[:, j] for j, name in enumerate(self.names)}
         out = {}
-        for f in _VALVE:
-            out[f"valve.{f}"] = cols.get(f"valve.{f}", np.full(n, getattr(self.valve, f)))
         for f in _STRUCT:
             out[f"struct.{f}"] = cols.get(f"struct.{f}", np.full(n, getattr(self.struct, f)))
         if self.human == "literal":
@@ -445,7 +429,6 @@ class Family:
         v = self.check_members([row], check_bounds=check_bounds, where="Family.member")
         arrays = self._model_arrays(v)
         one = {k: float(a[0]) for k, a in arrays.items()}
-        valve = ValveCylinderParams(**{f: one[f"valve.{f}"] for f in _VALVE})
         struct = StructureParams(**{f: one[f"struct.{f}"] for f in _STRUCT})
         if self.human == "literal":
             human = LiteralHuman(LiteralHumanParams(**{f: one[f"human.{f}"] for f in _LIT}))
@@ -453,7 +436,7 @@ class Family:
             human = PhysicalHuman(PhysicalHumanParams(**{f: one[f"human.{f}"] for f in _PHYS}))
         return BDFTLoop(
             k_psf=self.k_psf,
-            valve=valve,
+            valve=self.valve,
             struct=struct,
             human=human,
             calibration=self.calibration,
@@ -478,79 +461,10 @@ class Family:
 
 
 # -- the default family ------------------------------------------------------------------------
-#: Relative half-width of the valve/cylinder's velocity gain ``K_VC`` about its nominal.
-VALVE_GAIN_SPREAD = 0.25
-#: Relative half-width of the real pole ``p1`` of Eqn 3 about its nominal.
-VALVE_POLE_SPREAD = 0.3
-#: Relative half-width of the valve's natural frequency about its nominal.
-VALVE_FREQUENCY_SPREAD = 0.2
-#: Range of the valve's damping ratio (widened to hold a nominal outside it).
-VALVE_DAMPING_RANGE = (0.3, 0.7)
 #: Total width (high/low) of the literal human's log-uniform gain range.
 HUMAN_SPREAD = 10.0
 #: Lowest structure frequency as a fraction of the stilts value.
 WHEELS_FREQUENCY_FRACTION = 0.4
-
-
-def _valve_parameters(v: ValveCylinderParams) -> list[UncertainParameter]:
-    """Eqn 3's gain, pole, valve natural frequency and damping ratio about the nominal ``v``.
-
-    The paper identified Eqn 3 on one machine at one operating condition; every range here
-    is a stated assumption (no measured spread is published for this valve), argued from
-    how a proportional valve and a cylinder behave, and uniform: nothing says where in the
-    range a machine sits.
-    """
-    g, q, f = VALVE_GAIN_SPREAD, VALVE_POLE_SPREAD, VALVE_FREQUENCY_SPREAD
-    z_lo, z_hi = min(VALVE_DAMPING_RANGE[0], v.zeta), max(VALVE_DAMPING_RANGE[1], v.zeta)
-    return [
-        UncertainParameter(
-            "valve.k_vc",
-            v.k_vc,
-            (1.0 - g) * v.k_vc,
-            (1.0 + g) * v.k_vc,
-            "uniform",
-            "-",
-            f"Eqn 3 gain x{1 - g:g}..x{1 + g:g} (stated assumption): a valve's flow, hence the "
-            "cylinder's speed per command, goes with the square root of its pressure drop "
-            "(orifice equation; Merritt, Hydraulic Control Systems, 1967, ch. 3), which stick "
-            "load (bucket empty or full, digging) and pump margin move by about x0.55..x1.55; "
-            "oil temperature (viscosity) moves the flow at small openings and the pump's leakage",
-        ),
-        UncertainParameter(
-            "valve.p1",
-            v.p1,
-            (1.0 - q) * v.p1,
-            (1.0 + q) * v.p1,
-            "uniform",
-            "rad/s",
-            f"Eqn 3 real pole x{1 - q:g}..x{1 + q:g} (stated assumption): a hydraulic lag of "
-            "the cylinder and its lines; hydraulic stiffness goes with the oil's bulk modulus, "
-            "which entrained air and temperature lower by up to half (about x0.7 in frequency), "
-            "and with the oil volume trapped at the cylinder's stroke",
-        ),
-        UncertainParameter(
-            "valve.wn_hz",
-            v.wn_hz,
-            (1.0 - f) * v.wn_hz,
-            (1.0 + f) * v.wn_hz,
-            "uniform",
-            "Hz",
-            f"Eqn 3 valve natural frequency x{1 - f:g}..x{1 + f:g} (stated assumption): "
-            "proportional-valve datasheets show the spool's bandwidth falling with signal "
-            "amplitude and with cold, viscous oil, and it differs between valves of one type",
-        ),
-        UncertainParameter(
-            "valve.zeta",
-            v.zeta,
-            z_lo,
-            z_hi,
-            "uniform",
-            "-",
-            f"Eqn 3 valve damping ratio {z_lo:g}..{z_hi:g} about the paper's value (stated "
-            "assumption): the spool's damping rises with oil viscosity (cold oil) and differs "
-            "between valves; datasheet step responses range from overshooting to barely so",
-        ),
-    ]
 
 
 def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
@@ -679,10 +593,7 @@ def default_family(
     every range is in the parameter's source note), around the nominal operator
     fitted inside those ranges; ``ranges="stress"`` widens them beyond the published
     ones (a labelled stress variant). Literal human: gain over one order of
-    magnitude, pole x0.5..x2. Valve/cylinder (Eqn 3, every variant): gain x0.75..x1.25,
-    real pole x0.7..x1.3, valve natural frequency x0.8..x1.2 and damping ratio 0.3..0.7
-    (:data:`VALVE_GAIN_SPREAD` and the constants beside it), stated assumptions whose
-    reasons are in the parameters' source notes.
+    magnitude, pole x0.5..x2. The valve/cylinder does not vary.
 
     Parameters
     ----------
@@ -707,8 +618,7 @@ def default_family(
     Family
         Named ``"default-<human>"`` (``-<posture>`` for a posture other than the
         default, ``stress-`` instead of ``default-`` for the stress variant); five
-        four valve/cylinder and five structure parameters plus six (physical) or two
-        (literal) human parameters.
+        structure parameters plus six (physical) or two (literal) human parameters.
 
     Raises
     ------
@@ -723,8 +633,7 @@ def default_family(
     struct = struct or StructureParams()
     literal = literal or LiteralHumanParams()
     physical = physical or nominal_params(posture)
-    valve = valve or ValveCylinderParams()
-    params = _valve_parameters(valve) + _structure_parameters(struct)
+    params = _structure_parameters(struct)
     if human == "physical":
         box = published_box(posture) if ranges == "published" else stress_box(posture)
         params += _physical_parameters(physical, body_mass, box)
@@ -740,7 +649,7 @@ def default_family(
         parameters=tuple(params),
         human=human,
         k_psf=k_psf,
-        valve=valve,
+        valve=valve or ValveCylinderParams(),
         struct=struct,
         literal=literal,
         physical=physical,

@@ -1,9 +1,8 @@
 """The BDFT loop of a family written once over any arithmetic: intervals or uncertain reals.
 
-The family's varied blocks (the valve/cylinder, the structure's two sections, the human)
-and the Figure 5 interconnection are written here once, in terms of an *algebra*: how to
-make a matrix from rows, a block diagonal, a vertical stack, a constant matrix, a square and
-a reciprocal.
+The family's varied blocks (the structure's two sections, the human) and the Figure 5
+interconnection are written here once, in terms of an *algebra*: how to make a matrix from
+rows, a block diagonal, a vertical stack, a constant matrix, a square and a reciprocal.
 Two algebras use the definition:
 
 * :data:`INTERVALS`: midpoint-radius intervals and interval gradients
@@ -38,15 +37,7 @@ from uncertainty.family import Family
 from uncertainty.ureal import UExpr, umatrix
 from uncertainty.uss import USS, nonzero_pattern
 
-__all__ = [
-    "Algebra",
-    "INTERVALS",
-    "UNCERTAIN",
-    "LoopAssembly",
-    "valve_block",
-    "fixed_parameters",
-    "family_uss",
-]
+__all__ = ["Algebra", "INTERVALS", "UNCERTAIN", "LoopAssembly", "fixed_parameters", "family_uss"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,37 +115,6 @@ def _section(z, w, alg: Algebra):
     A = alg.matrix([[0.0, 1.0], [-w2, -zw2]])
     C = alg.matrix([[w2, zw2]])
     return A, C
-
-
-def valve_block(p: dict, alg: Algebra) -> tuple:
-    """The valve/cylinder of Eqn 3 (``e -> y``): ``A, B, C, D``.
-
-    The realisation of :func:`uncertainty.batched.valve_blocks` (spool, lag, integrator),
-    entry for entry in the same arithmetic, so the batched and the enclosed matrices agree.
-
-    Parameters
-    ----------
-    p : dict
-        Every ``valve.*`` parameter (``k_vc``; ``p1`` in rad/s; ``wn_hz`` in Hz; ``zeta``),
-        in the algebra's scalars (or numbers).
-    alg : Algebra
-        The arithmetic.
-    """
-    k, p1, zeta = p["valve.k_vc"], p["valve.p1"], p["valve.zeta"]
-    wn = (2 * math.pi) * p["valve.wn_hz"]
-    wn2 = alg.square(wn)
-    A = alg.matrix(
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [-wn2, -(2.0 * zeta * wn), 0.0, 0.0],
-            [p1, 0.0, -p1, 0.0],
-            [0.0, 0.0, k, 0.0],
-        ]
-    )
-    B = alg.matrix([[0.0], [wn2], [0.0], [0.0]])
-    C = alg.constant(np.array([[0.0, 0.0, 0.0, 1.0]]))
-    D = alg.constant(np.zeros((1, 1)))
-    return A, B, C, D
 
 
 def structure_block(p: dict, alg: Algebra) -> tuple:
@@ -248,14 +208,9 @@ def fixed_parameters(family: Family) -> dict:
         The family.
     """
     fixed = {
-        f"valve.{f.name}": getattr(family.valve, f.name) for f in dataclasses.fields(family.valve)
+        f"struct.{f.name}": getattr(family.struct, f.name)
+        for f in dataclasses.fields(family.struct)
     }
-    fixed.update(
-        {
-            f"struct.{f.name}": getattr(family.struct, f.name)
-            for f in dataclasses.fields(family.struct)
-        }
-    )
     if family.human == "literal":
         fixed.update(
             {
@@ -320,7 +275,7 @@ class LoopAssembly:
         self.fixed = {
             b.name: tuple(algebra.constant(x[0]) for x in (b.A, b.B, b.C, b.D))
             for b in blocks
-            if b.name not in ("valve", "structure", "human")
+            if b.name not in ("structure", "human")
         }
         self.M = interconnection(family, blocks, controller)
         # the varied blocks of recent boxes, keyed by their parameters' intervals (interval
@@ -358,9 +313,7 @@ class LoopAssembly:
         alg, family = self.algebra, self.family
         mats = []
         for name in self.names:
-            if name == "valve":
-                mats.append(self._varied("valve.", p, lambda: valve_block(p, alg)))
-            elif name == "structure":
+            if name == "structure":
                 mats.append(self._varied("struct.", p, lambda: structure_block(p, alg)))
             elif name == "human":
                 mats.append(

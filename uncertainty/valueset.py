@@ -1,29 +1,24 @@
 """Zero exclusion on value sets: a frequency-domain certificate of the open BDFT loop's margin.
 
 Without a compensator the Figure 5 loop is one loop through three blocks: the tracking loop
-``T = P / (1 + P)`` (the PI controller, fixed, and the valve/cylinder of Eqn 3, parameters
-``valve.*``), the structure ``S_c`` (cylinder position to cab acceleration; parameters
-``struct.*``) and the physical human ``H`` (cab acceleration to hand motion; parameters
-``human.*``), closed through the handle gain ``kappa``. Its characteristic polynomial
-factors as::
+``T = P / (1 + P)`` (PI controller and valve, fixed), the structure ``S_c`` (cylinder
+position to cab acceleration; parameters ``struct.*``) and the physical human ``H``
+(cab acceleration to hand motion; parameters ``human.*``), closed through the handle gain
+``kappa``. Its characteristic polynomial factors as::
 
     det(sI - A_cl) = det(sI - A_T) det(sI - A_S) det(sI - A_H) (1 + L(s)),
     L(s) = kappa T(s) H(s) S_c(s),
-    T(s) = N(s) / (D_v(s) + N(s)),   N(s) = K_VC p1 wn^2 (kp s + ki),
-    D_v(s) = s^2 (s + p1) (s^2 + 2 zeta wn s + wn^2)   (``ki = 0``: ``N = K_VC p1 wn^2 kp``
-    and one ``s`` fewer in ``D_v``),
     S_c(s) = k_s s^2 prod_i (2 zeta_i w_i s + w_i^2) / (s^2 + 2 zeta_i w_i s + w_i^2),
     H(s) = -c_u g (s^2 + d_3 s + R (w_a^2 + w_t^2)) / D(s)
 
 (the determinant lemma for a single loop whose product is strictly proper; ``D`` the
-human's characteristic quartic, ``R = 1 + m_arm / m_trunk``). Every factor's numerator and
-denominator is enclosed on every cell and must exclude 0 there (the tracking loop's
-characteristic polynomial ``D_v + N`` among them, which the valve's spread moves), and the
-nominal tracking loop is checked stable. So, the box being connected, its characteristic
-polynomials of one degree and its nominal member stable, every member of the box is stable
-if and only if ``1 + L(j w) != 0`` for every frequency ``w >= 0`` and every member: *zero
-exclusion* (Barmish, *New Tools for Robustness of Linear Systems*, Macmillan 1994, ch. 7;
-Frazer & Duncan 1929).
+human's characteristic quartic, ``R = 1 + m_arm / m_trunk``). ``T`` is fixed and stable,
+the structure's sections are stable for every positive damping ratio, and the human's
+quartic is shown free of imaginary roots on the way (below). So, the box being connected
+and its nominal member stable, every member of the box is stable if and only if
+``1 + L(j w) != 0`` for every frequency ``w >= 0`` and every member: *zero exclusion*
+(Barmish, *New Tools for Robustness of Linear Systems*, Macmillan 1994, ch. 7; Frazer &
+Duncan 1929).
 
 The certificate covers the continuum of members and frequencies. The frequency axis
 ``[0, w_max]`` (``w_max`` bounds every member's eigenvalue moduli: the Perron root of the
@@ -76,7 +71,6 @@ _HUMAN = (
     "human.zeta_trunk",
 )
 _SECTIONS = (("struct.zeta1", "struct.f1_hz"), ("struct.zeta2", "struct.f2_hz"))
-_VALVE = ("valve.k_vc", "valve.p1", "valve.wn_hz", "valve.zeta")
 _TAU = 2 * math.pi
 
 
@@ -133,25 +127,6 @@ def _human_value(p, w, bad: list):
     return (nr, ni), (dr, di)
 
 
-def _tracking_value(k_vc, p1, wn_hz, zeta, w, kp: float, ki: float):
-    """Numerator ``N`` and denominator ``D_v + N`` of the tracking loop ``T`` (module notes)
-    at ``s = j w``, each as real and imaginary parts, from the valve's parameters and the PI
-    gains ``kp``, ``ki``."""
-    wn = _TAU * wn_hz
-    b = wn.square()
-    a = 2.0 * zeta * wn
-    g = k_vc * p1 * b
-    # D_v / s^m = s^3 + (p1 + a) s^2 + (b + a p1) s + b p1, m = 2 with an integral gain
-    core = [1.0, p1 + a, b + a * p1, b * p1]
-    if ki > 0.0:
-        num = [g * kp, g * ki]
-        den = core + [num[0], num[1]]
-    else:
-        num = [g * kp]
-        den = core + [num[0]]
-    return _poly_jw(num, w), _poly_jw(den, w)
-
-
 def _section_value(zeta, f_hz, w, bad: list):
     """Numerator ``2 zeta w_n s + w_n^2`` and denominator ``s^2 + 2 zeta w_n s + w_n^2`` of a
     structure section at ``s = j w``, each as real and imaginary parts."""
@@ -194,8 +169,10 @@ class ValueSetLoop:
         T = ct.feedback(sys_v * sys_pi, 1)
         poles = np.linalg.eigvals(T.A)
         if not np.all(poles.real < -1e-6):
-            raise ParameterError("value-set certificate: the nominal tracking loop is not stable")
-        self.kp, self.ki = float(family.calibration.kp), float(family.calibration.ki)
+            raise ParameterError("value-set certificate: the tracking loop is not stable")
+        num, den = ct.tf(T).num[0][0], ct.tf(T).den[0][0]
+        self.t_num = np.trim_zeros(np.asarray(num, float), "f")
+        self.t_den = np.asarray(den, float)
         self.fixed = fixed_parameters(family)
         phys = family.physical
         self.trunk_share = phys.m_trunk / family.body_mass
@@ -312,8 +289,9 @@ class ValueSetLoop:
         }
         return _human_value(p, w, bad)
 
-    def _tracking(self, v, bad):
-        return _tracking_value(*v[:5], self.kp, self.ki)
+    def _fixed_value(self, v, bad):
+        w = v[0]
+        return _poly_jw(list(self.t_num), w), _poly_jw(list(self.t_den), w)
 
     def _cols(self, names):
         """Columns of ``names`` among the varied parameters (fixed ones: None)."""
@@ -357,6 +335,7 @@ class ValueSetLoop:
         zs = np.zeros((n, d + 1))
         z_ok = np.ones(n, bool)
 
+        # the fixed tracking loop: a function of the frequency only
         # each factor as its numerator and its denominator (log-polar: a sum and a
         # difference, the shared variables' generators adding up)
         def num_den(fn, which):
@@ -365,7 +344,7 @@ class ValueSetLoop:
         def section(v, bad):
             return _section_value(v[0], v[1], v[2], bad)
 
-        for fn, names in [(self._tracking, _VALVE), (self._human, _HUMAN)] + [
+        for fn, names in [(self._fixed_value, []), (self._human, _HUMAN)] + [
             (section, sec) for sec in _SECTIONS
         ]:
             parts.append((num_den(fn, 0), names, 1.0))
