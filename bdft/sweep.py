@@ -11,6 +11,7 @@ from bdft.args import check_report_dir, integer, real
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import add_family_arguments, build_family, check_family_arguments, progress_bar
 from reports.sweeps import write_sweep_report
+from robust.model.blocks import parameter_name
 from uncertainty import DEFAULT_CHUNK
 from uncertainty.sweeps import (
     frequency_damping_sweep,
@@ -108,7 +109,7 @@ def _run_sweep(args, family, progress):
             family, pair=args.pair, n_f=n, n_z=n, **common
         ), members * n * n
     n = args.points or 13
-    lo = family.parameter("struct.f1_hz").low / family.struct.f1_hz
+    lo = family.parameter(parameter_name("structure", "f1_hz")).low / family.struct.f1_hz
     return structure_frequency_sweep(family, scales=np.linspace(lo, 1.0, n), **common), members * n
 
 

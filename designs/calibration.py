@@ -91,6 +91,7 @@ from designs.spec import Specification
 from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError
+from robust.model.blocks import parameter_name
 from robust.model.modal import physical_to_modal
 from robust.model.wiring import connect
 from robust.sysid.levenberg import levenberg_marquardt
@@ -313,14 +314,14 @@ def operator_truth(family, row) -> dict:
             f"operator_truth: the calibration identifies the physical human; got {family.human!r}"
         )
     a = family.model_arrays(np.atleast_2d(np.asarray(row, float)), check_bounds=False)
-    mt, ma = a["human.m_trunk"][0], a["human.m_arm"][0]
+    mt, ma = a[parameter_name("human", "m_trunk")][0], a[parameter_name("human", "m_arm")][0]
     f_t, z_t, f_a, z_a = physical_to_modal(
         mt,
         ma,
-        a["human.k_trunk"][0],
-        a["human.c_trunk"][0],
-        a["human.k_arm"][0],
-        a["human.c_arm"][0],
+        a[parameter_name("human", "k_trunk")][0],
+        a[parameter_name("human", "c_trunk")][0],
+        a[parameter_name("human", "k_arm")][0],
+        a[parameter_name("human", "c_arm")][0],
     )
     return dict(zip(IDENTIFIED, _ordered(np.array([f_a, z_a, f_t, z_t], float)).tolist()))
 
@@ -541,16 +542,22 @@ def identified_ranges(family):
         q = p.get(name)
         return (q.low, q.high) if q is not None else (default, default)
 
-    fa, ft = rng_of("human.f_arm_hz", ph.f_arm_hz), rng_of("human.f_trunk_hz", ph.f_trunk_hz)
-    za, zt = rng_of("human.zeta_arm", ph.zeta_arm), rng_of("human.zeta_trunk", ph.zeta_trunk)
+    fa, ft = (
+        rng_of(parameter_name("human", "f_arm_hz"), ph.f_arm_hz),
+        rng_of(parameter_name("human", "f_trunk_hz"), ph.f_trunk_hz),
+    )
+    za, zt = (
+        rng_of(parameter_name("human", "zeta_arm"), ph.zeta_arm),
+        rng_of(parameter_name("human", "zeta_trunk"), ph.zeta_trunk),
+    )
     f_lo, f_hi = min(fa[0], ft[0]), max(fa[1], ft[1])
     z_lo, z_hi = min(za[0], zt[0]), max(za[1], zt[1])
     if f_hi <= f_lo:
         f_lo, f_hi = f_lo / 2, f_hi * 2
     if z_hi <= z_lo:
         z_lo, z_hi = max(z_lo / 2, 1e-3), min(z_hi * 2, 0.99)
-    bm = rng_of("human.body_mass", family.body_mass)
-    ma = rng_of("human.m_arm", ph.m_arm)
+    bm = rng_of(parameter_name("human", "body_mass"), family.body_mass)
+    ma = rng_of(parameter_name("human", "m_arm"), ph.m_arm)
     mt_lo, mt_hi = ph.m_trunk * bm[0] / family.body_mass, ph.m_trunk * bm[1] / family.body_mass
     ratio = (ma[0] / mt_hi, ma[1] / mt_lo)
     lo = np.array([f_lo, z_lo, f_lo, z_lo])
@@ -1003,10 +1010,10 @@ def _fit(resid, jacobian, starts, zlo, zhi, n_freq):
 #: The family's parameter carrying each identified quantity of the operator (the lower pair
 #: as the arm's: the pairs' labels do not change the hand's response).
 OPERATOR_NAMES = {
-    "human.f_arm_hz": "f_low_hz",
-    "human.zeta_arm": "zeta_low",
-    "human.f_trunk_hz": "f_high_hz",
-    "human.zeta_trunk": "zeta_high",
+    parameter_name("human", "f_arm_hz"): "f_low_hz",
+    parameter_name("human", "zeta_arm"): "zeta_low",
+    parameter_name("human", "f_trunk_hz"): "f_high_hz",
+    parameter_name("human", "zeta_trunk"): "zeta_high",
 }
 
 
@@ -1229,7 +1236,7 @@ def cab_truth(family, row) -> dict:
         The member's parameter values.
     """
     a = family.model_arrays(np.atleast_2d(np.asarray(row, float)), check_bounds=False)
-    v = [a[f"struct.{k}"][0] for k in ("k_s", "f1_hz", "zeta1", "f2_hz", "zeta2")]
+    v = [a[parameter_name("structure", k)][0] for k in ("k_s", "f1_hz", "zeta1", "f2_hz", "zeta2")]
     pairs = sorted([(v[1], v[2]), (v[3], v[4])])
     return dict(zip(CAB_IDENTIFIED, [float(v[0]), *pairs[0], *pairs[1]]))
 
@@ -1239,7 +1246,7 @@ def _cab_ranges(family):
     st = family.struct
 
     def rng_of(name, default):
-        q = p.get(f"struct.{name}")
+        q = p.get(parameter_name("structure", name))
         return (q.low, q.high) if q is not None else (default, default)
 
     ks = rng_of("k_s", st.k_s)

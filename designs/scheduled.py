@@ -94,6 +94,7 @@ from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.blocks import parameter_name
 from robust.model.components import realise_siso
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
@@ -240,7 +241,7 @@ def _cancellations(family, centres: np.ndarray) -> tuple:
     rows = np.array([operator_row(family, dict(zip(IDENTIFIED, c))) for c in centres])
     a = family.model_arrays(rows, check_bounds=False)
     keys = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
-    A, B, C, D = physical_human_matrices(*(a[f"human.{k}"] for k in keys))
+    A, B, C, D = physical_human_matrices(*(a[parameter_name("human", k)] for k in keys))
     cal = family.calibration
     g = -family.k_psf * cal.handle_sign * cal.loop_scale
     return tuple(
@@ -506,11 +507,11 @@ def _cab_names(cab: dict) -> dict:
     as the structure's first (where :func:`damped_cancellation` puts its damper)."""
     d, o = ("low", "high") if cab["zeta_cab_low"] <= cab["zeta_cab_high"] else ("high", "low")
     return {
-        "struct.k_s": "k_s",
-        "struct.f1_hz": f"f_cab_{d}_hz",
-        "struct.zeta1": f"zeta_cab_{d}",
-        "struct.f2_hz": f"f_cab_{o}_hz",
-        "struct.zeta2": f"zeta_cab_{o}",
+        parameter_name("structure", "k_s"): "k_s",
+        parameter_name("structure", "f1_hz"): f"f_cab_{d}_hz",
+        parameter_name("structure", "zeta1"): f"zeta_cab_{d}",
+        parameter_name("structure", "f2_hz"): f"f_cab_{o}_hz",
+        parameter_name("structure", "zeta2"): f"zeta_cab_{o}",
     }
 
 
@@ -977,7 +978,7 @@ def operator_family(family, cal: Calibrations, i: int):
 
     The identified quantities (:data:`designs.calibration.IDENTIFIED` as the arm's and the
     trunk's pairs, :data:`designs.calibration.CAB_IDENTIFIED` as the structure's, the less
-    damped cab mode as ``struct.f1_hz, struct.zeta1``, as :func:`damped_cancellation`
+    damped cab mode as the structure's first mode, as :func:`damped_cancellation`
     builds its member) range over their error bounds with the estimate as nominal; the
     masses, which the record does not tell, over the family's whole ranges.
 

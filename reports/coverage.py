@@ -18,6 +18,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import FormatStrFormatter
 
 from reports.html import HtmlPage
+from robust.model.blocks import block_of, field_of
 from robust.model.literature import published_box, stress_box
 from robust.model.physical import EQN5_FIT
 from uncertainty import Family, sample, validate_family
@@ -92,9 +93,9 @@ def family_coverage(family: Family, *, samples: int = 2000, seed: int = 0) -> Fa
         Sampling seed.
     """
     S = sample(family.parameters, samples, method="lhs", seed=seed)
-    human = [p for p in family.parameters if p.name.startswith("human.")]
-    members = {p.name[len("human.") :]: S.column(p.name) for p in human}
-    nominal = {p.name[len("human.") :]: p.nominal for p in human}
+    human = [p for p in family.parameters if block_of(p.name) == "human"]
+    members = {field_of(p.name): S.column(p.name) for p in human}
+    nominal = {field_of(p.name): p.nominal for p in human}
     provenance = [
         {
             "parameter": p.name,

@@ -113,3 +113,29 @@ def test_recalled_blocks_give_the_enclosures_of_fresh_ones_to_the_bit():
     # the recalled arrays are read-only: no later operation can change them in place
     block = next(iter(kept._recent.values()))
     assert not block[0].val.mid.flags.writeable
+
+
+def test_parameter_names_are_spelled_in_the_model_module_only():
+    # every evaluation reads a block's parameters through robust.model.blocks: no other
+    # source file spells a parameter's name in a string or a docstring's literal (attribute
+    # access such as `family.struct.k_s` or `valve.k_vc` is not a name, and is allowed)
+    import re
+    from pathlib import Path
+
+    from robust.model.blocks import BLOCK_FIELDS, parameter_name
+
+    names = sorted({parameter_name(b, f) for b, fields in BLOCK_FIELDS.items() for f in fields})
+    pattern = re.compile(r"[\"'`](" + "|".join(re.escape(n) for n in names) + r")\b")
+    root = Path(__file__).resolve().parents[1]
+    found = []
+    for package in ("robust", "uncertainty", "designs", "reports", "bdft"):
+        for path in sorted((root / package).rglob("*.py")):
+            if path.name == "blocks.py" and path.parent.name == "model":
+                continue
+            for k, line in enumerate(path.read_text().splitlines(), 1):
+                if pattern.search(line):
+                    found.append(f"{path.relative_to(root)}:{k}: {line.strip()}")
+    assert not found, "\n".join(found)
+    # and the model module does spell them
+    text = (root / "robust" / "model" / "blocks.py").read_text()
+    assert "_PREFIX" in text and all(f in text for f in BLOCK_FIELDS["valve"])

@@ -35,9 +35,9 @@ def test_family_members_agree_with_lapack(family_matrices):
     ref = np.linalg.eigvals(A)
     assert ours.shape == ref.shape == (len(A), 13)
     rel = [_matched_error(r, o) / np.abs(r).max() for r, o in zip(ref, ours)]
-    # the two differ by LAPACK's own error on these members (up to about 4e-12 of the
-    # largest eigenvalue, see the next test)
-    assert max(rel) < 1e-10
+    # the two differ by rounding on these members (3.8e-15 of the largest eigenvalue at
+    # worst, see the next test)
+    assert max(rel) < 1e-13
     # conjugate pairs adjacent, positive imaginary part first
     im = ours.imag
     pos = np.flatnonzero(im[0] > 0)
@@ -46,7 +46,9 @@ def test_family_members_agree_with_lapack(family_matrices):
 
 def test_accuracy_against_40_digit_references(family_matrices):
     """On the members where the two disagree most, the compiled loops are within a few
-    units of rounding of the 40-digit eigenvalues (LAPACK's are further off there)."""
+    units of rounding of the 40-digit eigenvalues (measured: 2.5e-15 of the largest
+    eigenvalue at worst, LAPACK 2.9e-15; the hard cases where LAPACK is further off are
+    the matrices of the next tests)."""
     A = family_matrices
     ours = eigvals_stack(A)
     ref = np.linalg.eigvals(A)
@@ -59,8 +61,7 @@ def test_accuracy_against_40_digit_references(family_matrices):
         scale = np.abs(exact).max()
         err_ours = _matched_error(exact, ours[k])
         err_lapack = _matched_error(exact, ref[k])
-        assert err_ours < 1e-12 * scale, (k, err_ours, err_lapack)
-        assert err_ours < err_lapack, (k, err_ours, err_lapack)
+        assert err_ours < 1e-14 * scale, (k, err_ours, err_lapack)
 
 
 def _hard_matrices():

@@ -17,8 +17,11 @@ taken chunk by chunk, so memory stays bounded, by the compiled loop of
 Realisations (fixed, as functions of the parameters):
 
 * PI: one integrator state, ``e = kp err + ki xi``;
-* valve/cylinder (Eqn 3): the python-control realisation of the nominal block
-  (it does not vary within a family);
+Every varied and fixed block is :mod:`robust.model.blocks`' one definition, evaluated over
+numpy batches (:data:`robust.model.blocks.NUMPY`):
+
+* valve/cylinder (Eqn 3): cascade form, spool, cylinder speed and position (it does not vary
+  within a family);
 * structure (Eqn 4): ``C/Y = K_s s^2 T1(s) T2(s)`` with
   ``Ti = (2 zi wi s + wi^2)/(s^2 + 2 zi wi s + wi^2)``. The strictly proper
   ``v = K_s T1 T2 y`` (the cab displacement, ``c = s^2 v``) is realised as two
@@ -31,7 +34,8 @@ Realisations (fixed, as functions of the parameters):
   ``s = 0`` (uncontrollable and unobservable), which
   :func:`robust.analysis.realization.minimal_realization` removes; the batched poles equal
   the poles of that minimal realisation;
-* physical human: :func:`robust.model.physical.physical_human_matrices`;
+* physical human: :func:`robust.model.physical.physical_human_matrices` (the chain's
+  masses, stiffnesses and dampings into :func:`robust.model.blocks.physical_human_block`);
 * controller: the given continuous state-space compensator, inputs among
   ``x, c, y`` and outputs among ``f, r_corr`` (the convention of
   :mod:`robust.model.loop`).
@@ -54,7 +58,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 from collections.abc import Callable
 
 import control as ct
@@ -65,7 +68,16 @@ from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, stabilit
 from robust.checks import FINITE, check_callable, check_int, check_scalar
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.components import valve_cylinder
+from robust.model.blocks import (
+    LITERAL_HUMAN_FIELDS,
+    NUMPY,
+    STRUCTURE_FIELDS,
+    VALVE_FIELDS,
+    literal_human_block,
+    parameter_name,
+    structure_block,
+    valve_block,
+)
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
@@ -155,24 +167,20 @@ def _const(name, A, B, C, D, inputs, outputs) -> Block:
     )
 
 
-def _section(z, w):
-    """Controllable canonical ``(2 z w s + w^2) / (s^2 + 2 z w s + w^2)`` for arrays of (z, w)."""
-    n = z.shape[0]
-    A = np.zeros((n, 2, 2))
-    A[:, 0, 1] = 1.0
-    A[:, 1, 0] = -w * w
-    A[:, 1, 1] = -2.0 * z * w
-    B = np.zeros((n, 2, 1))
-    B[:, 1, 0] = 1.0
-    C = np.stack([w * w, 2.0 * z * w], axis=-1)[:, None, :]
-    return A, B, C
+def _block(name: str, mats: tuple, inputs, outputs, n: int | None = None) -> Block:
+    """A :class:`Block` of matrices from :mod:`robust.model.blocks` (``NUMPY`` algebra),
+    each broadcast to the batch of ``n`` members (the batch of its varied entries when
+    ``n`` is None)."""
+    n = max(m.shape[0] for m in mats) if n is None else n
+    A, B, C, D = (np.array(np.broadcast_to(m, (n, *m.shape[1:])), float) for m in mats)
+    return Block(name, A, B, C, D, tuple(inputs), tuple(outputs))
 
 
 def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
     """Structure (Eqn 4) for arrays of parameters: input ``y``, outputs ``v`` and ``c``.
 
     ``v = c / s^2`` is the cab displacement, ``c`` the cab acceleration; 4 states
-    (see the module notes).
+    (:func:`robust.model.blocks.structure_block`).
 
     Parameters
     ----------
@@ -187,29 +195,18 @@ def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
     -------
     Block
     """
-    w1, w2 = 2 * math.pi * np.asarray(f1_hz, float), 2 * math.pi * np.asarray(f2_hz, float)
-    A1, B1, C1 = _section(np.asarray(zeta1, float), w1)
-    A2, B2, C2 = _section(np.asarray(zeta2, float), w2)
-    n = A1.shape[0]
-    A = np.zeros((n, 4, 4))
-    A[:, :2, :2] = A1
-    A[:, 2:, 2:] = A2
-    A[:, 2:, :2] = B2 @ C1
-    B = np.zeros((n, 4, 1))
-    B[:, :2] = B1
-    Cv = np.zeros((n, 1, 4))
-    Cv[:, :, 2:] = np.asarray(k_s, float)[:, None, None] * C2
-    CA = Cv @ A
-    C = np.concatenate([Cv, CA @ A], axis=1)
-    D = np.concatenate([np.zeros((n, 1, 1)), CA @ B], axis=1)
-    return Block("structure", A, B, C, D, ("y",), ("v", "c"))
+    values = dict(zip(STRUCTURE_FIELDS, (k_s, zeta1, zeta2, f1_hz, f2_hz)))
+    p = {parameter_name("structure", f): np.asarray(v, float) for f, v in values.items()}
+    n = max(v.shape[0] for v in p.values())
+    return _block("structure", structure_block(p, NUMPY), ("y",), ("v", "c"), n)
 
 
 def literal_human_cancelled(k_h, z1, p1) -> Block:
     """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v``, output ``h``.
 
     Driven by the cab displacement ``v`` instead of the acceleration, so the double
-    pole at ``s = 0`` of Eqn 5 is cancelled (2 states; see the module notes).
+    pole at ``s = 0`` of Eqn 5 is cancelled (2 states; see the module notes and
+    :func:`robust.model.blocks.literal_human_block`).
 
     Parameters
     ----------
@@ -224,17 +221,10 @@ def literal_human_cancelled(k_h, z1, p1) -> Block:
     -------
     Block
     """
-    k_h, z1, p1 = (np.asarray(x, float) for x in (k_h, z1, p1))
-    n = k_h.shape[0]
-    A = np.zeros((n, 2, 2))
-    A[:, 0, 1] = 1.0
-    A[:, 1, 0] = -p1 * p1
-    A[:, 1, 1] = -2.0 * p1
-    B = np.zeros((n, 2, 1))
-    B[:, 1, 0] = 1.0
-    C = (k_h[:, None] * np.stack([z1 * z1 - p1 * p1, 2.0 * (z1 - p1)], axis=-1))[:, None, :]
-    D = k_h[:, None, None]
-    return Block("human", A, B, C, D, ("v",), ("h",))
+    values = dict(zip(LITERAL_HUMAN_FIELDS, (k_h, z1, p1)))
+    p = {parameter_name("human", f): np.asarray(v, float) for f, v in values.items()}
+    n = max(v.shape[0] for v in p.values())
+    return _block("human", literal_human_block(p, NUMPY), ("v",), ("h",), n)
 
 
 def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
@@ -267,11 +257,10 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
 
 @functools.lru_cache(maxsize=16)
 def _valve_block(valve) -> Block:
-    """The valve/cylinder's block (it does not vary within a family), realised once per
-    parameter set and process (the margins' searches assemble loops of a few members tens of
-    thousands of times; the realisation cost more than the rest of such an assembly)."""
-    v = valve_cylinder(valve)
-    return _const("valve", v.A, v.B, v.C, v.D, ["e"], ["y"])
+    """The valve/cylinder's block (:func:`robust.model.blocks.valve_block`; it does not vary
+    within a family), built once per parameter set and process."""
+    p = {parameter_name("valve", f): getattr(valve, f) for f in VALVE_FIELDS}
+    return _block("valve", valve_block(p, NUMPY), ["e"], ["y"])
 
 
 def _check_family(family, where: str) -> None:
@@ -348,14 +337,14 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
     v = _valve_block(family.valve)
     # (copies: the cached block stays as it was whatever a caller does with the list)
     blocks.append(dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy()))
-    blocks.append(
-        structure_blocks(*(p[f"struct.{f}"] for f in ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")))
-    )
+    blocks.append(structure_blocks(*(p[parameter_name("structure", f)] for f in STRUCTURE_FIELDS)))
     if family.human == "literal":
-        blocks.append(literal_human_cancelled(p["human.k_h"], p["human.z1"], p["human.p1"]))
+        blocks.append(
+            literal_human_cancelled(*(p[parameter_name("human", f)] for f in LITERAL_HUMAN_FIELDS))
+        )
     else:
         names = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
-        A, B, C, D = physical_human_matrices(*(p[f"human.{f}"] for f in names))
+        A, B, C, D = physical_human_matrices(*(p[parameter_name("human", f)] for f in names))
         blocks.append(Block("human", A, B, C, D, ("c", "f"), ("h",)))
     if controller is not None:
         blocks.append(_controller_block(controller, family.human == "physical"))

@@ -6,16 +6,14 @@ position scale factor, human variant) plus a tuple of
 not vary stay at the nominal values the family holds, so a fitted component
 (:mod:`uncertainty.files`) changes the family by changing its nominals.
 
-Parameter names:
-
-* structure (Eqn 4): ``struct.k_s``, ``struct.zeta1``, ``struct.zeta2``,
-  ``struct.f1_hz``, ``struct.f2_hz``;
-* physical human, as biodynamics papers report it (:mod:`robust.model.literature`):
-  ``human.body_mass`` (scales the upper-body mass), ``human.m_arm`` (effective mass at
-  the hand), ``human.f_arm_hz``, ``human.zeta_arm`` (arm endpoint, trunk held),
-  ``human.f_trunk_hz``, ``human.zeta_trunk`` (upper body on the seat); stiffnesses and
-  dampings are derived (:mod:`robust.model.modal`);
-* literal human (Eqn 5): ``human.k_h``, ``human.p1``.
+Parameter names are the model's (:func:`robust.model.blocks.parameter_name`: the block and
+the field, e.g. the structure's first natural frequency or the arm's effective mass);
+:data:`MODEL_PARAMETERS` lists the ones each human variant accepts. The physical human is
+varied as biodynamics papers report it (:mod:`robust.model.literature`): body mass (which
+scales the upper-body mass), the arm endpoint's effective mass, natural frequency and
+damping ratio with the trunk held, the trunk's natural frequency and damping ratio on the
+seat; stiffnesses and dampings are derived (:mod:`robust.model.modal`). The literal human
+(Eqn 5) varies its gain and pole.
 """
 
 from __future__ import annotations
@@ -29,6 +27,13 @@ import numpy as np
 from robust.checks import NONZERO, POSITIVE, Spec, check_columns, check_scalar
 from robust.errors import ParameterError
 from robust.model.anthropometry import NOMINAL_BODY_MASS
+from robust.model.blocks import (
+    LITERAL_HUMAN_FIELDS,
+    STRUCTURE_FIELDS,
+    block_of,
+    field_of,
+    parameter_name,
+)
 from robust.model.components import K_PSF_NOMINAL, StructureParams, ValveCylinderParams
 from robust.model.human import LITERAL_SPECS, LiteralHuman, LiteralHumanParams
 from robust.model.literature import DEFAULT_POSTURE, POSTURES, published_box, stress_box
@@ -57,18 +62,19 @@ HUMAN_VARIANTS = ("physical", "literal")
 #: Ranges a default family can span: the published ones, or the labelled stress variant.
 RANGES = ("published", "stress")
 
-_STRUCT = ("k_s", "zeta1", "zeta2", "f1_hz", "f2_hz")
+_STRUCT = STRUCTURE_FIELDS
 _PHYS = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
 _MODAL = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
-_LIT = ("k_h", "z1", "p1")
+_LIT = LITERAL_HUMAN_FIELDS
 
 #: Names of the family parameters each variant accepts.
 MODEL_PARAMETERS = {
-    "physical": tuple(f"struct.{n}" for n in _STRUCT)
-    + ("human.body_mass",)
-    + tuple(f"human.{n}" for n in _MODAL)
-    + ("human.h_gain", "human.c_unit"),
-    "literal": tuple(f"struct.{n}" for n in _STRUCT) + tuple(f"human.{n}" for n in _LIT),
+    "physical": tuple(parameter_name("structure", n) for n in _STRUCT)
+    + (parameter_name("human", "body_mass"),)
+    + tuple(parameter_name("human", n) for n in _MODAL)
+    + (parameter_name("human", "h_gain"), parameter_name("human", "c_unit")),
+    "literal": tuple(parameter_name("structure", n) for n in _STRUCT)
+    + tuple(parameter_name("human", n) for n in _LIT),
 }
 
 #: What every value of a family parameter must satisfy to be a physical loop at all, whatever
@@ -81,13 +87,13 @@ MODEL_PARAMETERS = {
 #: handles it; :meth:`Family.member` builds a :class:`~robust.model.components.StructureParams`,
 #: which holds it below 1.
 PHYSICAL_LIMITS: dict[str, Spec] = {
-    **{f"struct.{n}": POSITIVE for n in _STRUCT},
-    **{f"human.{n}": LITERAL_SPECS[n] for n in _LIT},
-    "human.body_mass": POSITIVE,
-    "human.m_arm": PHYSICAL_SPECS["m_arm"],
-    **{f"human.{n}": MODAL_SPECS[n] for n in _MODAL if n != "m_arm"},
-    "human.h_gain": NONZERO,
-    "human.c_unit": PHYSICAL_SPECS["c_unit"],
+    **{parameter_name("structure", n): POSITIVE for n in _STRUCT},
+    **{parameter_name("human", n): LITERAL_SPECS[n] for n in _LIT},
+    parameter_name("human", "body_mass"): POSITIVE,
+    parameter_name("human", "m_arm"): PHYSICAL_SPECS["m_arm"],
+    **{parameter_name("human", n): MODAL_SPECS[n] for n in _MODAL if n != "m_arm"},
+    parameter_name("human", "h_gain"): NONZERO,
+    parameter_name("human", "c_unit"): PHYSICAL_SPECS["c_unit"],
 }
 #: Relative tolerance of the bounds check of member values: a value within
 #: ``BOUNDS_RTOL * max(|low|, |high|)`` of the family's range counts as inside it (values
@@ -118,7 +124,7 @@ class Family:
         Nominal values (the valve does not vary).
     body_mass : float
         Nominal body mass (kg) that ``physical``'s upper-body mass belongs to; a member
-        with ``human.body_mass = M`` has it scaled by ``M / body_mass``.
+        with body mass ``M`` has it scaled by ``M / body_mass``.
     calibration : LoopCalibration
         PI gains, junction sign and loop-scale factor of every member.
     name : str
@@ -205,6 +211,36 @@ class Family:
 
     # -- views -------------------------------------------------------------------------------
     @property
+    def trunk_share(self) -> float:
+        """The physical human's upper-body mass per unit body mass."""
+        return self.physical.m_trunk / self.body_mass
+
+    def fixed_value(self, name: str) -> float:
+        """The value the family holds for a model parameter it may vary (its nominal).
+
+        Parameters
+        ----------
+        name : str
+            A name of :data:`MODEL_PARAMETERS` for the family's human variant.
+        """
+        if name not in MODEL_PARAMETERS[self.human]:
+            raise ParameterError(
+                f"Family.fixed_value: {name!r} is not a parameter of the {self.human} variant; "
+                f"choose from {list(MODEL_PARAMETERS[self.human])}"
+            )
+        block, field = block_of(name), field_of(name)
+        if block == "structure":
+            return float(getattr(self.struct, field))
+        if field == "body_mass":
+            return float(self.body_mass)
+        return float(getattr(self.literal if self.human == "literal" else self.physical, field))
+
+    def fixed_model_values(self) -> dict[str, float]:
+        """Every model parameter of the variant (:data:`MODEL_PARAMETERS`) at the value the
+        family holds (its nominal), by name."""
+        return {name: self.fixed_value(name) for name in MODEL_PARAMETERS[self.human]}
+
+    @property
     def names(self) -> tuple[str, ...]:
         """Names of the uncertain parameters, in order (the columns of member values)."""
         return tuple(p.name for p in self.parameters)
@@ -215,7 +251,7 @@ class Family:
         Parameters
         ----------
         name : str
-            A name of :attr:`names`, e.g. ``"struct.f1_hz"``.
+            A name of :attr:`names`.
 
         Raises
         ------
@@ -339,7 +375,8 @@ class Family:
         Returns
         -------
         dict
-            ``"struct.<field>"`` and ``"human.<field>"`` (fields of
+            The model parameter names of the structure and the human
+            (:func:`robust.model.blocks.parameter_name` of the fields of
             :class:`~robust.model.components.StructureParams` and of the variant's human
             parameters) -> array of shape (N,).
 
@@ -357,17 +394,24 @@ class Family:
         cols = {name: v[:, j] for j, name in enumerate(self.names)}
         out = {}
         for f in _STRUCT:
-            out[f"struct.{f}"] = cols.get(f"struct.{f}", np.full(n, getattr(self.struct, f)))
+            out[parameter_name("structure", f)] = cols.get(
+                parameter_name("structure", f), np.full(n, getattr(self.struct, f))
+            )
         if self.human == "literal":
             for f in _LIT:
-                out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.literal, f)))
+                out[parameter_name("human", f)] = cols.get(
+                    parameter_name("human", f), np.full(n, getattr(self.literal, f))
+                )
         else:
-            scale = cols.get("human.body_mass", np.full(n, self.body_mass)) / self.body_mass
+            scale = (
+                cols.get(parameter_name("human", "body_mass"), np.full(n, self.body_mass))
+                / self.body_mass
+            )
             # the nominal's modal values only for the parameters that do not vary (each
             # attribute of the physical parameters recomputes all four modal values)
             modal = {
-                f: cols[f"human.{f}"]
-                if f"human.{f}" in cols
+                f: cols[parameter_name("human", f)]
+                if parameter_name("human", f) in cols
                 else np.full(n, getattr(self.physical, f))
                 for f in _MODAL
             }
@@ -380,12 +424,17 @@ class Family:
                 modal["f_arm_hz"],
                 modal["zeta_arm"],
             )
-            out["human.m_trunk"] = m_trunk
-            out["human.m_arm"] = modal["m_arm"]
-            out["human.k_trunk"], out["human.c_trunk"] = k_t, c_t
-            out["human.k_arm"], out["human.c_arm"] = k_a, c_a
+            out[parameter_name("human", "m_trunk")] = m_trunk
+            out[parameter_name("human", "m_arm")] = modal["m_arm"]
+            out[parameter_name("human", "k_trunk")], out[parameter_name("human", "c_trunk")] = (
+                k_t,
+                c_t,
+            )
+            out[parameter_name("human", "k_arm")], out[parameter_name("human", "c_arm")] = k_a, c_a
             for f in ("h_gain", "c_unit"):
-                out[f"human.{f}"] = cols.get(f"human.{f}", np.full(n, getattr(self.physical, f)))
+                out[parameter_name("human", f)] = cols.get(
+                    parameter_name("human", f), np.full(n, getattr(self.physical, f))
+                )
         return out
 
     def member(
@@ -429,11 +478,15 @@ class Family:
         v = self.check_members([row], check_bounds=check_bounds, where="Family.member")
         arrays = self._model_arrays(v)
         one = {k: float(a[0]) for k, a in arrays.items()}
-        struct = StructureParams(**{f: one[f"struct.{f}"] for f in _STRUCT})
+        struct = StructureParams(**{f: one[parameter_name("structure", f)] for f in _STRUCT})
         if self.human == "literal":
-            human = LiteralHuman(LiteralHumanParams(**{f: one[f"human.{f}"] for f in _LIT}))
+            human = LiteralHuman(
+                LiteralHumanParams(**{f: one[parameter_name("human", f)] for f in _LIT})
+            )
         else:
-            human = PhysicalHuman(PhysicalHumanParams(**{f: one[f"human.{f}"] for f in _PHYS}))
+            human = PhysicalHuman(
+                PhysicalHumanParams(**{f: one[parameter_name("human", f)] for f in _PHYS})
+            )
         return BDFTLoop(
             k_psf=self.k_psf,
             valve=self.valve,
@@ -471,7 +524,7 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
     lo_f = WHEELS_FREQUENCY_FRACTION
     return [
         UncertainParameter(
-            "struct.k_s",
+            parameter_name("structure", "k_s"),
             s.k_s,
             s.k_s,
             3.0 * s.k_s,
@@ -482,7 +535,7 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             "motion, up to 3x",
         ),
         UncertainParameter(
-            "struct.zeta1",
+            parameter_name("structure", "zeta1"),
             s.zeta1,
             0.5 * s.zeta1,
             min(2.0 * s.zeta1, 0.6),
@@ -491,7 +544,7 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             "Eqn 4 stilts value x0.5..x2: tyres add damping, soil and outriggers change it (paper)",
         ),
         UncertainParameter(
-            "struct.zeta2",
+            parameter_name("structure", "zeta2"),
             s.zeta2,
             0.5 * s.zeta2,
             min(2.0 * s.zeta2, 0.6),
@@ -500,7 +553,7 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             "Eqn 4 stilts value x0.5..x2: tyres add damping, soil and outriggers change it (paper)",
         ),
         UncertainParameter(
-            "struct.f1_hz",
+            parameter_name("structure", "f1_hz"),
             s.f1_hz,
             lo_f * s.f1_hz,
             s.f1_hz,
@@ -512,7 +565,7 @@ def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
             "rocking on its tyres",
         ),
         UncertainParameter(
-            "struct.f2_hz",
+            parameter_name("structure", "f2_hz"),
             s.f2_hz,
             lo_f * s.f2_hz,
             s.f2_hz,
@@ -540,12 +593,15 @@ def _physical_parameters(
         v = float(nominal[name])
         if not r.contains(v):
             raise ParameterError(
-                f"default_family: the nominal human.{name} = {v:.6g} {r.units} lies outside "
-                f"its range [{r.low:g}, {r.high:g}]; give a nominal inside the range "
-                "(robust.model.physical.nominal_params gives the published nominal)"
+                f"default_family: the nominal {parameter_name('human', name)} = {v:.6g} "
+                f"{r.units} lies outside its range [{r.low:g}, {r.high:g}]; give a nominal "
+                "inside the range (robust.model.physical.nominal_params gives the published "
+                "nominal)"
             )
         out.append(
-            UncertainParameter(f"human.{name}", v, r.low, r.high, r.distribution, r.units, r.source)
+            UncertainParameter(
+                parameter_name("human", name), v, r.low, r.high, r.distribution, r.units, r.source
+            )
         )
     return out
 
@@ -553,13 +609,13 @@ def _physical_parameters(
 def _literal_parameters(p: LiteralHumanParams) -> list[UncertainParameter]:
     return [
         _spread(
-            "human.k_h",
+            parameter_name("human", "k_h"),
             p.k_h,
             "-",
             "Eqn 5 gain spread over one order of magnitude (human variability, paper)",
         ),
         UncertainParameter(
-            "human.p1",
+            parameter_name("human", "p1"),
             p.p1,
             0.5 * p.p1,
             2.0 * p.p1,

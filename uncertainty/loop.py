@@ -23,8 +23,6 @@ series is finite because the direct feedthroughs form no algebraic cycle.
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from collections.abc import Callable
 
 import control as ct
@@ -32,43 +30,20 @@ import numpy as np
 
 from robust.analysis.intervals import Gradient, Interval, iblockdiag, imatrix, ivstack
 from robust.errors import ParameterError
+from robust.model.blocks import (
+    Algebra,
+    block_values,
+    human_entries_modal,
+    literal_human_block,
+    physical_human_block,
+    structure_block,
+)
 from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
 from uncertainty.ureal import UExpr, umatrix
 from uncertainty.uss import USS, nonzero_pattern
 
 __all__ = ["Algebra", "INTERVALS", "UNCERTAIN", "LoopAssembly", "fixed_parameters", "family_uss"]
-
-
-@dataclasses.dataclass(frozen=True)
-class Algebra:
-    """How the loop's matrices are made in one kind of arithmetic.
-
-    Parameters
-    ----------
-    matrix : callable
-        Rows of entries (numbers and the algebra's scalars) to a matrix.
-    blockdiag : callable
-        A list of matrices to their block diagonal.
-    vstack : callable
-        A list of matrices stacked vertically.
-    constant : callable
-        A numeric array to a constant matrix.
-    square : callable
-        ``x**2`` of a scalar (tight for intervals).
-    reciprocal : callable
-        ``1 / x`` of a scalar.
-    nonzero : callable
-        The structural pattern of a matrix (bool array: entries that may be nonzero).
-    """
-
-    matrix: Callable
-    blockdiag: Callable
-    vstack: Callable
-    constant: Callable
-    square: Callable
-    reciprocal: Callable
-    nonzero: Callable
 
 
 def _interval_pattern(X) -> np.ndarray:
@@ -110,95 +85,6 @@ UNCERTAIN = Algebra(
 )
 
 
-def _section(z, w, alg: Algebra):
-    w2, zw2 = alg.square(w), 2.0 * z * w
-    A = alg.matrix([[0.0, 1.0], [-w2, -zw2]])
-    C = alg.matrix([[w2, zw2]])
-    return A, C
-
-
-def structure_block(p: dict, alg: Algebra) -> tuple:
-    """The structure's two cascaded sections (``y -> v, c``): ``A, B, C, D``.
-
-    Parameters
-    ----------
-    p : dict
-        Every ``struct.*`` parameter, in the algebra's scalars (or numbers).
-    alg : Algebra
-        The arithmetic.
-    """
-    tau = 2 * math.pi
-    z1, w1 = p["struct.zeta1"], tau * p["struct.f1_hz"]
-    z2, w2 = p["struct.zeta2"], tau * p["struct.f2_hz"]
-    A1, _ = _section(z1, w1, alg)
-    A2, C2 = _section(z2, w2, alg)
-    w1s, zw1 = alg.square(w1), 2.0 * z1 * w1
-    # cascade: section 1 driven by y, section 2 driven by section 1's output C1 x1
-    A = alg.blockdiag([A1, A2]) + alg.matrix(
-        [[0.0] * 4, [0.0] * 4, [0.0] * 4, [w1s, zw1, 0.0, 0.0]]
-    )
-    B = alg.constant(np.array([[0.0], [1.0], [0.0], [0.0]]))
-    Cv = alg.matrix([[0.0, 0.0, p["struct.k_s"] * C2[0, 0], p["struct.k_s"] * C2[0, 1]]])
-    CA = Cv @ A
-    C = alg.vstack([Cv, CA @ A])
-    D = alg.vstack([alg.constant(np.zeros((1, 1))), CA @ B])
-    return A, B, C, D
-
-
-def physical_human_block(p: dict, family: Family, alg: Algebra) -> tuple:
-    """The physical (two-mass) human (``c, f -> h``): ``A, B, C, D``.
-
-    Parameters
-    ----------
-    p : dict
-        Every ``human.*`` parameter, in the algebra's scalars (or numbers).
-    family : Family
-        The family (the trunk's share of the body mass).
-    alg : Algebra
-        The arithmetic.
-    """
-    tau = 2 * math.pi
-    m_t = (family.physical.m_trunk / family.body_mass) * p["human.body_mass"]
-    m_a = p["human.m_arm"]
-    r = m_a * alg.reciprocal(m_t)
-    wt, wa = tau * p["human.f_trunk_hz"], tau * p["human.f_arm_hz"]
-    wt2, wa2 = alg.square(wt), alg.square(wa)
-    st = 2.0 * p["human.zeta_trunk"] * wt
-    sa = 2.0 * p["human.zeta_arm"] * wa
-    one_r = 1.0 + r
-    A = alg.matrix(
-        [
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [-(one_r * wt2) - r * wa2, r * wa2, -(one_r * st) - r * sa, r * sa],
-            [wa2, -wa2, sa, -sa],
-        ]
-    )
-    cu, g = p["human.c_unit"], p["human.h_gain"]
-    B = alg.matrix([[0.0, 0.0], [0.0, 0.0], [-cu, 0.0], [-cu, alg.reciprocal(m_a)]])
-    C = alg.matrix([[0.0, g, 0.0, 0.0]])
-    D = alg.constant(np.zeros((1, 2)))
-    return A, B, C, D
-
-
-def literal_human_block(p: dict, alg: Algebra) -> tuple:
-    """The literal Eqn 5 human (``v -> h``): ``A, B, C, D``.
-
-    Parameters
-    ----------
-    p : dict
-        Every ``human.*`` parameter of the literal human, in the algebra's scalars.
-    alg : Algebra
-        The arithmetic.
-    """
-    k, z1, p1 = p["human.k_h"], p["human.z1"], p["human.p1"]
-    A = alg.matrix([[0.0, 1.0], [-alg.square(p1), -2.0 * p1]])
-    B = alg.constant(np.array([[0.0], [1.0]]))
-    C = alg.matrix([[k * (alg.square(z1) - alg.square(p1)), k * (2.0 * (z1 - p1))]])
-    D = alg.matrix([[k]])
-    return A, B, C, D
-
-
 def fixed_parameters(family: Family) -> dict:
     """Every model parameter of the family's varied blocks at its fixed (nominal) value.
 
@@ -207,35 +93,18 @@ def fixed_parameters(family: Family) -> dict:
     family : Family
         The family.
     """
-    fixed = {
-        f"struct.{f.name}": getattr(family.struct, f.name)
-        for f in dataclasses.fields(family.struct)
-    }
-    if family.human == "literal":
-        fixed.update(
-            {
-                f"human.{f.name}": getattr(family.literal, f.name)
-                for f in dataclasses.fields(family.literal)
-            }
-        )
-    else:
-        names = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk", "h_gain", "c_unit")
-        fixed.update({f"human.{n}": getattr(family.physical, n) for n in names})
-        fixed["human.body_mass"] = family.body_mass
-    return fixed
+    return family.fixed_model_values()
 
 
 #: Varied blocks kept per :class:`LoopAssembly` (the boxes of a few waves of a subdivision).
 _RECENT_BLOCKS = 64
 
 
-def _interval_key(prefix: str, p: dict):
-    """The bytes of every ``prefix`` parameter's interval (or gradient), or None if one is
+def _interval_key(block: str, p: dict):
+    """The bytes of every ``block`` parameter's interval (or gradient), or None if one is
     of another kind."""
-    parts: list = [prefix]
-    for name, v in p.items():
-        if not name.startswith(prefix):
-            continue
+    parts: list = [block]
+    for name, v in block_values(p, block).items():
         if isinstance(v, Gradient):
             arrays, tag = (v.val.mid, v.val.rad, v.der.mid, v.der.rad), b"G"
         elif isinstance(v, Interval):
@@ -283,13 +152,13 @@ class LoopAssembly:
         # block, and the other way round
         self._recent: dict | None = {} if algebra is INTERVALS else None
 
-    def _varied(self, prefix: str, p: dict, build: Callable):
-        """The block of the ``prefix`` parameters, built or (intervals) recalled: the same
+    def _varied(self, block: str, p: dict, build: Callable):
+        """The ``block``'s matrices from its parameters, built or (intervals) recalled: the same
         arrays for the same intervals, bit for bit, as the arithmetic depends on nothing
         else; kept read-only."""
         if self._recent is None:
             return build()
-        key = _interval_key(prefix, p)
+        key = _interval_key(block, p)
         if key is None:
             return build()
         block = self._recent.pop(key, None)
@@ -314,16 +183,18 @@ class LoopAssembly:
         mats = []
         for name in self.names:
             if name == "structure":
-                mats.append(self._varied("struct.", p, lambda: structure_block(p, alg)))
+                mats.append(self._varied("structure", p, lambda: structure_block(p, alg)))
             elif name == "human":
                 mats.append(
                     self._varied(
-                        "human.",
+                        "human",
                         p,
                         lambda: (
                             literal_human_block(p, alg)
                             if family.human == "literal"
-                            else physical_human_block(p, family, alg)
+                            else physical_human_block(
+                                human_entries_modal(p, family.trunk_share, alg), alg
+                            )
                         ),
                     )
                 )

@@ -32,7 +32,8 @@ class UncertainParameter:
     Parameters
     ----------
     name : str
-        Dotted name, e.g. ``"human.k_trunk"``; used in reports and as the key of
+        Dotted name (for a model parameter, :func:`robust.model.blocks.parameter_name`);
+        used in reports and as the key of
         worst-case parameters.
     nominal : float
         Nominal value, within ``[low, high]``.

@@ -25,6 +25,7 @@ from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.checks import check_callable, check_int
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ParameterError
+from robust.model.blocks import parameter_name
 from uncertainty.batched import DEFAULT_CHUNK, STABILITY_THRESHOLD, TASK_MEMBERS, member_metrics
 from uncertainty.family import Family
 from uncertainty.sampling import sample
@@ -262,7 +263,7 @@ def frequency_damping_sweep(
     Parameters
     ----------
     family : Family
-        A physical-human family containing ``human.f_<pair>_hz`` and ``human.zeta_<pair>``.
+        A physical-human family varying the pair's natural frequency and damping ratio.
     pair : {"arm", "trunk"}
         Which part of the operator to sweep: the arm endpoint or the trunk on the seat.
     n_f, n_z : int
@@ -288,7 +289,8 @@ def frequency_damping_sweep(
     -------
     SweepResult
         Named ``"frequency-damping"``, grid shape ``(n_f, n_z)``; columns
-        ``human.f_<pair>_hz`` (Hz) and ``human.zeta_<pair>``, then the metrics;
+        the pair's natural frequency (Hz) and damping ratio (their parameter names), then the
+        metrics;
         ``settings["nominal"]`` holds the two nominal values and ``settings["units"]``
         their units.
     """
@@ -303,7 +305,10 @@ def frequency_damping_sweep(
     for n in (n_f, n_z):
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
             raise ParameterError(f"n_f and n_z must be integers >= 2; got {n!r}")
-    pf, pz = family.parameter(f"human.f_{pair}_hz"), family.parameter(f"human.zeta_{pair}")
+    pf, pz = (
+        family.parameter(parameter_name("human", f"f_{pair}_hz")),
+        family.parameter(parameter_name("human", f"zeta_{pair}")),
+    )
     fs = np.geomspace(pf.low, pf.high, n_f)
     zs = np.linspace(pz.low, pz.high, n_z)
     F, Z = np.meshgrid(fs, zs, indexing="ij")
@@ -352,15 +357,15 @@ def structure_frequency_sweep(
     """Fraction stable, worst real part and minimum damping versus the structure's frequencies.
 
     Both modes are scaled together, ``f_i = scale * f_i(nominal)``, from the
-    family's lowest ``struct.f1_hz`` (a machine on its tyres) to the stilts values.
+    family's lowest first structure frequency (a machine on its tyres) to the stilts values.
 
     Parameters
     ----------
     family : Family
-        A family containing ``struct.f1_hz`` and ``struct.f2_hz``.
+        A family varying both structure frequencies.
     scales : array_like, optional
         Scale factors of both natural frequencies (default: 13 points from the
-        family's lowest ``struct.f1_hz`` over the nominal, to 1). Scales may take the
+        family's lowest first structure frequency over the nominal, to 1). Scales may take the
         frequencies beyond the family's bounds (the sweep asks for them explicitly);
         they must be positive.
     members : int
@@ -388,19 +393,34 @@ def structure_frequency_sweep(
     _check_members(members, family, progress)
     f1n, f2n = family.struct.f1_hz, family.struct.f2_hz
     if scales is None:
-        lo = family.parameter("struct.f1_hz").low / f1n if "struct.f1_hz" in family.names else 0.4
+        lo = (
+            family.parameter(parameter_name("structure", "f1_hz")).low / f1n
+            if parameter_name("structure", "f1_hz") in family.names
+            else 0.4
+        )
         scales = np.linspace(lo, 1.0, 13)
     s = np.asarray(scales, float)
     if s.ndim != 1 or s.size == 0 or not np.all(np.isfinite(s)) or np.any(s <= 0):
         raise ParameterError(
             f"scales must be a non-empty 1-D array of positive numbers; got {scales!r}"
         )
-    fixed = [n for n in ("struct.f1_hz", "struct.f2_hz") if n in family.names]
+    fixed = [
+        n
+        for n in (parameter_name("structure", "f1_hz"), parameter_name("structure", "f2_hz"))
+        if n in family.names
+    ]
     if len(fixed) != 2:
         raise ParameterError(
-            "the structure-frequency sweep needs struct.f1_hz and struct.f2_hz in the family"
+            f"the structure-frequency sweep needs {parameter_name('structure', 'f1_hz')} and "
+            f"{parameter_name('structure', 'f2_hz')} in the family"
         )
-    grid = [{"struct.f1_hz": x * f1n, "struct.f2_hz": x * f2n} for x in s]
+    grid = [
+        {
+            parameter_name("structure", "f1_hz"): x * f1n,
+            parameter_name("structure", "f2_hz"): x * f2n,
+        }
+        for x in s
+    ]
     rows, settings = _metrics_on_grid(
         family,
         grid,

@@ -2,8 +2,8 @@
 
 Without a compensator the Figure 5 loop is one loop through three blocks: the tracking loop
 ``T = P / (1 + P)`` (PI controller and valve, fixed), the structure ``S_c`` (cylinder
-position to cab acceleration; parameters ``struct.*``) and the physical human ``H``
-(cab acceleration to hand motion; parameters ``human.*``), closed through the handle gain
+position to cab acceleration; the structure's parameters) and the physical human ``H``
+(cab acceleration to hand motion; the human's parameters), closed through the handle gain
 ``kappa``. Its characteristic polynomial factors as::
 
     det(sI - A_cl) = det(sI - A_T) det(sI - A_S) det(sI - A_H) (1 + L(s)),
@@ -53,6 +53,7 @@ import numpy as np
 
 from robust.analysis.intervals import Gradient, Interval
 from robust.errors import ParameterError
+from robust.model.blocks import parameter_name
 from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
 from uncertainty.loop import fixed_parameters
@@ -63,14 +64,17 @@ __all__ = ["ValueSetLoop", "certify_scale_valueset"]
 _W_CELLS = 256
 _W_LOW = 1e-2
 _HUMAN = (
-    "human.body_mass",
-    "human.m_arm",
-    "human.f_arm_hz",
-    "human.zeta_arm",
-    "human.f_trunk_hz",
-    "human.zeta_trunk",
+    parameter_name("human", "body_mass"),
+    parameter_name("human", "m_arm"),
+    parameter_name("human", "f_arm_hz"),
+    parameter_name("human", "zeta_arm"),
+    parameter_name("human", "f_trunk_hz"),
+    parameter_name("human", "zeta_trunk"),
 )
-_SECTIONS = (("struct.zeta1", "struct.f1_hz"), ("struct.zeta2", "struct.f2_hz"))
+_SECTIONS = (
+    (parameter_name("structure", "zeta1"), parameter_name("structure", "f1_hz")),
+    (parameter_name("structure", "zeta2"), parameter_name("structure", "f2_hz")),
+)
 _TAU = 2 * math.pi
 
 
@@ -284,8 +288,8 @@ class ValueSetLoop:
             "zeta_arm": za,
             "f_trunk_hz": ft,
             "zeta_trunk": zt,
-            "c_unit": self.fixed["human.c_unit"],
-            "h_gain": self.fixed["human.h_gain"],
+            "c_unit": self.fixed[parameter_name("human", "c_unit")],
+            "h_gain": self.fixed[parameter_name("human", "h_gain")],
         }
         return _human_value(p, w, bad)
 
@@ -380,9 +384,9 @@ class ValueSetLoop:
                     score[:, c] += widths[j] * scale
             score[:, d] += widths[-1] * scale
         # the structure's gain and the s^2 of the acceleration
-        ks = self.index.get("struct.k_s")
+        ks = self.index.get(parameter_name("structure", "k_s"))
         if ks is None:
-            lk = math.log(self.fixed["struct.k_s"]) * np.ones((2, n))
+            lk = math.log(self.fixed[parameter_name("structure", "k_s")]) * np.ones((2, n))
         else:
             lk = np.array([lo_t[:, ks], hi_t[:, ks]])
             if not self.logs[ks]:

@@ -114,6 +114,7 @@ import scipy.linalg
 from robust.analysis.sampled import open_plant
 from robust.checks import POSITIVE, check_scalar, check_vector
 from robust.errors import ModelStructureError, ParameterError
+from robust.model.blocks import NUMPY, VALVE_FIELDS, parameter_name, valve_block
 from robust.model.loop import BDFTLoop
 from robust.model.wiring import connect
 
@@ -467,9 +468,9 @@ def _hydraulic_steps(
 def _valve_cylinder_cascade(valve) -> tuple[np.ndarray, np.ndarray]:
     """Eqn 3 in cascade form, the position last: ``(A, B)`` of ``x' = A x + B e``, ``y = x[3]``.
 
-    States: spool position and rate (``wn^2 / (s^2 + 2 zeta wn s + wn^2)``), cylinder speed
-    (``K_VC p1 / (s + p1)`` of the spool) and position ``y`` (its integral). Nothing in the
-    block reads ``y``, so a limit can set it without making the other states inconsistent.
+    The block's one definition, :func:`robust.model.blocks.valve_block`. States: spool
+    position and rate, cylinder speed and position ``y``. Nothing in the block reads ``y``,
+    so a limit can set it without making the other states inconsistent.
 
     Parameters
     ----------
@@ -481,16 +482,9 @@ def _valve_cylinder_cascade(valve) -> tuple[np.ndarray, np.ndarray]:
     A : ndarray, shape (4, 4)
     B : ndarray, shape (4,)
     """
-    wn = 2.0 * math.pi * valve.wn_hz
-    A = np.array(
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [-wn * wn, -2.0 * valve.zeta * wn, 0.0, 0.0],
-            [valve.k_vc * valve.p1, 0.0, -valve.p1, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-        ]
-    )
-    return A, np.array([0.0, wn * wn, 0.0, 0.0])
+    p = {parameter_name("valve", f): getattr(valve, f) for f in VALVE_FIELDS}
+    A, B, _, _ = (m[0] for m in valve_block(p, NUMPY))
+    return A, B[:, 0]
 
 
 def _ramp_discretisation(A, B, dt, ramp_col):
