@@ -75,6 +75,7 @@ from robust.model.blocks import (
     VALVE_FIELDS,
     literal_human_block,
     parameter_name,
+    pi_block,
     structure_block,
     valve_block,
 )
@@ -320,20 +321,7 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
     p = family._model_arrays(values)
     cal = family.calibration
     blocks = []
-    if cal.ki > 0.0:
-        blocks.append(_const("pi", [[0.0]], [[1.0]], [[cal.ki]], [[cal.kp]], ["err"], ["e"]))
-    else:
-        blocks.append(
-            _const(
-                "pi",
-                np.zeros((0, 0)),
-                np.zeros((0, 1)),
-                np.zeros((1, 0)),
-                [[cal.kp]],
-                ["err"],
-                ["e"],
-            )
-        )
+    blocks.append(_const("pi", *pi_block(cal.kp, cal.ki), ["err"], ["e"]))
     v = _valve_block(family.valve)
     # (copies: the cached block stays as it was whatever a caller does with the list)
     blocks.append(dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy()))
