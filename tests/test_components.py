@@ -204,3 +204,33 @@ def test_block_realisation_is_python_controls_to_the_bit(kind):
         want = _python_control_block(kind, params)
         for a, b in zip(got, (want.A, want.B, want.C, want.D)):
             np.testing.assert_array_equal(a, np.asarray(b, float))
+
+
+@pytest.mark.parametrize("kind", ["valve_cylinder", "structure"])
+def test_the_blocks_one_definition_has_the_python_control_blocks_response(kind):
+    # robust.model.blocks (the batched, interval, uncertain-real and simulated evaluations)
+    # and the python-control member's SLICOT realisation of the transfer function: the same
+    # response from 0.1 to 100 Hz on a fixed and 40 seeded parameter sets (measured: the
+    # structure 3.1e-9 relative at worst, where its acceleration is a difference of terms
+    # (w_i / w)^2 larger than itself; the valve 1.5e-13)
+    from robust.model.blocks import NUMPY, parameter_name, structure_block, valve_block
+
+    rng = np.random.default_rng(11)
+    fixed = {
+        "valve_cylinder": ValveCylinderParams(k_vc=31.0, p1=290.0, wn_hz=4.6, zeta=0.5),
+        "structure": StructureParams(k_s=180.0, zeta1=0.1, zeta2=0.25, f1_hz=6.1, f2_hz=6.9),
+    }[kind]
+    block, build, out = {
+        "valve_cylinder": ("valve", valve_block, 0),
+        "structure": ("structure", structure_block, 1),
+    }[kind]
+    w = 2 * math.pi * np.logspace(-1, 2, 200)
+    for params in [fixed] + [_random_params(kind, rng) for _ in range(40)]:
+        p = {parameter_name(block, f): getattr(params, f) for f in params.__dataclass_fields__}
+        A, B, C, D = (m[0] for m in build(p, NUMPY))
+        got = np.array(
+            [(C[out] @ np.linalg.solve(1j * x * np.eye(len(A)) - A, B[:, 0])) for x in w]
+        )
+        got = got + D[out, 0]
+        want = ct.frequency_response(_python_control_block(kind, params), w).complex.ravel()
+        np.testing.assert_allclose(got, want, rtol=1e-8 if kind == "structure" else 1e-11)
