@@ -14,18 +14,16 @@ solve otherwise). No python-control object is built per member. The eigenvalues 
 taken chunk by chunk, so memory stays bounded, by the compiled loop of
 :func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's to rounding).
 
-Realisations (fixed, as functions of the parameters):
+Realisations: every block but the controller is :mod:`robust.model.blocks`' one
+definition, evaluated over numpy batches (:data:`robust.model.blocks.NUMPY`):
 
 * PI: one integrator state, ``e = kp err + ki xi``;
-Every varied and fixed block is :mod:`robust.model.blocks`' one definition, evaluated over
-numpy batches (:data:`robust.model.blocks.NUMPY`):
-
 * valve/cylinder (Eqn 3): cascade form, spool, cylinder speed and position (it does not vary
   within a family);
 * structure (Eqn 4): ``C/Y = K_s s^2 T1(s) T2(s)`` with
   ``Ti = (2 zi wi s + wi^2)/(s^2 + 2 zi wi s + wi^2)``. The strictly proper
   ``v = K_s T1 T2 y`` (the cab displacement, ``c = s^2 v``) is realised as two
-  controllable-canonical sections in cascade; because ``T1 T2`` has relative
+  scaled sections in cascade; because ``T1 T2`` has relative
   degree 2, ``c = C_v A^2 x + C_v A B y`` is a static output of the same 4 states;
 * literal human (Eqn 5): the double pole at ``s = 0`` of Eqn 5 cancels the
   structure's double zero at ``s = 0`` exactly, so the literal human is driven by
@@ -73,6 +71,7 @@ from robust.model.blocks import (
     NUMPY,
     STRUCTURE_FIELDS,
     VALVE_FIELDS,
+    as_batch,
     literal_human_block,
     parameter_name,
     pi_block,
@@ -172,9 +171,7 @@ def _block(name: str, mats: tuple, inputs, outputs, n: int | None = None) -> Blo
     """A :class:`Block` of matrices from :mod:`robust.model.blocks` (``NUMPY`` algebra),
     each broadcast to the batch of ``n`` members (the batch of its varied entries when
     ``n`` is None)."""
-    n = max(m.shape[0] for m in mats) if n is None else n
-    A, B, C, D = (np.array(np.broadcast_to(m, (n, *m.shape[1:])), float) for m in mats)
-    return Block(name, A, B, C, D, tuple(inputs), tuple(outputs))
+    return Block(name, *as_batch(mats, n), tuple(inputs), tuple(outputs))
 
 
 def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:

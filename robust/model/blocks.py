@@ -52,6 +52,7 @@ import numpy as np
 __all__ = [
     "Algebra",
     "NUMPY",
+    "as_batch",
     "BLOCK_FIELDS",
     "STRUCTURE_FIELDS",
     "VALVE_FIELDS",
@@ -234,6 +235,21 @@ def _np_blockdiag(mats) -> np.ndarray:
 def _np_vstack(mats) -> np.ndarray:
     n = max(m.shape[0] for m in mats)
     return np.concatenate([np.broadcast_to(m, (n, *m.shape[1:])) for m in mats], axis=1)
+
+
+def as_batch(mats, n: int | None = None) -> tuple:
+    """:data:`NUMPY` matrices as writable arrays of ``n`` members each (a constant one
+    repeated; ``n`` the largest batch among them when None).
+
+    Parameters
+    ----------
+    mats : sequence of ndarray
+        Matrices of shape (N_i, rows, columns), N_i 1 or ``n``.
+    n : int, optional
+        The batch size.
+    """
+    n = max(m.shape[0] for m in mats) if n is None else n
+    return tuple(np.array(np.broadcast_to(m, (n, *m.shape[1:])), float) for m in mats)
 
 
 #: Batches of members: a scalar is a number or an array of shape (N,), a matrix an array of

@@ -56,7 +56,7 @@ from robust.errors import ParameterError
 from robust.model._human_fit_data import FIT_RESULT
 from robust.model.anthropometry import NOMINAL_BODY_MASS, SEGMENT_MASS_FRACTIONS, segment_masses
 from robust.model.arm import ArmGeometry
-from robust.model.blocks import NUMPY, human_entries_physical, physical_human_block
+from robust.model.blocks import NUMPY, as_batch, human_entries_physical, physical_human_block
 from robust.model.literature import DEFAULT_POSTURE
 from robust.model.modal import modal_to_physical, physical_to_modal
 
@@ -277,8 +277,9 @@ def nominal_params(posture: str = DEFAULT_POSTURE) -> PhysicalHumanParams:
 def physical_human_matrices(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_gain, c_unit=1.0):
     """State-space matrices of the chain for arrays of parameters (broadcast together).
 
-    The chain's one definition, :func:`robust.model.blocks.physical_human_block`, of the
-    per-unit-mass rates of these masses, stiffnesses and dampings.
+    The chain's one definition, :func:`robust.model.blocks.physical_human_block`, with the
+    entries these masses, stiffnesses and dampings give
+    (:func:`robust.model.blocks.human_entries_physical`).
 
     States ``[z_trunk, z_arm, z_trunk', z_arm']`` (m, m/s); inputs ``[c, f]``;
     output ``h``.
@@ -326,10 +327,8 @@ def physical_human_matrices(m_trunk, m_arm, k_trunk, c_trunk, k_arm, c_arm, h_ga
             f"physical_human_matrices: the parameters must be scalars or 1-D; got shape "
             f"{args[0].shape}"
         )
-    n = args[0].shape[0]
     mats = physical_human_block(human_entries_physical(*args), NUMPY)
-    A, B, C, D = (np.array(np.broadcast_to(m, (n, *m.shape[1:])), float) for m in mats)
-    return A, B, C, D
+    return as_batch(mats, args[0].shape[0])
 
 
 @dataclasses.dataclass(frozen=True)
