@@ -55,8 +55,9 @@ operator it can tell, with an error bound:
    change at either end of the range); the calibration test measures how often the
    truth lies inside.
 5. **The cab** (:func:`identify_cab`). The same record tells the machine too: the cab's
-   acceleration per excitation, divided by the known cylinder loop, is the structure's
-   response, fitted for its gain and its two modes (:data:`CAB_IDENTIFIED`).
+   acceleration per excitation, divided by the machine's cylinder loop (known: it measures
+   the cylinder position), is the structure's response, fitted for its gain and its two
+   modes (:data:`CAB_IDENTIFIED`).
 6. **Joint error region** (:func:`region_points`, :func:`response_distance`). The
    marginal bounds of step 4 take each quantity alone; the estimate's errors are
    correlated (the two modes trade damping for frequency), and the bounds' mass term
@@ -1274,8 +1275,11 @@ def identify_cab(
 
     The same record as :func:`identify_operator`: the cab's acceleration per excitation,
     an H1 estimate with the excitation as input, divided by the cylinder loop's own
-    response (the valve and its PI loop do not vary across the family, so it is known:
-    ``loop``'s), gives the structure's response ``C/Y``; a weighted least-squares fit of
+    response, gives the structure's response ``C/Y``. The valve varies across the family,
+    so that response is the member's (``loop``'s): the machine measures the
+    cylinder position its PI loop closes on, so the rig knows its own cylinder loop's response
+    ``r -> y`` (taken as exact here: a position sensor's noise is far below the
+    accelerometer's); a weighted least-squares fit of
     :func:`cab_response` (weights as in the module notes; bound: 3 standard deviations of
     the fit coordinates plus the spectral estimate's resolution, two frequency bins on each
     natural frequency and one bin of half-power bandwidth on each damping ratio). The two
@@ -1286,7 +1290,8 @@ def identify_cab(
     ----------
     record : CalibrationRecord
     loop : robust.model.loop.BDFTLoop
-        Any member (its cylinder loop, which every member shares).
+        The member the record is of (its own cylinder loop, valve included, divides the
+        estimate).
     protocol : CalibrationProtocol, optional
     family : uncertainty.Family, optional
         Whose ranges bound the fit (default: the default family).

@@ -155,8 +155,8 @@ def intended_motion(
 
 @functools.lru_cache(maxsize=64)
 def _reference(k_psf: float, valve, calibration, f_key: bytes) -> np.ndarray:
-    # the loop without BDFT has neither structure nor human: every member of a family
-    # shares it, so its response is computed once per grid
+    # the loop without BDFT has neither structure nor human: every member with the same
+    # valve shares it, so its response is computed once per valve and grid
     loop = BDFTLoop(k_psf=k_psf, valve=valve, calibration=calibration)
     out = frequency_response(loop.system(bdft=False), np.frombuffer(f_key))
     out.setflags(write=False)

@@ -17,7 +17,9 @@ The design, top to bottom:
    of that human, masses nominal) plus a damper of the identified cab's less damped mode
    (a band-pass from the accelerometer to the reference, :func:`cab_damper`), its phase and
    gain the candidates' (:data:`DAMPER_PHASES` x :data:`DAMPER_GAINS`, or none) with the
-   smallest largest utilisation on the identified member; the candidates' closed loops are
+   smallest largest utilisation on the identified member (with the machine's own valve:
+   the machine measures the cylinder position its PI loop closes on, so its rig knows its
+   cylinder loop; :attr:`Calibrations.valves`); the candidates' closed loops are
    evaluated together in numpy (16 ms per design, checked against
    :func:`designs.spec.check_specification` in the tests);
 4. the bank beside it: a grid of ``cells_per_axis`` intervals per identified quantity of
@@ -94,8 +96,8 @@ from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.blocks import parameter_name
-from robust.model.components import realise_siso
+from robust.model.blocks import VALVE_FIELDS, block_of, parameter_name
+from robust.model.components import ValveCylinderParams, realise_siso
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import connect
 from robust.synthesis.solve import deterministic_solvers
@@ -119,6 +121,8 @@ __all__ = [
     "DAMPER_PHASES",
     "DAMPER_GAINS",
     "DESIGN_RULE",
+    "VALVE_FIELDS",
+    "member_valve",
     "Calibrations",
     "border_check",
     "operator_family",
@@ -315,6 +319,12 @@ class Calibrations:
     region_distance : numpy.ndarray, shape (n,)
         Each estimate's distance from its noise-free estimate, in standard deviations of
         the hand's response (:func:`designs.calibration.response_distance`).
+    valves : numpy.ndarray, shape (n, 4)
+        Each machine's valve/cylinder (:data:`VALVE_FIELDS`: ``K_VC``, ``p1`` rad/s,
+        ``wn_hz`` Hz, ``zeta``), which its rig knows: the machine measures the cylinder
+        position its PI loop closes on, so the record's cylinder loop is its own
+        (:func:`designs.calibration.identify_cab` divides by it); the designs made at the
+        calibration are made with it.
     """
 
     estimates: np.ndarray
@@ -326,6 +336,7 @@ class Calibrations:
     noise_free: np.ndarray
     region_points: np.ndarray
     region_distance: np.ndarray
+    valves: np.ndarray
 
     @property
     def operator_inside(self) -> np.ndarray:
@@ -389,6 +400,7 @@ def _calibrate_chunk(family, rows, seeds, protocol, regions):
                     nf,
                     pts,
                     dist,
+                    [getattr(loop.valve, f) for f in VALVE_FIELDS],
                 )
             ):
                 out[j].append(v)
@@ -513,6 +525,30 @@ def _cab_names(cab: dict) -> dict:
         parameter_name("structure", "f2_hz"): f"f_cab_{o}_hz",
         parameter_name("structure", "zeta2"): f"zeta_cab_{o}",
     }
+
+
+def _valve_params(valve) -> ValveCylinderParams:
+    """``ValveCylinderParams`` of a row of :data:`VALVE_FIELDS` values."""
+    v = np.asarray(valve, float).reshape(-1)
+    if v.shape != (len(VALVE_FIELDS),):
+        raise ParameterError(
+            f"valve must hold {len(VALVE_FIELDS)} values {VALVE_FIELDS}; got {valve!r}"
+        )
+    return ValveCylinderParams(**{f: float(x) for f, x in zip(VALVE_FIELDS, v)})
+
+
+def member_valve(family, row) -> np.ndarray:
+    """The valve/cylinder of the member ``row`` of ``family`` (:data:`VALVE_FIELDS` values;
+    the family's nominal for a parameter it does not vary).
+
+    Parameters
+    ----------
+    family : uncertainty.Family
+    row : array_like, shape (d,)
+        The member's values (``family.names`` order).
+    """
+    a = family.model_arrays(np.atleast_2d(np.asarray(row, float)), check_bounds=False)
+    return np.array([a[parameter_name("valve", f)][0] for f in VALVE_FIELDS])
 
 
 def _identified_row(family, human: dict, cab: dict) -> np.ndarray:
@@ -653,7 +689,7 @@ def _utilisations(ol: _OpenLoop, spec: Specification, Kc, w: float, gain, phase)
     return out
 
 
-def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSpace:
+def damped_cancellation(family, human: dict, cab: dict, spec=None, *, valve=None) -> ct.StateSpace:
     """The cancellation of the identified human plus a damper of the identified cab's mode.
 
     The member the calibration identified (human and cab, masses nominal) is built; the
@@ -672,9 +708,12 @@ def damped_cancellation(family, human: dict, cab: dict, spec=None) -> ct.StateSp
     cab : dict
         :data:`designs.calibration.CAB_IDENTIFIED` -> estimate.
     spec : Specification, optional
+    valve : array_like, optional
+        The machine's valve/cylinder (:data:`VALVE_FIELDS`; :attr:`Calibrations.valves`),
+        which its rig knows; the family's nominal valve when omitted.
     """
     spec = spec or Specification()
-    c = _damper_candidates(family, human, cab, spec)
+    c = _damper_candidates(family, human, cab, spec, valve)
     util = _utilisations(c.open_loop, spec, c.cancellation, c.w, c.gain, c.phase).max(axis=1)
     plain = _utilisations(c.open_loop, spec, c.cancellation, c.w, [0.0], [1.0]).max(axis=1)[0]
     # candidates within TIE_RTOL of each other are equally good on the identified member
@@ -701,9 +740,13 @@ class _Candidates:
     phase: np.ndarray  # per candidate, rad
 
 
-def _damper_candidates(family, human: dict, cab: dict, spec: Specification) -> _Candidates:
+def _damper_candidates(
+    family, human: dict, cab: dict, spec: Specification, valve=None
+) -> _Candidates:
     """The identified member's open loop, its cancellation and the damper candidates."""
     hat = family.member(_identified_row(family, human, cab), check_bounds=False)
+    if valve is not None:
+        hat = hat.replace(valve=_valve_params(valve))
     Kc = _cancellations(family, np.array([[human[k] for k in IDENTIFIED]]))[0]
     w = 2 * math.pi * hat.struct.f1_hz
     P = connect(
@@ -726,7 +769,11 @@ def _continuous_chunk(family, rows, est, spec, cabs=None):
                 K = _cancellations(family, np.asarray(e, float)[None, :])[0]
             else:
                 K = damped_cancellation(
-                    family, dict(zip(IDENTIFIED, e)), dict(zip(CAB_IDENTIFIED, cabs[i])), spec
+                    family,
+                    dict(zip(IDENTIFIED, e)),
+                    dict(zip(CAB_IDENTIFIED, cabs[i])),
+                    spec,
+                    valve=member_valve(family, row),
                 )
             v = member_verdicts(family, row[None, :], K, spec)
             holds[i] = v.holds[0]
@@ -869,7 +916,11 @@ def _border_chunk(family, rows, cal: Calibrations, spec, construction):
         for i, row in enumerate(rows):
             for label, h, c in _border_cases(cal, i, construction):
                 K = damped_cancellation(
-                    family, dict(zip(IDENTIFIED, h)), dict(zip(CAB_IDENTIFIED, c)), spec
+                    family,
+                    dict(zip(IDENTIFIED, h)),
+                    dict(zip(CAB_IDENTIFIED, c)),
+                    spec,
+                    valve=cal.valves[i],
                 )
                 labels.append(label)
                 stable.append(bool(member_metrics(family, row[None, :], controller=K)[0][0] < 0))
@@ -980,7 +1031,8 @@ def operator_family(family, cal: Calibrations, i: int):
     trunk's pairs, :data:`designs.calibration.CAB_IDENTIFIED` as the structure's, the less
     damped cab mode as the structure's first mode, as :func:`damped_cancellation`
     builds its member) range over their error bounds with the estimate as nominal; the
-    masses, which the record does not tell, over the family's whole ranges.
+    masses, which the record does not tell, over the family's whole ranges; the valve is
+    the machine's own (:attr:`Calibrations.valves`: its rig knows its cylinder loop).
 
     Parameters
     ----------
@@ -1002,6 +1054,8 @@ def operator_family(family, cal: Calibrations, i: int):
     where.update({name: (key, c, cb) for name, key in _cab_names(c).items()})
     params = []
     for p in family.parameters:
+        if block_of(p.name) == "valve":  # the machine's own valve, which the rig knows
+            continue
         if p.name not in where:
             params.append(p)
             continue
@@ -1009,7 +1063,10 @@ def operator_family(family, cal: Calibrations, i: int):
         lo, hi = max(float(b[key][0]), 1e-3), float(b[key][1])
         nominal = min(max(float(v[key]), lo), hi)
         params.append(dataclasses.replace(p, nominal=nominal, low=lo, high=hi, std=None))
-    return family.replace(parameters=tuple(params), name="calibrated operator"), h, c
+    fam = family.replace(
+        parameters=tuple(params), valve=_valve_params(cal.valves[i]), name="calibrated operator"
+    )
+    return fam, h, c
 
 
 def _certify_chunk(family, cal: Calibrations, spec, max_boxes: int):
@@ -1017,7 +1074,7 @@ def _certify_chunk(family, cal: Calibrations, spec, max_boxes: int):
         out = []
         for i in range(len(cal)):
             fam_i, h, c = operator_family(family, cal, i)
-            K = damped_cancellation(family, h, c, spec)
+            K = damped_cancellation(family, h, c, spec, valve=cal.valves[i])
             r = robust_margin(
                 fam_i,
                 controller=K,

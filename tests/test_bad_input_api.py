@@ -156,7 +156,8 @@ MEMBER_CASES = [
     (
         "closed-loop-wrong-shape",
         lambda: closed_loop_matrices(PHYS, rows()[:, :-1]),
-        r"closed_loop_matrices: member must have shape \(N, 11\) .*got \(5, 10\)",
+        rf"closed_loop_matrices: member must have shape \(N, {len(NAMES)}\) .*"
+        rf"got \(5, {len(NAMES) - 1}\)",
     ),
     (
         "closed-loop-not-numeric",
@@ -191,7 +192,7 @@ MEMBER_CASES = [
     (
         "member-wrong-length",
         lambda: PHYS.member([1.0, 2.0]),
-        r"Family\.member: values must have 11 entries .*got 2",
+        rf"Family\.member: values must have {len(NAMES)} entries .*got 2",
     ),
     (
         "model-arrays-negative-literal-gain",
@@ -240,13 +241,16 @@ SAMPLING_CASES = [
     (
         "sample-trillion-mc",
         lambda: sample(PHYS.parameters, 10**12, method="mc"),
-        r"sample: n=1000000000000 asks for 1000000000000 members of 11 parameters.*"
+        rf"sample: n=1000000000000 asks for 1000000000000 members of {len(NAMES)} parameters.*"
         r"MAX_SAMPLE_BYTES",
     ),
     (
         "sample-trillion-grid",
         lambda: sample(PHYS.parameters, 10**12, method="grid"),
-        r"sample: n=1000000000000 asks for \d+ members \(12\*\*11 grid points\)",
+        # k points per axis, k**d <= n < (k + 1)**d
+        rf"sample: n=1000000000000 asks for \d+ members "
+        rf"\({max(k for k in range(1, 100) if k ** len(NAMES) <= 10**12)}\*\*{len(NAMES)} "
+        r"grid points\)",
     ),
     (
         "sample-float-n",
@@ -260,7 +264,7 @@ SAMPLING_CASES = [
     ),
     (
         "ppf-quantile-above-one",
-        lambda: PHYS.parameters[0].ppf([0.5, 1.5]),
+        lambda: PHYS.parameter("struct.k_s").ppf([0.5, 1.5]),
         r"UncertainParameter 'struct\.k_s': ppf quantile u\[1\] must be a finite value in "
         r"\[0, 1\]; got 1\.5",
     ),
@@ -540,7 +544,7 @@ def test_a_huge_chunk_changes_no_number():
 
 
 def test_the_sample_limit_holds_at_its_boundary(monkeypatch):
-    monkeypatch.setattr(sampling_module, "MAX_SAMPLE_BYTES", 8 * 11 * 100)
+    monkeypatch.setattr(sampling_module, "MAX_SAMPLE_BYTES", 8 * len(NAMES) * 100)
     assert len(sample(PHYS.parameters, 100, method="mc")) == 100
     with pytest.raises(ParameterError, match=r"n=101 .*at most 100 members"):
         sample(PHYS.parameters, 101, method="mc")

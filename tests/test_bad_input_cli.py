@@ -195,13 +195,13 @@ def test_bad_identify_option_writes_nothing(tmp_path, capsys, chirp, change, cul
 
 def test_memory_budget_is_documented_and_follows_the_environment(capsys, monkeypatch):
     # the limit is the budget over the bytes per member, stated in --help
-    assert max_members() == 4 * 2**30 // BYTES_PER_MEMBER == 14_913_080
+    assert max_members() == 4 * 2**30 // BYTES_PER_MEMBER == 11_184_810
     assert max_batch() == 4 * 2**30 // BYTES_PER_BATCH_MEMBER
     with pytest.raises(SystemExit) as exc:
         main(["validate", "--help"])
     assert exc.value.code == 0
     helptext = " ".join(capsys.readouterr().out.split())
-    assert "at most 14,913,080 (4 GiB memory budget at 288 bytes per member" in helptext
+    assert "at most 11,184,810 (4 GiB memory budget at 384 bytes per member" in helptext
     # a smaller budget refuses what the default allows, naming the variable's limit
     monkeypatch.setenv("BDFT_MEMORY_BUDGET_GIB", "0.001")
     assert main(["validate", "--samples", "5000"]) == 2

@@ -49,6 +49,7 @@ def test_physical_batched_poles_equal_python_control_poles(ctrl, method):
     K = CONTROLLERS[ctrl]
     fam = default_family("physical")
     S = sample(fam.parameters, N_MEMBERS, method=method, seed=17)
+    assert np.unique(S.column("valve.k_vc")).size > 1  # each member its own valve
     P = batched_poles(fam, S.values, controller=K)
     for i in range(N_MEMBERS):
         ref = ct.poles(fam.member(S.values[i]).system(controller=K))

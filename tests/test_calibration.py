@@ -218,8 +218,16 @@ def test_noise_free_record_gives_the_true_response_and_modes():
 
 @pytest.fixture(scope="module")
 def records():
-    # 20 operators on 20 machines of the default family, each with its own record
-    rows = sample(FAM.parameters, 20, method="mc", seed=11).values
+    # 20 operators on 20 machines of the default family, each with its own record: the
+    # operators and structures of the figures below (drawn before the family varied the
+    # valve: the same stream of 11 columns), each machine with a valve of its own (drawn
+    # apart). On the 15-column sample of the same seed 17 cabs of 20 lie inside: the same
+    # three misses (the upper mode's damping, by 0.1-1 %) with those members' valves nominal.
+    others = [p for p in FAM.parameters if not p.name.startswith("valve.")]
+    valves = [p for p in FAM.parameters if p.name.startswith("valve.")]
+    a = sample(others, 20, method="mc", seed=11)
+    b = sample(valves, 20, method="mc", seed=12)
+    rows = np.column_stack([(b if n.startswith("valve.") else a).column(n) for n in FAM.names])
     out = []
     for i, row in enumerate(rows):
         loop = FAM.member(row)

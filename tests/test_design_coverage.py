@@ -147,8 +147,11 @@ def test_workspace_design_coverage(family):
     assert 0.45 < j["fraction"] < 0.8
     assert j["epsilon"] == pytest.approx(failure_bound(200, j["failures"], 0.999))
     assert j["lower"] < j["fraction"]
-    # damping is what fails, not force (the design exerts none)
-    assert j["binding"]["damping"] >= 0.9 * j["failures"]
+    # damping is what fails, not force (the design exerts none). Measured with the valve's
+    # spread: 52 %, damping binding on 85 of the 96 failures, tracking on 8, the decay rate
+    # on 3; before the family varied the valve: 58.5 %, damping on 79 of 83, tracking on 4
+    assert max(j["binding"], key=j["binding"].get) == "damping"
+    assert j["binding"]["damping"] > 0.8 * j["failures"]
     assert j["violations"]["continuous force"] == 0 and j["violations"]["peak force"] == 0
     assert sum(j["binding"].values()) == j["failures"]
     assert seen[-1] == 200

@@ -154,14 +154,16 @@ def _certified(r, boxes=400):
 
 @pytest.mark.parametrize(
     "name, floor, method",
-    [("workspace", 0.4, "valueset"), ("hinf-robust", 0.002, "eigenvalues")],
+    [("workspace", 0.35, "valueset"), ("hinf-robust", 0.002, "eigenvalues")],
     ids=["workspace", "hinf-robust"],
 )
 def test_certified_robust_margin_of_shipped_designs(runs, name, floor, method):
     # the certified lower bound covers every member of the scaled box (open left
     # half-plane), not samples; the floors sit below the values measured on this sample
-    # (workspace 0.524 by zero exclusion on value sets, its open loop having no
-    # compensator, 0.109 by the eigenvalue enclosures; hinf-robust 0.0027 with 400
+    # (workspace 0.379 by zero exclusion on value sets, its open loop having no
+    # compensator, at its workspace factor 26.1 with the valve's spread; a wider search than
+    # the margin's finds an unstable member at 0.6; 0.524 at factor 11.1 before the family
+    # varied the valve; 0.109 by the eigenvalue enclosures; hinf-robust 0.0027 with 400
     # sub-boxes per scale; hinf-robust is tuned with a half-sample lag at its output since
     # it went unstable in the 1 kHz loop), which the box budget and the single-threaded
     # robust synthesis set the same on every thread count

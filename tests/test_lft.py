@@ -54,9 +54,9 @@ def test_powers_products_and_uncertain_input_output_matrices():
 
 def test_the_bdft_family_in_lft_form():
     # no reduction is attempted: the repetitions are the parameters' occurrences in the
-    # blocks' one definition (the structure's scaled sections take 38 and 152, where the
-    # sections in w^2 took 47 and 182)
-    for human, repeats in (("literal", 38), ("physical", 152)):
+    # blocks' one definition (with the valve's spread 51 and 162; without it the
+    # structure's scaled sections took 38 and 152, where the sections in w^2 took 47 and 182)
+    for human, repeats in (("literal", 51), ("physical", 162)):
         F = _members_agree(family_uss(default_family(human)), n=3, rtol=1e-12)
         assert len(F.blocks) == len(default_family(human).names)
         assert sum(r for _, r in F.blocks) == repeats

@@ -7,6 +7,7 @@ import control as ct
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from family_rows import rows_with_valves
 
 import designs.limit as limit
 from bdft import main
@@ -32,12 +33,23 @@ from robust.synthesis.youla import (
     realise_controller,
     stabilising_gain,
 )
-from uncertainty import default_family, sample
+from uncertainty import default_family
 
 
 @pytest.fixture(scope="module")
 def family():
     return default_family()
+
+
+def _member_with_nominal_valve(family, n, i):
+    """Member ``i`` of the ``n``-member map (seed 0) as it was drawn before the family varied
+    the valve: its operator and structure from the same stream, the paper's valve."""
+    row = rows_with_valves(family, n, method="lhs", seed=0)[i].copy()
+    nominal = family.nominal_values()
+    for j, name in enumerate(family.names):
+        if name.startswith("valve."):
+            row[j] = nominal[j]
+    return row
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +110,7 @@ def test_stabilising_gain_skips_inaccurate_riccati_solutions(family):
     # the region's), as SLICOT's Riccati solver (python-control) gives it
     import robust.synthesis.youla as youla
 
-    row = sample(family.parameters, 64, method="lhs", seed=0).values[11]
+    row = _member_with_nominal_valve(family, 64, 11)
     plant, _ = limit._member_plant(family.member(row), ("f",))
     spec = Specification()
     region = PoleRegion(spec.decay_rate, spec.min_damping)
@@ -311,7 +323,7 @@ def test_member_whose_cone_program_stalls_unrefined_is_solved_and_verified(famil
     monkeypatch.setattr(
         youla.LimitProblem, "_cvxpy", lambda *a, **k: pytest.fail("cvxpy fallback used")
     )
-    row = sample(family.parameters, 64, method="lhs", seed=0).values[50]
+    row = _member_with_nominal_valve(family, 64, 50)
     res = limit.member_limit(family.member(row), "force", sensors="handle", seed=50)
     assert seen and all(x == ("force", True, "Solved") for x in seen)
     assert res.verified and res.binding == "continuous force"

@@ -17,6 +17,9 @@ from uncertainty import (
 )
 from uncertainty.margins import certify_box, closed_loop_enclosure, scaled_bounds
 
+# each valve parameter of Eqn 3 away from its nominal, in its own direction
+VALVE_EDGES = {"valve.k_vc": "high", "valve.p1": "low", "valve.wn_hz": "low", "valve.zeta": "low"}
+
 
 def _controller(output):
     # a small strictly proper compensator from the handle and the cylinder to the force (or
@@ -34,6 +37,11 @@ def test_three_evaluations_agree_on_seeded_members(human, with_controller):
     loop = family_uss(fam, K)
     assert list(loop.parameters) == list(fam.names)
     rows = sample(fam.parameters, 64, method="mc", seed=11).values
+    # the members' valves differ (Eqn 3's four parameters vary in the family)
+    for name in VALVE_EDGES:
+        assert np.ptp(rows[:, fam.names.index(name)]) > 0.3 * np.ptp(
+            [fam.parameter(name).low, fam.parameter(name).high]
+        )
     batched = closed_loop_matrices(fam, rows, controller=K)
     from_uss = loop.state_matrices(rows)
     assert from_uss.shape == batched.shape
@@ -139,3 +147,76 @@ def test_parameter_names_are_spelled_in_the_model_module_only():
     # and the model module does spell them
     text = (root / "robust" / "model" / "blocks.py").read_text()
     assert "_PREFIX" in text and all(f in text for f in BLOCK_FIELDS["valve"])
+
+
+def _valve_moved(fam):
+    row = fam.nominal_values()
+    for name, edge in VALVE_EDGES.items():
+        p = fam.parameter(name)
+        row[fam.names.index(name)] = getattr(p, edge)
+    return row
+
+
+def _matched(ref, got):
+    """Largest |ref - got| / max(1, |ref|) over a one-to-one matching of two pole sets."""
+    from scipy.optimize import linear_sum_assignment
+
+    d = np.abs(ref[:, None] - got[None, :])
+    r, c = linear_sum_assignment(d)
+    return float(np.max(d[r, c] / np.maximum(1.0, np.abs(ref[r]))))
+
+
+@pytest.mark.parametrize("human", ["literal", "physical"])
+def test_a_member_with_its_valve_moved_has_the_same_poles_in_every_evaluation(human):
+    # the valve at the edges of the family's ranges (gain up, pole, bandwidth and damping
+    # down): batched matrices, python-control's loop of the member, the uncertain system and
+    # the interval enclosure all take the valve from the member, not the family's nominal
+    from robust.analysis.eigen_enclosure import enclose_eigenvalues
+    from robust.analysis.realization import minimal_realization
+
+    fam = default_family(human)
+    row = _valve_moved(fam)
+    same_valve = fam.nominal_values()
+    batched = np.linalg.eigvals(closed_loop_matrices(fam, row[None])[0])
+    nominal_valve = np.linalg.eigvals(closed_loop_matrices(fam, same_valve[None])[0])
+    # the valve moves the loop's poles (an evaluator with the nominal valve would fail below)
+    assert _matched(nominal_valve, batched) > 1e-2
+
+    member = fam.member(row)
+    assert member.valve.k_vc == fam.parameter("valve.k_vc").high
+    assert member.valve.wn_hz == fam.parameter("valve.wn_hz").low
+    sys = member.system()
+    if human == "literal":  # python-control keeps Eqn 5's two cancelled modes at s = 0
+        m = minimal_realization(sys.A, sys.B, sys.C, sys.D)
+        ref = np.linalg.eigvals(m.A)
+    else:
+        ref = ct.poles(sys)
+    assert _matched(ref, batched) < 1e-8
+
+    uss = family_uss(fam).at(dict(zip(fam.names, row)))
+    assert _matched(ct.poles(uss), batched) < 1e-9
+
+    # the interval enclosure over a small box about the member (valve parameters +-0.1 %)
+    # holds every pole of python-control's loop in its verified, disjoint rectangles
+    lo, hi = row.copy(), row.copy()
+    for name in VALVE_EDGES:
+        j = fam.names.index(name)
+        lo[j], hi[j] = row[j] * 0.999, row[j] * 1.001
+    centre = closed_loop_enclosure(fam, row, row)
+    grad = closed_loop_enclosure(fam, lo, hi, derivatives=True)
+    logs = np.array([p.distribution == "loguniform" for p in fam.parameters])
+    h = np.where(logs, np.log(hi / lo) / 2, (hi - lo) / 2) * (1 + 1e-9)
+    assert np.all(np.abs(grad.der.mid).sum(axis=(1, 2))[[fam.names.index(n) for n in VALVE_EDGES]])
+    E_rad = centre.rad + np.einsum("p,pab->ab", h, grad.der.rad)
+    enc = enclose_eigenvalues(centre.mid, grad.der.mid, h, E_rad)
+    assert enc["ok"]
+    c, rr, ri = enc["centre"], enc["rad_re"], enc["rad_im"]
+    inside = (np.abs(ref.real[:, None] - c.real[None]) <= rr[None]) & (
+        np.abs(ref.imag[:, None] - c.imag[None]) <= ri[None]
+    )
+    assert inside.any(axis=1).all()
+    # and the rectangles are tight enough to tell this valve from the nominal one
+    far = (np.abs(nominal_valve.real[:, None] - c.real[None]) <= rr[None]) & (
+        np.abs(nominal_valve.imag[:, None] - c.imag[None]) <= ri[None]
+    )
+    assert not far.any(axis=1).all()

@@ -5,6 +5,7 @@ import json
 import control as ct
 import numpy as np
 import pytest
+from family_rows import rows_with_valves
 
 from bdft import main
 from designs.calibration import CAB_IDENTIFIED, IDENTIFIED, operator_row
@@ -22,18 +23,20 @@ from designs.scheduled import (
     calibrate_members,
     continuous_coverage,
     damped_cancellation,
+    member_valve,
     operator_family,
 )
 from designs.spec import CONSTRAINTS, Specification, check_specification
 from robust.errors import ParameterError
-from uncertainty import default_family, member_metrics, sample
+from uncertainty import default_family, member_metrics
 
 FAM = default_family()
 
 
 @pytest.fixture(scope="module")
 def calibrated():
-    rows = sample(FAM.parameters, 24, method="mc", seed=2).values
+    # the operators and cabs measured below, each machine with its own valve
+    rows = rows_with_valves(FAM, 24, method="mc", seed=2)
     return rows, calibrate_members(FAM, rows, seed=1002)
 
 
@@ -145,7 +148,7 @@ def test_the_cab_damper_designed_at_calibration_rescues_lightly_damped_cabs():
     # the damper designed from the same record (identified cab, phase and gain picked on the
     # identified member) the damping holds on the true member (measured: 3 of 3). The whole
     # specification does not: the reference effort binds (see the bank's test)
-    rows = sample(FAM.parameters, 300, method="mc", seed=5).values
+    rows = rows_with_valves(FAM, 300, method="mc", seed=5)
     rows = rows[rows[:, FAM.names.index("struct.zeta1")] < 0.09][:3]
     cal = calibrate_members(FAM, rows, seed=77)
     spec = Specification()
@@ -154,7 +157,8 @@ def test_the_cab_damper_designed_at_calibration_rescues_lightly_damped_cabs():
     for row, e, cb in zip(rows, cal.estimates, cal.cabs, strict=True):
         h, c = dict(zip(IDENTIFIED, e)), dict(zip(CAB_IDENTIFIED, cb))
         Kc = _damper_candidates(FAM, h, c, spec).cancellation
-        K = damped_cancellation(FAM, h, c, spec)
+        # the damper made with the machine's own valve (its rig knows its cylinder loop)
+        K = damped_cancellation(FAM, h, c, spec, valve=member_valve(FAM, row))
         plain.append(member_verdicts(FAM, row[None, :], Kc, spec).violated[0, k])
         damped.append(member_verdicts(FAM, row[None, :], K, spec).violated[0, k])
     assert all(plain)
@@ -240,7 +244,7 @@ def test_border_check_counts_what_a_hand_built_design_shows(calibrated):
             lo, hi = cal.bounds[i, j]
             t[j] = t[j] / np.sqrt(hi / lo) if j == 0 else max(t[j] - 0.5 * (hi - lo), 0.01)
             h, c = dict(zip(IDENTIFIED, t)), dict(zip(CAB_IDENTIFIED, cal.cab_truth[i]))
-            K = damped_cancellation(FAM, h, c)
+            K = damped_cancellation(FAM, h, c, valve=cal.valves[i])
             unstable += int(not member_metrics(FAM, rows[i : i + 1], controller=K)[0][0] < 0)
         assert out["unstable_by_case"][label] == unstable
     assert out["unstable_by_case"]["f_low_hz-"] >= 1
@@ -250,7 +254,7 @@ def test_the_calibration_bounds_the_operator_for_95_percent_of_seeded_operators(
     # the design's cell is the box its calibration bounds: 200 seeded operators, each with
     # its own record; the true modes inside the bound for 196 of them (measured), the
     # issue's floor 95 % (190)
-    rows = sample(FAM.parameters, 200, method="mc", seed=2).values
+    rows = rows_with_valves(FAM, 200, method="mc", seed=2)
     cal = calibrate_members(FAM, rows, seed=1002, n_jobs=2, regions=0)
     assert cal.operator_inside.sum() >= 190
     assert np.isnan(cal.region_distance).all() and cal.within_confidence_region.size == 0
@@ -273,12 +277,17 @@ def test_border_check_on_the_joint_error_region_keeps_the_loop_stable(calibrated
     # the largest axis's design by hand: stable on the true member
     h = cal.region_points[13, 0]
     K = damped_cancellation(
-        FAM, dict(zip(IDENTIFIED, h)), dict(zip(CAB_IDENTIFIED, cal.cab_truth[13]))
+        FAM,
+        dict(zip(IDENTIFIED, h)),
+        dict(zip(CAB_IDENTIFIED, cal.cab_truth[13])),
+        valve=cal.valves[13],
     )
     assert member_metrics(FAM, rows[13:14], controller=K)[0][0] < -1e-3
     # the true modes with the nominal masses are not what the record tells member 13
     t = dict(zip(IDENTIFIED, cal.truth[13]))
-    K = damped_cancellation(FAM, t, dict(zip(CAB_IDENTIFIED, cal.cab_truth[13])))
+    K = damped_cancellation(
+        FAM, t, dict(zip(CAB_IDENTIFIED, cal.cab_truth[13])), valve=cal.valves[13]
+    )
     assert member_metrics(FAM, rows[13:14], controller=K)[0][0] > 0
     with pytest.raises(ParameterError, match="construction"):
         border_check(FAM, rows[:1], cal[:1], construction="corners")
@@ -304,6 +313,10 @@ def test_operator_family_is_the_calibrations_box(calibrated):
     assert p["struct.k_s"].nominal == pytest.approx(c["k_s"])
     ref = {q.name: q for q in FAM.parameters}
     assert p["human.m_arm"] == ref["human.m_arm"]
+    # the machine's valve is its own (the rig knows its cylinder loop), not a range
+    assert not any(name.startswith("valve.") for name in p)
+    assert fam.valve.k_vc == cal.valves[4, 0] and fam.valve.zeta == cal.valves[4, 3]
+    assert cal.valves[4, 0] == rows[4, FAM.names.index("valve.k_vc")] != FAM.valve.k_vc
 
 
 def test_cab_damper_keeps_the_realisation_of_its_transfer_function_product():

@@ -18,8 +18,9 @@ Realisations: every block but the controller is :mod:`robust.model.blocks`' one
 definition, evaluated over numpy batches (:data:`robust.model.blocks.NUMPY`):
 
 * PI: one integrator state, ``e = kp err + ki xi``;
-* valve/cylinder (Eqn 3): cascade form, spool, cylinder speed and position (it does not vary
-  within a family);
+* valve/cylinder (Eqn 3): cascade form, spool, cylinder speed and position
+  (:func:`valve_blocks`; one block that every member shares when the family does not vary
+  the valve);
 * structure (Eqn 4): ``C/Y = K_s s^2 T1(s) T2(s)`` with
   ``Ti = (2 zi wi s + wi^2)/(s^2 + 2 zi wi s + wi^2)``. The strictly proper
   ``v = K_s T1 T2 y`` (the cab displacement, ``c = s^2 v``) is realised as two
@@ -90,6 +91,7 @@ __all__ = [
     "STABILITY_THRESHOLD",
     "DEFAULT_CHUNK",
     "Block",
+    "valve_blocks",
     "loop_blocks",
     "closed_loop_matrices",
     "interconnection",
@@ -199,6 +201,34 @@ def structure_blocks(k_s, zeta1, zeta2, f1_hz, f2_hz) -> Block:
     return _block("structure", structure_block(p, NUMPY), ("y",), ("v", "c"), n)
 
 
+def valve_blocks(k_vc, p1, wn_hz, zeta) -> Block:
+    """Valve/cylinder (Eqn 3) for arrays of parameters: input ``e``, output ``y``.
+
+    ``Y/E = K_VC p1 / (s (s + p1)) * wn^2 / (s^2 + 2 zeta wn s + wn^2)`` with
+    ``wn = 2 pi wn_hz``, in the cascade coordinates of
+    :func:`robust.model.blocks.valve_block` (4 states).
+
+    Parameters
+    ----------
+    k_vc : ndarray, shape (N,)
+        Gain ``K_VC`` (cylinder position per unit valve command per second).
+    p1 : ndarray, shape (N,)
+        Real pole, rad/s.
+    wn_hz : ndarray, shape (N,)
+        Valve natural frequency, Hz.
+    zeta : ndarray, shape (N,)
+        Valve damping ratio.
+
+    Returns
+    -------
+    Block
+    """
+    values = dict(zip(VALVE_FIELDS, (k_vc, p1, wn_hz, zeta)))
+    p = {parameter_name("valve", f): np.asarray(v, float) for f, v in values.items()}
+    n = max(v.shape[0] for v in p.values())
+    return _block("valve", valve_block(p, NUMPY), ("e",), ("y",), n)
+
+
 def literal_human_cancelled(k_h, z1, p1) -> Block:
     """Eqn 5 times ``s^2``: ``K_H (s + z1)^2 / (s + p1)^2``, input ``v``, output ``h``.
 
@@ -255,10 +285,9 @@ def _controller_block(controller: ct.StateSpace, has_force_port: bool) -> Block:
 
 @functools.lru_cache(maxsize=16)
 def _valve_block(valve) -> Block:
-    """The valve/cylinder's block (:func:`robust.model.blocks.valve_block`; it does not vary
-    within a family), built once per parameter set and process."""
-    p = {parameter_name("valve", f): getattr(valve, f) for f in VALVE_FIELDS}
-    return _block("valve", valve_block(p, NUMPY), ["e"], ["y"])
+    """The valve/cylinder's block of a family that does not vary it, built once per
+    parameter set and process."""
+    return valve_blocks(*([getattr(valve, f)] for f in VALVE_FIELDS))
 
 
 def _check_family(family, where: str) -> None:
@@ -319,9 +348,15 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
     cal = family.calibration
     blocks = []
     blocks.append(_const("pi", *pi_block(cal.kp, cal.ki), ["err"], ["e"]))
-    v = _valve_block(family.valve)
-    # (copies: the cached block stays as it was whatever a caller does with the list)
-    blocks.append(dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy()))
+    valve_names = [parameter_name("valve", f) for f in VALVE_FIELDS]
+    if set(valve_names) & set(family.names):
+        blocks.append(valve_blocks(*(p[name] for name in valve_names)))
+    else:  # a valve the family does not vary: one block that every member shares
+        v = _valve_block(family.valve)
+        # (copies: the cached block stays as it was whatever a caller does with the list)
+        blocks.append(
+            dataclasses.replace(v, A=v.A.copy(), B=v.B.copy(), C=v.C.copy(), D=v.D.copy())
+        )
     blocks.append(structure_blocks(*(p[parameter_name("structure", f)] for f in STRUCTURE_FIELDS)))
     if family.human == "literal":
         blocks.append(

@@ -1,19 +1,20 @@
 """Parametric families of the BDFT loop: which parameters vary, over what, and why.
 
-A :class:`Family` is the fixed part of the loop (valve/cylinder, calibration,
-position scale factor, human variant) plus a tuple of
+A :class:`Family` is the fixed part of the loop (calibration, position scale factor,
+human variant) and the nominal values of its blocks, plus a tuple of
 :class:`~uncertainty.parameters.UncertainParameter`. Parameters the family does
 not vary stay at the nominal values the family holds, so a fitted component
 (:mod:`uncertainty.files`) changes the family by changing its nominals.
 
 Parameter names are the model's (:func:`robust.model.blocks.parameter_name`: the block and
-the field, e.g. the structure's first natural frequency or the arm's effective mass);
-:data:`MODEL_PARAMETERS` lists the ones each human variant accepts. The physical human is
-varied as biodynamics papers report it (:mod:`robust.model.literature`): body mass (which
-scales the upper-body mass), the arm endpoint's effective mass, natural frequency and
-damping ratio with the trunk held, the trunk's natural frequency and damping ratio on the
-seat; stiffnesses and dampings are derived (:mod:`robust.model.modal`). The literal human
-(Eqn 5) varies its gain and pole.
+the field, e.g. the valve's gain, the structure's first natural frequency or the arm's
+effective mass); :data:`MODEL_PARAMETERS` lists the ones each human variant accepts. The
+valve/cylinder (Eqn 3) varies its gain, real pole, valve frequency and damping ratio in
+every variant. The physical human is varied as biodynamics papers report it
+(:mod:`robust.model.literature`): body mass (which scales the upper-body mass), the arm
+endpoint's effective mass, natural frequency and damping ratio with the trunk held, the
+trunk's natural frequency and damping ratio on the seat; stiffnesses and dampings are
+derived (:mod:`robust.model.modal`). The literal human (Eqn 5) varies its gain and pole.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from robust.model.anthropometry import NOMINAL_BODY_MASS
 from robust.model.blocks import (
     LITERAL_HUMAN_FIELDS,
     STRUCTURE_FIELDS,
+    VALVE_FIELDS,
     block_of,
     field_of,
     parameter_name,
@@ -56,12 +58,17 @@ __all__ = [
     "MODEL_PARAMETERS",
     "PHYSICAL_LIMITS",
     "BOUNDS_RTOL",
+    "VALVE_GAIN_SPREAD",
+    "VALVE_POLE_SPREAD",
+    "VALVE_FREQUENCY_SPREAD",
+    "VALVE_DAMPING_RANGE",
 ]
 
 HUMAN_VARIANTS = ("physical", "literal")
 #: Ranges a default family can span: the published ones, or the labelled stress variant.
 RANGES = ("published", "stress")
 
+_VALVE = VALVE_FIELDS
 _STRUCT = STRUCTURE_FIELDS
 _PHYS = ("m_trunk", "m_arm", "k_trunk", "c_trunk", "k_arm", "c_arm", "h_gain", "c_unit")
 _MODAL = ("m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
@@ -69,11 +76,13 @@ _LIT = LITERAL_HUMAN_FIELDS
 
 #: Names of the family parameters each variant accepts.
 MODEL_PARAMETERS = {
-    "physical": tuple(parameter_name("structure", n) for n in _STRUCT)
+    "physical": tuple(parameter_name("valve", n) for n in _VALVE)
+    + tuple(parameter_name("structure", n) for n in _STRUCT)
     + (parameter_name("human", "body_mass"),)
     + tuple(parameter_name("human", n) for n in _MODAL)
     + (parameter_name("human", "h_gain"), parameter_name("human", "c_unit")),
-    "literal": tuple(parameter_name("structure", n) for n in _STRUCT)
+    "literal": tuple(parameter_name("valve", n) for n in _VALVE)
+    + tuple(parameter_name("structure", n) for n in _STRUCT)
     + tuple(parameter_name("human", n) for n in _LIT),
 }
 
@@ -81,12 +90,14 @@ MODEL_PARAMETERS = {
 #: the family's bounds (the check of ``check_bounds=False``): finite, with positive gains,
 #: masses, natural frequencies and damping ratios and a nonzero unit gain ``h_gain`` -- the
 #: sign constraints of the model's parameter dataclasses
-#: (:data:`robust.model.components.STRUCTURE_SPECS`, :data:`robust.model.human.LITERAL_SPECS`,
-#: :data:`robust.model.physical.PHYSICAL_SPECS` and :data:`~robust.model.physical.MODAL_SPECS`).
-#: A structure damping ratio of 1 or more (overdamped) is physical and the batched loop
-#: handles it; :meth:`Family.member` builds a :class:`~robust.model.components.StructureParams`,
-#: which holds it below 1.
+#: (:data:`robust.model.components.VALVE_SPECS`, :data:`~robust.model.components.STRUCTURE_SPECS`,
+#: :data:`robust.model.human.LITERAL_SPECS`, :data:`robust.model.physical.PHYSICAL_SPECS` and
+#: :data:`~robust.model.physical.MODAL_SPECS`). A structure or valve damping ratio of 1 or more
+#: (overdamped) is physical and the batched loop handles it; :meth:`Family.member` builds a
+#: :class:`~robust.model.components.StructureParams` and a
+#: :class:`~robust.model.components.ValveCylinderParams`, which hold it below 1.
 PHYSICAL_LIMITS: dict[str, Spec] = {
+    **{parameter_name("valve", n): POSITIVE for n in _VALVE},
     **{parameter_name("structure", n): POSITIVE for n in _STRUCT},
     **{parameter_name("human", n): LITERAL_SPECS[n] for n in _LIT},
     parameter_name("human", "body_mass"): POSITIVE,
@@ -121,7 +132,7 @@ class Family:
     k_psf : float
         Position scale factor of every member.
     valve, struct, literal, physical : parameter dataclasses
-        Nominal values (the valve does not vary).
+        Nominal values: what a member takes for a model parameter the family does not vary.
     body_mass : float
         Nominal body mass (kg) that ``physical``'s upper-body mass belongs to; a member
         with body mass ``M`` has it scaled by ``M / body_mass``.
@@ -231,6 +242,8 @@ class Family:
         block, field = block_of(name), field_of(name)
         if block == "structure":
             return float(getattr(self.struct, field))
+        if block == "valve":
+            return float(getattr(self.valve, field))
         if field == "body_mass":
             return float(self.body_mass)
         return float(getattr(self.literal if self.human == "literal" else self.physical, field))
@@ -375,10 +388,11 @@ class Family:
         Returns
         -------
         dict
-            The model parameter names of the structure and the human
+            The model parameter names of the valve, the structure and the human
             (:func:`robust.model.blocks.parameter_name` of the fields of
             :class:`~robust.model.components.StructureParams` and of the variant's human
-            parameters) -> array of shape (N,).
+            parameters) -> array of shape (N,), in the fields' units (the valve's pole in rad/s,
+            the valve's and the structure's frequencies in Hz).
 
         Raises
         ------
@@ -393,6 +407,9 @@ class Family:
         n = v.shape[0]
         cols = {name: v[:, j] for j, name in enumerate(self.names)}
         out = {}
+        for f in _VALVE:
+            name = parameter_name("valve", f)
+            out[name] = cols.get(name, np.full(n, getattr(self.valve, f)))
         for f in _STRUCT:
             out[parameter_name("structure", f)] = cols.get(
                 parameter_name("structure", f), np.full(n, getattr(self.struct, f))
@@ -478,6 +495,7 @@ class Family:
         v = self.check_members([row], check_bounds=check_bounds, where="Family.member")
         arrays = self._model_arrays(v)
         one = {k: float(a[0]) for k, a in arrays.items()}
+        valve = ValveCylinderParams(**{f: one[parameter_name("valve", f)] for f in _VALVE})
         struct = StructureParams(**{f: one[parameter_name("structure", f)] for f in _STRUCT})
         if self.human == "literal":
             human = LiteralHuman(
@@ -489,7 +507,7 @@ class Family:
             )
         return BDFTLoop(
             k_psf=self.k_psf,
-            valve=self.valve,
+            valve=valve,
             struct=struct,
             human=human,
             calibration=self.calibration,
@@ -514,10 +532,79 @@ class Family:
 
 
 # -- the default family ------------------------------------------------------------------------
+#: Relative half-width of the valve/cylinder's velocity gain ``K_VC`` about its nominal.
+VALVE_GAIN_SPREAD = 0.25
+#: Relative half-width of the real pole ``p1`` of Eqn 3 about its nominal.
+VALVE_POLE_SPREAD = 0.3
+#: Relative half-width of the valve's natural frequency about its nominal.
+VALVE_FREQUENCY_SPREAD = 0.2
+#: Range of the valve's damping ratio (widened to hold a nominal outside it).
+VALVE_DAMPING_RANGE = (0.3, 0.7)
 #: Total width (high/low) of the literal human's log-uniform gain range.
 HUMAN_SPREAD = 10.0
 #: Lowest structure frequency as a fraction of the stilts value.
 WHEELS_FREQUENCY_FRACTION = 0.4
+
+
+def _valve_parameters(v: ValveCylinderParams) -> list[UncertainParameter]:
+    """Eqn 3's gain, pole, valve natural frequency and damping ratio about the nominal ``v``.
+
+    The paper identified Eqn 3 on one machine at one operating condition; every range here
+    is a stated assumption (no measured spread is published for this valve), argued from
+    how a proportional valve and a cylinder behave, and uniform: nothing says where in the
+    range a machine sits.
+    """
+    g, q, f = VALVE_GAIN_SPREAD, VALVE_POLE_SPREAD, VALVE_FREQUENCY_SPREAD
+    z_lo, z_hi = min(VALVE_DAMPING_RANGE[0], v.zeta), max(VALVE_DAMPING_RANGE[1], v.zeta)
+    return [
+        UncertainParameter(
+            parameter_name("valve", "k_vc"),
+            v.k_vc,
+            (1.0 - g) * v.k_vc,
+            (1.0 + g) * v.k_vc,
+            "uniform",
+            "-",
+            f"Eqn 3 gain x{1 - g:g}..x{1 + g:g} (stated assumption): a valve's flow, hence the "
+            "cylinder's speed per command, goes with the square root of its pressure drop "
+            "(orifice equation; Merritt, Hydraulic Control Systems, 1967, ch. 3), which stick "
+            "load (bucket empty or full, digging) and pump margin move by about x0.55..x1.55; "
+            "oil temperature (viscosity) moves the flow at small openings and the pump's leakage",
+        ),
+        UncertainParameter(
+            parameter_name("valve", "p1"),
+            v.p1,
+            (1.0 - q) * v.p1,
+            (1.0 + q) * v.p1,
+            "uniform",
+            "rad/s",
+            f"Eqn 3 real pole x{1 - q:g}..x{1 + q:g} (stated assumption): a hydraulic lag of "
+            "the cylinder and its lines; hydraulic stiffness goes with the oil's bulk modulus, "
+            "which entrained air and temperature lower by up to half (about x0.7 in frequency), "
+            "and with the oil volume trapped at the cylinder's stroke",
+        ),
+        UncertainParameter(
+            parameter_name("valve", "wn_hz"),
+            v.wn_hz,
+            (1.0 - f) * v.wn_hz,
+            (1.0 + f) * v.wn_hz,
+            "uniform",
+            "Hz",
+            f"Eqn 3 valve natural frequency x{1 - f:g}..x{1 + f:g} (stated assumption): "
+            "proportional-valve datasheets show the spool's bandwidth falling with signal "
+            "amplitude and with cold, viscous oil, and it differs between valves of one type",
+        ),
+        UncertainParameter(
+            parameter_name("valve", "zeta"),
+            v.zeta,
+            z_lo,
+            z_hi,
+            "uniform",
+            "-",
+            f"Eqn 3 valve damping ratio {z_lo:g}..{z_hi:g} about the paper's value (stated "
+            "assumption): the spool's damping rises with oil viscosity (cold oil) and differs "
+            "between valves; datasheet step responses range from overshooting to barely so",
+        ),
+    ]
 
 
 def _structure_parameters(s: StructureParams) -> list[UncertainParameter]:
@@ -649,7 +736,10 @@ def default_family(
     every range is in the parameter's source note), around the nominal operator
     fitted inside those ranges; ``ranges="stress"`` widens them beyond the published
     ones (a labelled stress variant). Literal human: gain over one order of
-    magnitude, pole x0.5..x2. The valve/cylinder does not vary.
+    magnitude, pole x0.5..x2. Valve/cylinder (Eqn 3, every variant): gain x0.75..x1.25,
+    real pole x0.7..x1.3, valve natural frequency x0.8..x1.2 and damping ratio 0.3..0.7
+    (:data:`VALVE_GAIN_SPREAD` and the constants beside it), stated assumptions whose
+    reasons are in the parameters' source notes.
 
     Parameters
     ----------
@@ -674,7 +764,8 @@ def default_family(
     Family
         Named ``"default-<human>"`` (``-<posture>`` for a posture other than the
         default, ``stress-`` instead of ``default-`` for the stress variant); five
-        structure parameters plus six (physical) or two (literal) human parameters.
+        four valve/cylinder and five structure parameters plus six (physical) or two
+        (literal) human parameters.
 
     Raises
     ------
@@ -689,7 +780,8 @@ def default_family(
     struct = struct or StructureParams()
     literal = literal or LiteralHumanParams()
     physical = physical or nominal_params(posture)
-    params = _structure_parameters(struct)
+    valve = valve or ValveCylinderParams()
+    params = _valve_parameters(valve) + _structure_parameters(struct)
     if human == "physical":
         box = published_box(posture) if ranges == "published" else stress_box(posture)
         params += _physical_parameters(physical, body_mass, box)
@@ -705,7 +797,7 @@ def default_family(
         parameters=tuple(params),
         human=human,
         k_psf=k_psf,
-        valve=valve or ValveCylinderParams(),
+        valve=valve,
         struct=struct,
         literal=literal,
         physical=physical,

@@ -1,8 +1,9 @@
 """The BDFT loop of a family written once over any arithmetic: intervals or uncertain reals.
 
-The family's varied blocks (the structure's two sections, the human) and the Figure 5
-interconnection are written here once, in terms of an *algebra*: how to make a matrix from
-rows, a block diagonal, a vertical stack, a constant matrix, a square and a reciprocal.
+The family's varied blocks (the valve/cylinder, the structure's two sections, the human)
+and the Figure 5 interconnection are written here once, in terms of an *algebra*: how to
+make a matrix from rows, a block diagonal, a vertical stack, a constant matrix, a square and
+a reciprocal.
 Two algebras use the definition:
 
 * :data:`INTERVALS`: midpoint-radius intervals and interval gradients
@@ -37,6 +38,7 @@ from robust.model.blocks import (
     literal_human_block,
     physical_human_block,
     structure_block,
+    valve_block,
 )
 from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
@@ -144,7 +146,7 @@ class LoopAssembly:
         self.fixed = {
             b.name: tuple(algebra.constant(x[0]) for x in (b.A, b.B, b.C, b.D))
             for b in blocks
-            if b.name not in ("structure", "human")
+            if b.name not in ("valve", "structure", "human")
         }
         self.M = interconnection(family, blocks, controller)
         # the varied blocks of recent boxes, keyed by their parameters' intervals (interval
@@ -182,7 +184,9 @@ class LoopAssembly:
         alg, family = self.algebra, self.family
         mats = []
         for name in self.names:
-            if name == "structure":
+            if name == "valve":
+                mats.append(self._varied("valve", p, lambda: valve_block(p, alg)))
+            elif name == "structure":
                 mats.append(self._varied("structure", p, lambda: structure_block(p, alg)))
             elif name == "human":
                 mats.append(

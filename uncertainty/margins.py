@@ -320,6 +320,42 @@ def _scaled_t(family, k: float):
     return lo_t, hi_t
 
 
+def _member_scale(loop, row) -> float:
+    """The smallest scale whose box (:func:`_scaled_t`) holds the member ``row`` (values)."""
+    logs, tn, tl, th, _ = _coords(loop)
+    row = np.asarray(row, float)
+    t = np.where(logs, np.log(np.where(logs, row, 1.0)), row)
+    up = np.where(th > tn, (t - tn) / np.where(th > tn, th - tn, 1.0), 0.0)
+    down = np.where(tl < tn, (t - tn) / np.where(tl < tn, tl - tn, 1.0), 0.0)
+    return float(max(np.max(np.maximum(up, down)), 0.0))
+
+
+def _ray_critical(loop, row, region, rel: float = 1e-3):
+    """The first violating member on the segment from the nominal to the violating member
+    ``row``, to ``rel`` of its scale by bisection: ``(scale, row)``.
+
+    The nominal must meet the region (as every margin requires); the member returned
+    violates it, so its scale is an upper bound of the margin."""
+    logs, tn, _, _, _ = _coords(loop)
+    row = np.asarray(row, float)
+    t_row = np.where(logs, np.log(np.where(logs, row, 1.0)), row)
+
+    def at(s):
+        return _to_values(loop, (tn + s * (t_row - tn))[None])
+
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        if hi - lo <= rel * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        if _violations(loop, at(mid), region)[0][0] > 0:
+            hi = mid
+        else:
+            lo = mid
+    out = at(hi)[0]
+    return _member_scale(loop, out), out
+
+
 def scaled_bounds(family, k: float) -> tuple[np.ndarray, np.ndarray]:
     """Low and high value of every parameter in the box scaled by ``k`` about the nominal.
 
@@ -396,21 +432,28 @@ def _worst_in_box(loop, k, region, *, samples, seed, starts):
     v, _ = _violations(loop, _to_values(loop, T), region)
     order = np.argsort(v)[::-1][:starts]
     best_v, best_t = float(v[order[0]]), T[order[0]]
-    span = np.where(hi_t > lo_t, hi_t - lo_t, 1.0)
     for i in order:
-
-        def fun(x):
-            t = lo_t + x * span
-            val, g = _gradient(loop, t, region)
-            return -val, -g * span
-
-        x0 = (T[i] - lo_t) / span
-        # a parameter of zero width (a degenerate range, or the scale 0) stays where it is
-        bounds = [(0.0, 1.0) if w > 0 else (0.0, 0.0) for w in hi_t - lo_t]
-        res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
-        if -res.fun > best_v:
-            best_v, best_t = float(-res.fun), lo_t + res.x * span
+        val, t = _local_worst(loop, lo_t, hi_t, T[i], region)
+        if val > best_v:
+            best_v, best_t = val, t
     return best_v, _to_values(loop, best_t[None])[0]
+
+
+def _local_worst(loop, lo_t, hi_t, t0, region) -> tuple[float, np.ndarray]:
+    """The largest violation L-BFGS-B reaches from ``t0`` within ``lo_t .. hi_t`` (scaled
+    coordinates, eigenvalue gradients): ``(violation, t)``."""
+    span = np.where(hi_t > lo_t, hi_t - lo_t, 1.0)
+
+    def fun(x):
+        t = lo_t + x * span
+        val, g = _gradient(loop, t, region)
+        return -val, -g * span
+
+    x0 = (np.asarray(t0, float) - lo_t) / span
+    # a parameter of zero width (a degenerate range, or the scale 0) stays where it is
+    bounds = [(0.0, 1.0) if w > 0 else (0.0, 0.0) for w in hi_t - lo_t]
+    res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": 60})
+    return float(-res.fun), lo_t + res.x * span
 
 
 def worst_member(
@@ -1173,9 +1216,22 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
     bound = _perron_bound(enc)
     step = 10.0 ** (math.floor(math.log10(bound)) - 1)
     w_max = math.ceil(bound / step) * step
+
+    def probe(t):
+        # the candidates, then a local search for the largest real part from the best
+        v, _ = _violations(loop, _to_values(loop, np.asarray(t, float)), Region())
+        j = int(np.argmax(v))
+        if v[j] <= 0:
+            v[j], t[j] = _local_worst(loop, lo_t, hi_t, t[j], Region())
+        return (t[j], float(v[j])) if v[j] > 0 else None
+
     ok, st = certify_scale_valueset(
-        loop._valueset, lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX
+        loop._valueset, lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX, probe
     )
+    if "unstable" in st:
+        row = _to_values(loop, st.pop("unstable")[None])[0]
+        st["unstable_member"] = [float(x) for x in row]
+        st["unstable_scale"] = _member_scale(loop, row)
     if ok:
         rng = np.random.default_rng(seed)
         T = lo_t + rng.random((16, len(lo_t))) * (hi_t - lo_t)
@@ -1347,31 +1403,45 @@ def margin_lower_bound(
 
     # a ladder up from top / 2^ladder (certification gets harder quickly with the scale),
     # then bisection between the last certified and the first failed scale
-    good, good_stats, bad = 0.0, st0, None
+    # an attempt that found an unstable member (the value-set probe) caps the search at
+    # that member's own scale, and the smallest such member is kept as a witness
+    good, good_stats, bad, witness = 0.0, st0, None, None
+
+    def failed(k, st):
+        nonlocal witness
+        if "unstable_scale" in st and (witness is None or st["unstable_scale"] < witness[0]):
+            witness = (st["unstable_scale"], st["unstable_member"])
+        return min(k, witness[0]) if witness is not None else k
+
     for j in range(ladder, -1, -1):
         k = top / 2.0**j
         if time.perf_counter() - start > time_limit_s:
             break
         ok, st = attempt(k)
         if not ok:
-            bad = k
+            bad = failed(k, st)
             break
         good, good_stats = k, st
     for _ in range(iterations if bad is not None else 0):
         if time.perf_counter() - start > time_limit_s:
+            break
+        if bad <= good:
             break
         k = 0.5 * (good + bad)
         ok, st = attempt(k)
         if ok:
             good, good_stats = k, st
         else:
-            bad = k
-    return good, {
+            bad = failed(k, st)
+    out = {
         "history": history,
         "certified_scale": good,
         "certified_stats": good_stats,
         "method": method,
     }
+    if witness is not None:
+        out["unstable_member"] = {"scale": witness[0], "parameters": witness[1]}
+    return good, out
 
 
 _LOWER_TEXT = {
@@ -1481,6 +1551,14 @@ def robust_margin(
         jobs=jobs,
         scheduler=scheduler,
     )
+    witness = cert.get("unstable_member")
+    if witness is not None and witness["scale"] < upper:
+        # the certificate's probe found a member the search missed: the first violating
+        # member on its segment from the nominal is the critical member
+        k, row = _ray_critical(loop, witness["parameters"], region)
+        if k < upper:
+            upper, critical = k, _critical(loop, row, region, k)
+            critical["found_by"] = "the lower bound's probe of its surviving cells"
     t2 = time.perf_counter()
     if lower > upper:
         raise BDFTError(
@@ -1489,8 +1567,11 @@ def robust_margin(
         )
     method = {
         "upper": "worst-case search: seeded Latin hypercube of the scaled box, L-BFGS-B with "
-        "eigenvalue gradients from the worst samples, bisection on the scale; the critical "
-        "member is re-checked with python-control",
+        "eigenvalue gradients from the worst samples, bisection on the scale; an unstable "
+        "member found by the lower bound's probe (value sets) replaces it when its scale is "
+        "smaller, moved to the first violating member on its segment from the nominal "
+        "(bisection to 1e-3 of the scale); the critical member is re-checked with "
+        "python-control",
         "lower": _LOWER_TEXT[cert.get("method", method)],
         "lower_region": (
             Region(decay_rate=region.decay_rate) if method == "lyapunov" else region

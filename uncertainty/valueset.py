@@ -1,24 +1,29 @@
 """Zero exclusion on value sets: a frequency-domain certificate of the open BDFT loop's margin.
 
 Without a compensator the Figure 5 loop is one loop through three blocks: the tracking loop
-``T = P / (1 + P)`` (PI controller and valve, fixed), the structure ``S_c`` (cylinder
-position to cab acceleration; the structure's parameters) and the physical human ``H``
-(cab acceleration to hand motion; the human's parameters), closed through the handle gain
-``kappa``. Its characteristic polynomial factors as::
+``T = P / (1 + P)`` (the PI controller, fixed, and the valve/cylinder of Eqn 3 with the
+valve's parameters), the structure ``S_c`` (cylinder position to cab acceleration; the
+structure's parameters) and the physical human ``H`` (cab acceleration to hand motion; the
+human's parameters), closed through the handle gain ``kappa``. Its characteristic
+polynomial factors as::
 
     det(sI - A_cl) = det(sI - A_T) det(sI - A_S) det(sI - A_H) (1 + L(s)),
     L(s) = kappa T(s) H(s) S_c(s),
+    T(s) = N(s) / (D_v(s) + N(s)),   N(s) = K_VC p1 wn^2 (kp s + ki),
+    D_v(s) = s^2 (s + p1) (s^2 + 2 zeta wn s + wn^2)   (``ki = 0``: ``N = K_VC p1 wn^2 kp``
+    and one ``s`` fewer in ``D_v``),
     S_c(s) = k_s s^2 prod_i (2 zeta_i w_i s + w_i^2) / (s^2 + 2 zeta_i w_i s + w_i^2),
     H(s) = -c_u g (s^2 + d_3 s + R (w_a^2 + w_t^2)) / D(s)
 
 (the determinant lemma for a single loop whose product is strictly proper; ``D`` the
-human's characteristic quartic, ``R = 1 + m_arm / m_trunk``). ``T`` is fixed and stable,
-the structure's sections are stable for every positive damping ratio, and the human's
-quartic is shown free of imaginary roots on the way (below). So, the box being connected
-and its nominal member stable, every member of the box is stable if and only if
-``1 + L(j w) != 0`` for every frequency ``w >= 0`` and every member: *zero exclusion*
-(Barmish, *New Tools for Robustness of Linear Systems*, Macmillan 1994, ch. 7; Frazer &
-Duncan 1929).
+human's characteristic quartic, ``R = 1 + m_arm / m_trunk``). Every factor's numerator and
+denominator is enclosed on every cell and must exclude 0 there (the tracking loop's
+characteristic polynomial ``D_v + N`` among them, which the valve's spread moves), and the
+nominal tracking loop is checked stable. So, the box being connected, its characteristic
+polynomials of one degree and its nominal member stable, every member of the box is stable
+if and only if ``1 + L(j w) != 0`` for every frequency ``w >= 0`` and every member: *zero
+exclusion* (Barmish, *New Tools for Robustness of Linear Systems*, Macmillan 1994, ch. 7;
+Frazer & Duncan 1929).
 
 The certificate covers the continuum of members and frequencies. The frequency axis
 ``[0, w_max]`` (``w_max`` bounds every member's eigenvalue moduli: the Perron root of the
@@ -47,13 +52,14 @@ the nominal member stable, seeded members of the box stable (numpy eigenvalues).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import control as ct
 import numpy as np
 
 from robust.analysis.intervals import Gradient, Interval
 from robust.errors import ParameterError
-from robust.model.blocks import parameter_name
+from robust.model.blocks import VALVE_FIELDS, parameter_name
 from uncertainty.batched import interconnection, loop_blocks
 from uncertainty.family import Family
 from uncertainty.loop import fixed_parameters
@@ -75,6 +81,7 @@ _SECTIONS = (
     (parameter_name("structure", "zeta1"), parameter_name("structure", "f1_hz")),
     (parameter_name("structure", "zeta2"), parameter_name("structure", "f2_hz")),
 )
+_VALVE = tuple(parameter_name("valve", f) for f in VALVE_FIELDS)
 _TAU = 2 * math.pi
 
 
@@ -131,6 +138,25 @@ def _human_value(p, w, bad: list):
     return (nr, ni), (dr, di)
 
 
+def _tracking_value(k_vc, p1, wn_hz, zeta, w, kp: float, ki: float):
+    """Numerator ``N`` and denominator ``D_v + N`` of the tracking loop ``T`` (module notes)
+    at ``s = j w``, each as real and imaginary parts, from the valve's parameters and the PI
+    gains ``kp``, ``ki``."""
+    wn = _TAU * wn_hz
+    b = wn.square()
+    a = 2.0 * zeta * wn
+    g = k_vc * p1 * b
+    # D_v / s^m = s^3 + (p1 + a) s^2 + (b + a p1) s + b p1, m = 2 with an integral gain
+    core = [1.0, p1 + a, b + a * p1, b * p1]
+    if ki > 0.0:
+        num = [g * kp, g * ki]
+        den = core + [num[0], num[1]]
+    else:
+        num = [g * kp]
+        den = core + [num[0]]
+    return _poly_jw(num, w), _poly_jw(den, w)
+
+
 def _section_value(zeta, f_hz, w, bad: list):
     """Numerator ``2 zeta w_n s + w_n^2`` and denominator ``s^2 + 2 zeta w_n s + w_n^2`` of a
     structure section at ``s = j w``, each as real and imaginary parts."""
@@ -173,10 +199,8 @@ class ValueSetLoop:
         T = ct.feedback(sys_v * sys_pi, 1)
         poles = np.linalg.eigvals(T.A)
         if not np.all(poles.real < -1e-6):
-            raise ParameterError("value-set certificate: the tracking loop is not stable")
-        num, den = ct.tf(T).num[0][0], ct.tf(T).den[0][0]
-        self.t_num = np.trim_zeros(np.asarray(num, float), "f")
-        self.t_den = np.asarray(den, float)
+            raise ParameterError("value-set certificate: the nominal tracking loop is not stable")
+        self.kp, self.ki = float(family.calibration.kp), float(family.calibration.ki)
         self.fixed = fixed_parameters(family)
         phys = family.physical
         self.trunk_share = phys.m_trunk / family.body_mass
@@ -293,9 +317,8 @@ class ValueSetLoop:
         }
         return _human_value(p, w, bad)
 
-    def _fixed_value(self, v, bad):
-        w = v[0]
-        return _poly_jw(list(self.t_num), w), _poly_jw(list(self.t_den), w)
+    def _tracking(self, v, bad):
+        return _tracking_value(*v[:5], self.kp, self.ki)
 
     def _cols(self, names):
         """Columns of ``names`` among the varied parameters (fixed ones: None)."""
@@ -339,7 +362,6 @@ class ValueSetLoop:
         zs = np.zeros((n, d + 1))
         z_ok = np.ones(n, bool)
 
-        # the fixed tracking loop: a function of the frequency only
         # each factor as its numerator and its denominator (log-polar: a sum and a
         # difference, the shared variables' generators adding up)
         def num_den(fn, which):
@@ -348,7 +370,7 @@ class ValueSetLoop:
         def section(v, bad):
             return _section_value(v[0], v[1], v[2], bad)
 
-        for fn, names in [(self._fixed_value, []), (self._human, _HUMAN)] + [
+        for fn, names in [(self._tracking, _VALVE), (self._human, _HUMAN)] + [
             (section, sec) for sec in _SECTIONS
         ]:
             parts.append((num_den(fn, 0), names, 1.0))
@@ -532,8 +554,36 @@ def _excluded(mag_lo, mag_hi, arg_lo, arg_hi) -> np.ndarray:
     return by_mag | by_arg
 
 
-def certify_scale_valueset(loop: ValueSetLoop, lo_t, hi_t, w_max: float, max_cells: int):
+#: Surviving cells whose parameter centres a probe tries per round (the nearest ``L = -1``).
+PROBE_CELLS = 32
+
+
+def _probe_cells(probe, lo, hi, centre):
+    """``probe`` of the parameter centres of the cells whose ``L`` at the centre is nearest
+    ``-1`` (``centre``: log-magnitude and argument there), nearest first."""
+    wrapped = np.abs(np.remainder(centre[:, 1], 2 * math.pi) - math.pi)
+    near = np.argsort(np.abs(centre[:, 0]) + wrapped, kind="stable")
+    first = np.unique(((lo + hi) / 2)[near], axis=0, return_index=True)[1]
+    order = near[np.sort(first)][:PROBE_CELLS]
+    return probe((lo[order] + hi[order]) / 2)
+
+
+def certify_scale_valueset(
+    loop: ValueSetLoop,
+    lo_t,
+    hi_t,
+    w_max: float,
+    max_cells: int,
+    probe: Callable[[np.ndarray], np.ndarray] | None = None,
+):
     """Zero exclusion over the box ``lo_t .. hi_t`` (family coordinates) and ``[0, w_max]``.
+
+    A cell that survives several rounds of splitting is where ``1 + L`` comes closest to
+    zero. With ``probe``, every other round from the fourth the parameter centres of the
+    surviving cells nearest ``L = -1`` (at most :data:`PROBE_CELLS` distinct ones) are
+    handed to it as candidates: an unstable member it finds from them ends the attempt at
+    once (the box is not stable, so no budget of cells could certify it) and is returned,
+    a witness for an upper bound.
 
     Parameters
     ----------
@@ -543,11 +593,17 @@ def certify_scale_valueset(loop: ValueSetLoop, lo_t, hi_t, w_max: float, max_cel
         Bound of every member's eigenvalue moduli, rad/s.
     max_cells : int
         Budget of cells.
+    probe : callable, optional
+        Candidate members (rows of parameter values in the family's coordinates, shape
+        ``(m, d)``, the most promising first) -> ``(row, largest real part)`` of an
+        unstable member of the box found from them, or None.
 
     Returns
     -------
     (bool, dict)
-        Certified, and statistics (``cells``, ``splits``).
+        Certified, and statistics (``cells``, ``rounds``; ``left`` when not certified;
+        ``unstable``, the coordinates of an unstable member, and ``max_real``, its
+        largest real part, when a probe found one).
     """
     edges = np.concatenate([[0.0], np.geomspace(_W_LOW, max(w_max, 2 * _W_LOW), _W_CELLS)])
     w_lo, w_hi = edges[:-1], edges[1:]
@@ -570,6 +626,17 @@ def certify_scale_valueset(loop: ValueSetLoop, lo_t, hi_t, w_max: float, max_cel
         lo, hi, w_lo, w_hi, score = lo[keep], hi[keep], w_lo[keep], w_hi[keep], score[keep]
         if not len(w_lo):
             break
+        if probe is not None and rounds >= 4 and rounds % 2 == 0:
+            found = _probe_cells(probe, lo, hi, loop.zonotope[0][keep])
+            if found is not None:
+                row, max_real = found
+                return False, {
+                    "cells": used,
+                    "rounds": rounds,
+                    "left": len(w_lo),
+                    "unstable": row,
+                    "max_real": max_real,
+                }
         j = np.argmax(score, axis=1)
         d = lo.shape[1]
         on_w = j == d

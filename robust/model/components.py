@@ -45,6 +45,7 @@ __all__ = [
     "realise_siso",
     "K_PSF_NOMINAL",
     "STRUCTURE_SPECS",
+    "VALVE_SPECS",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -53,6 +54,9 @@ TWO_PI = 2.0 * math.pi
 K_PSF_NOMINAL = 0.1097
 
 _DAMPING = DAMPING_RATIO
+
+#: What each :class:`ValveCylinderParams` field must satisfy.
+VALVE_SPECS = {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING}
 
 #: What each :class:`StructureParams` field must satisfy (the family's physical limits too).
 STRUCTURE_SPECS = {
@@ -86,9 +90,7 @@ class ValveCylinderParams:
     zeta: float = 0.45
 
     def __post_init__(self):
-        validate_fields(
-            self, {"k_vc": POSITIVE, "p1": POSITIVE, "wn_hz": POSITIVE, "zeta": _DAMPING}
-        )
+        validate_fields(self, VALVE_SPECS)
 
 
 @dataclasses.dataclass(frozen=True)
