@@ -13,7 +13,8 @@ from designs.registry import run_design
 from designs.spec import Specification, check_specification
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
-from uncertainty.margins import margin_lower_bound, robust_margin, scaled_bounds
+from uncertainty.margins import robust_margin, scaled_bounds
+from uncertainty.testing import assert_robust_margin
 
 SAMPLES, SEED = 500, 0
 LIM = DeviceLimits()
@@ -201,16 +202,13 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     # certified robust margin for the specification's region: the box scaled to 0.0025 (half
     # the 0.0051 the report's 400-box search certifies) is certified for the shipped
     # controller; a single scale keeps the test short
-    lower, _ = margin_lower_bound(
+    assert_robust_margin(
         default_family(),
         controller=r.controller,
         region=spec.region(),
-        k_hint=0.0025,
-        ladder=0,
-        iterations=0,
+        at_least=0.0025,
         max_boxes=100,
     )
-    assert lower >= 0.0025
     # the specification on fresh members of the box at the scale reached
     fam = default_family()
     lo, hi = scaled_bounds(fam, d["scale"])

@@ -19,9 +19,13 @@ Upper bound (:func:`margin_upper_bound`)
     scale: a seeded Latin-hypercube sample of the scaled box (batched poles), then
     local optimisation (L-BFGS-B) from the worst samples, with eigenvalue gradients
     ``d lambda = w^H dA u / (w^H u)`` (``dA`` by central differences of the batched
-    closed-loop matrix); bisection on the scale. A violating member found at scale
-    ``k`` proves ``k_m <= k``; the member is re-checked with python-control's poles of
-    its Figure 5 loop before it is reported.
+    closed-loop matrix); bisection on the scale. The violating member found is moved
+    to the first violating member on its segment from the nominal (bisection to 1e-3 of
+    its scale), and that member's own scale ``k`` (the smallest box holding it) is the
+    bound: it proves ``k_m <= k``, not a step of the bisection. The member is
+    re-checked with python-control's poles of its Figure 5 loop before it is reported.
+    Where the lower bound runs on value sets, an unstable member its probe finds with a
+    smaller scale takes the critical member's place the same way.
 
 Lower bound (:func:`margin_lower_bound`)
     A certificate that covers the continuum of the scaled box, not samples. The box is
@@ -595,6 +599,11 @@ def margin_upper_bound(
             bad_k, bad = mid, row
         else:
             good_k = mid
+    # the bound is the violating member's own scale, not a step of the bisection: the first
+    # violating member on its segment from the nominal
+    k_ray, row_ray = _ray_critical(loop, bad, region)
+    if k_ray <= bad_k:
+        bad_k, bad = k_ray, row_ray
     critical = _critical(loop, bad, region, bad_k)
     return (
         bad_k,
@@ -1518,14 +1527,15 @@ def robust_margin(
     Examples
     --------
     A mass on a spring with an uncertain damper: ``s^2 + c s + 4`` decays faster than
-    0.3 1/s while ``c > 0.6``; the damper's low end reaches 0.6 at the scale 0.5:
+    0.3 1/s while ``c > 0.6``; the damper's low end reaches 0.6 at the scale 0.5 (the upper
+    bound is the critical member's own scale, within 1e-3 of it):
 
     >>> from uncertainty import Region, robust_margin, ureal, uss
     >>> c = ureal("c", 1.0, 0.2, 3.0)
     >>> G = uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]])
     >>> res = robust_margin(G, region=Region(decay_rate=0.3))
-    >>> round(res.lower, 3), res.upper, res.critical["parameters"]
-    (0.488, 0.50390625, {'c': 0.596875})
+    >>> round(res.lower, 3), round(res.upper, 4), round(res.critical["parameters"]["c"], 4)
+    (0.485, 0.5005, 0.5996)
     """
     region = region or Region()
     loop = _loop(family, controller)
@@ -1567,11 +1577,11 @@ def robust_margin(
         )
     method = {
         "upper": "worst-case search: seeded Latin hypercube of the scaled box, L-BFGS-B with "
-        "eigenvalue gradients from the worst samples, bisection on the scale; an unstable "
-        "member found by the lower bound's probe (value sets) replaces it when its scale is "
-        "smaller, moved to the first violating member on its segment from the nominal "
-        "(bisection to 1e-3 of the scale); the critical member is re-checked with "
-        "python-control",
+        "eigenvalue gradients from the worst samples, bisection on the scale; the violating "
+        "member found (or an unstable member found by the lower bound's probe of its value "
+        "sets, when its scale is smaller) moved to the first violating member on its "
+        "segment from the nominal (bisection to 1e-3 of the scale), whose scale is the "
+        "bound; the critical member is re-checked with python-control",
         "lower": _LOWER_TEXT[cert.get("method", method)],
         "lower_region": (
             Region(decay_rate=region.decay_rate) if method == "lyapunov" else region
