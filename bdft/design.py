@@ -20,7 +20,7 @@ from bdft.common import (
     print_json,
 )
 from designs.calibration import REGION_RADIUS
-from designs.registry import design_names, run_design
+from designs.registry import DESIGNS, design_names, run_design
 from designs.scheduled import CELLS_PER_AXIS, scheduled_design
 from robust.jsonio import atomic_write_json
 from uncertainty import default_family
@@ -44,7 +44,11 @@ def register(sub) -> None:
         "on a seeded sample, reduce and discretise it, and write its artifact (JSON + .mat).",
     )
     p.add_argument("name", nargs="?", help="design name (see --list)")
-    p.add_argument("--list", action="store_true", help="print the design names, one per line")
+    p.add_argument(
+        "--list",
+        action="store_true",
+        help="print the designs, one per line with what each is (with --json: one object)",
+    )
     p.add_argument(
         "--samples",
         type=members("--samples"),
@@ -108,6 +112,17 @@ def register(sub) -> None:
 
 #: Designs run outside :func:`designs.registry.run_design` (their own pipeline).
 SCHEDULED = "scheduled"
+#: What the scheduled design is, for ``--list``.
+SCHEDULED_DESCRIPTION = (
+    "per-operator bank: a short calibration of the operator and the cab picks (or builds) "
+    "the compensator"
+)
+
+
+def _listing() -> list[dict]:
+    """Every design's name and one-line description, in report order."""
+    rows = [{"name": d.name, "description": d.description} for d in DESIGNS.values()]
+    return [*rows, {"name": SCHEDULED, "description": SCHEDULED_DESCRIPTION}]
 
 
 def _all_names() -> list[str]:
@@ -217,7 +232,12 @@ def run(args) -> int:
         is computed).
     """
     if args.list:
-        print("\n".join(_all_names()))
+        rows = _listing()
+        if args.json:
+            print_json({"designs": rows})
+        else:
+            width = max(len(r["name"]) for r in rows)
+            print("\n".join(f"{r['name']:<{width}}  {r['description']}" for r in rows))
         return 0
     if not args.name:
         raise UsageError(f"NAME: expected a design name or --list; got neither ({_names()})")

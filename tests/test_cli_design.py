@@ -5,13 +5,26 @@ import pytest
 import scipy.io
 
 from bdft import main
+from designs.registry import design_names
 from robust.export import load_artifact
 
 
 def test_design_list(capsys):
     assert main(["design", "--list"]) == 0
-    names = capsys.readouterr().out.split()
-    assert {"workspace", "virtual-damping", "cancellation"} <= set(names)
+    lines = capsys.readouterr().out.splitlines()
+    names = [line.split()[0] for line in lines]
+    assert names == [*design_names(), "scheduled"]
+    # each line says what the design is, the descriptions aligned in one column
+    column = {len(line) - len(line[len(name) :].lstrip()) for line, name in zip(lines, names)}
+    assert len(column) == 1
+    assert "cancellation of the hand's motion" in lines[names.index("cancellation")]
+
+
+def test_design_list_json(capsys):
+    assert main(["design", "--list", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["designs"]
+    assert [r["name"] for r in rows] == [*design_names(), "scheduled"]
+    assert all(set(r) == {"name", "description"} and len(r["description"]) > 30 for r in rows)
 
 
 def test_design_cancellation_json_and_artifact(tmp_path, capsys):
