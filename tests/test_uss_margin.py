@@ -150,3 +150,13 @@ def test_bad_systems_are_refused_with_the_reason():
     # stops short of the box where the range of d reaches 0 (k = 0.5)
     res = robust_margin(_second_order(1.0 / d, 1.0))
     assert res.lower <= 0.5 <= res.upper <= 0.505 and res.lower > 0.45
+
+
+def test_a_nominal_outside_the_region_has_both_bounds_zero():
+    # the nominal itself violates: no scale is certified and the critical member is the
+    # nominal, at scale 0 (not -0.0, not a step of the search)
+    a = ureal("a", 0.5, -1.0, 1.0)
+    res = robust_margin(uss([[a]], [[1.0]], [[1.0]], [[0.0]]), samples=50)
+    assert res.lower == 0.0 and res.upper == 0.0 and math.copysign(1.0, res.upper) == 1.0
+    assert res.critical["parameters"]["a"] == pytest.approx(0.5, abs=1e-12)
+    assert res.critical["violation"] == pytest.approx(0.5, abs=1e-9)

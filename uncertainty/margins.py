@@ -331,7 +331,8 @@ def _member_scale(loop, row) -> float:
     t = np.where(logs, np.log(np.where(logs, row, 1.0)), row)
     up = np.where(th > tn, (t - tn) / np.where(th > tn, th - tn, 1.0), 0.0)
     down = np.where(tl < tn, (t - tn) / np.where(tl < tn, tl - tn, 1.0), 0.0)
-    return float(max(np.max(np.maximum(up, down)), 0.0))
+    k = float(np.max(np.maximum(up, down)))
+    return k if k > 0 else 0.0  # (the nominal itself: 0, not -0.0)
 
 
 def _ray_critical(loop, row, region, rel: float = 1e-3):
