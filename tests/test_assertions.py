@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 
 import control as ct
@@ -9,7 +10,7 @@ import pytest
 
 from robust.errors import ParameterError
 from uncertainty import Region, ureal, uss
-from uncertainty.testing import assert_robust_margin
+from uncertainty.testing import assert_robust_margin, assert_robust_performance
 
 REGION = Region(decay_rate=0.02)
 
@@ -66,3 +67,30 @@ def test_a_requirement_must_be_a_positive_scale(two_mass):
     system, K = two_mass
     with pytest.raises(ParameterError, match="assert_robust_margin.at_least"):
         assert_robust_margin(system, controller=K, at_least=0.0)
+
+
+def test_robust_performance_passes_when_the_certificate_reaches_the_requirement():
+    a = ureal("a", 2.0, 1.5, 3.0)  # gain 1/a <= 2/3 on the whole box
+    cert = assert_robust_performance(uss([[-a]], [[1.0]], [[1.0]], [[0.0]]), at_least=1.0)
+    assert cert["certified"] and cert["scale"] == 1.0
+    assert cert["frequencies"][0]["mu_upper"] < 1.0
+
+
+def test_robust_performance_failure_gives_both_bounds_and_the_worst_member():
+    # 1 / (s^2 + c s + 1) under the bound 2: broken at zeta = sin 15 deg, scale 0.603
+    c = ureal("c", 1.0, 0.2, 1.8)
+    system = uss([[0, 1], [-1, -c]], [[0], [1]], [[1, 0]], [[0]])
+    with pytest.raises(AssertionError) as err:
+        assert_robust_performance(system, gamma=2.0, at_least=1.0)
+    msg = str(err.value)
+    assert "the box scaled by 1 is not certified" in msg and "below 2" in msg
+    lower, upper = (
+        float(x) for x in re.search(r"lower bound ([\d.]+), upper bound ([\d.]+)", msg).groups()
+    )
+    assert 0.59 < lower <= 0.60295 <= upper < 0.61
+    assert "out of reach" in msg
+    c_worst = float(re.search(r"worst member: c=([\d.]+)", msg).group(1))
+    assert c_worst == pytest.approx(2 * math.sin(math.radians(15)), rel=2e-3)
+    hz = float(re.search(r"at ([\d.]+) Hz", msg).group(1))
+    assert 0.13 < hz < 0.16  # near the 1 rad/s resonance
+    assert "mu upper bound" in msg and "Popov" in msg and "worst-case search" in msg

@@ -24,6 +24,9 @@ Public API (import from here; module layout may change):
 * robust margins of a family or an uncertain system: :func:`robust_margin`,
   :class:`Region`, :class:`MarginResult`, :func:`margin_lower_bound`,
   :func:`margin_upper_bound`, :func:`worst_member`, :func:`scaled_bounds`;
+* robust performance (a weighted closed-loop bound over the box, certified by mu):
+  :func:`robust_performance`, :class:`PerformanceResult`, :func:`performance_system`,
+  :func:`certify_performance`, :func:`worst_performance`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
@@ -62,6 +65,13 @@ from uncertainty.margins import (
 )
 from uncertainty.mu import MuBounds, mussv
 from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
+from uncertainty.performance import (
+    PerformanceResult,
+    certify_performance,
+    performance_system,
+    robust_performance,
+    worst_performance,
+)
 from uncertainty.sampling import MAX_SAMPLE_BYTES, METHODS, SampleSet, max_members, sample
 from uncertainty.sweeps import (
     SWEEPS,
@@ -93,6 +103,11 @@ __all__ = [
     "margin_upper_bound",
     "worst_member",
     "scaled_bounds",
+    "PerformanceResult",
+    "robust_performance",
+    "performance_system",
+    "certify_performance",
+    "worst_performance",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "HUMAN_VARIANTS",

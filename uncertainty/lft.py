@@ -24,6 +24,7 @@ The repetitions ``r_i`` are the number of times a parameter appears in the expre
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import control as ct
 import numpy as np
@@ -163,13 +164,17 @@ class LFTForm:
         return ct.ss(Ac, Bc, Cc, Dc)
 
 
-def lft_form(system) -> LFTForm:
+def lft_form(system, *, bounds=None) -> LFTForm:
     """The LFT form of an uncertain system (see the module notes).
 
     Parameters
     ----------
     system : USS
         The uncertain system.
+    bounds : mapping, optional
+        Name -> ``(low, high)``: the box the ``delta`` are normalised to, in place of the
+        parameters' own ranges (for example a box scaled about the nominal); parameters not
+        given keep their ranges.
 
     Returns
     -------
@@ -196,8 +201,18 @@ def lft_form(system) -> LFTForm:
     if not isinstance(system, USS):
         raise ModelStructureError(f"lft_form: expected a uss; got {type(system).__name__}")
     params = system.parameters
-    centre = {n: 0.5 * (p.low + p.high) for n, p in params.items()}
-    half = {n: 0.5 * (p.high - p.low) for n, p in params.items()}
+    box = {n: (p.low, p.high) for n, p in params.items()}
+    for n, b in dict(bounds or {}).items():
+        if n not in box:
+            raise ParameterError(f"lft_form: bounds name an unknown parameter {n!r}")
+        low, high = (float(x) for x in b)
+        if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+            raise ParameterError(
+                f"lft_form: bounds[{n!r}] must be finite (low, high) with low <= high; got {b!r}"
+            )
+        box[n] = (low, high)
+    centre = {n: 0.5 * (lo + hi) for n, (lo, hi) in box.items()}
+    half = {n: 0.5 * (hi - lo) for n, (lo, hi) in box.items()}
     n, m, q = system.nstates, system.ninputs, system.noutputs
     S = np.block([[system.A, system.B], [system.C, system.D]]) if n else system.D
     S = np.asarray(S, dtype=object).reshape(n + q, n + m)

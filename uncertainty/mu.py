@@ -18,7 +18,7 @@ computation before it is returned:
   Hermitian positive-definite matrix on a repeated real scalar; ``G`` zero on complex
   blocks, any Hermitian matrix on real ones) satisfy
   ``M^H D M + j (G M - M^H G) - beta^2 D <= 0``. For a fixed ``beta`` this is a linear
-  matrix inequality in ``(D, G)``; ``beta`` is bisected with cvxpy (Clarabel), and the
+  matrix inequality in ``(D, G)``; ``beta`` is bisected, each LMI solved by Clarabel, and the
   bound returned is recomputed from the scalings found: the largest generalised eigenvalue
   of ``(M^H D M + j (G M - M^H G), D)``, exact for those scalings whatever the solver's
   tolerance;
@@ -38,12 +38,10 @@ import dataclasses
 import itertools
 import math
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from robust.errors import InfeasibleError, ParameterError, SolverError
-from robust.synthesis.solve import solve_problem
+from robust.errors import ParameterError, SolverError
 
 __all__ = ["MuBounds", "mussv"]
 
@@ -136,54 +134,128 @@ def _bound_from_scalings(M, D, G) -> float:
     return math.sqrt(max(float(lam[-1]), 0.0))
 
 
-def _scalings_feasible(M, blocks, beta: float):
-    """``(D, G)`` with ``M^H D M + j (G M - M^H G) - beta^2 D <= 0``, ``D >= I``; or None."""
-    n = M.shape[0]
-    MH = M.conj().T
-    Ds, Gs, cons = [], [], []
-    for (s, kind), sl in zip(blocks, _slices(blocks)):
-        if kind == "complex":
-            d = cp.Variable(nonneg=True)
-            Ds.append((sl, d * np.eye(s)))
-            cons.append(d >= 1.0)
-        else:
-            Dv = cp.Variable((s, s), hermitian=True)
-            Gv = cp.Variable((s, s), hermitian=True)
-            Ds.append((sl, Dv))
-            Gs.append((sl, Gv))
-            cons.append(Dv >> np.eye(s))
-    D = _assemble(n, Ds)
-    G = _assemble(n, Gs)
-    lmi = MH @ D @ M + 1j * (G @ M - MH @ G) - beta**2 * D
-    cons.append(0.5 * (lmi + lmi.H) << 0)
-    prob = cp.Problem(cp.Minimize(0), cons)
-    try:
-        solve_problem(prob, step="mussv: D-G scaling LMI", warm_start=False)
-    except (InfeasibleError, SolverError):
-        return None
-    return _value(n, Ds), _value(n, Gs)
+def _svec_index(n: int):
+    """Rows, columns and weights of Clarabel's triangle vectorisation of an ``n x n``
+    symmetric matrix (upper triangle by columns, off-diagonal entries times sqrt 2)."""
+    r, c = np.tril_indices(n)
+    w = np.where(r == c, 1.0, math.sqrt(2.0))
+    return c, r, w
 
 
-def _assemble(n: int, parts):
-    """A block-diagonal expression from ``(slice, block)`` pairs (zeros elsewhere)."""
-    total = np.zeros((n, n))
-    for sl, X in parts:
-        E = np.zeros((n, sl.stop - sl.start))
-        E[sl, :] = np.eye(sl.stop - sl.start)
-        total = total + E @ X @ E.T
-    return total
+def _embed(H: np.ndarray) -> np.ndarray:
+    """The real symmetric form ``[[Re H, -Im H], [Im H, Re H]]`` of a Hermitian matrix
+    (negative semidefinite exactly when ``H`` is)."""
+    return np.block([[H.real, -H.imag], [H.imag, H.real]])
 
 
-def _value(n: int, parts) -> np.ndarray:
-    out = np.zeros((n, n), complex)
-    for sl, X in parts:
-        v = X.value if isinstance(X, cp.Expression) else X
-        out[sl, sl] = np.asarray(v, complex)
+def _hermitian_basis(s: int) -> list:
+    """A real basis of the Hermitian ``s x s`` matrices."""
+    out = []
+    for i in range(s):
+        E = np.zeros((s, s), complex)
+        E[i, i] = 1.0
+        out.append(E)
+        for j in range(i + 1, s):
+            E = np.zeros((s, s), complex)
+            E[i, j] = E[j, i] = 1.0
+            out.append(E)
+            E = np.zeros((s, s), complex)
+            E[i, j], E[j, i] = 1j, -1j
+            out.append(E)
     return out
 
 
-def _upper(M, blocks, lo: float):
-    """Bisection of the D-G bound between ``lo`` and ``sigma_max(M)``.
+def _scalings_feasible(M, blocks, beta: float):
+    """``(D, G)`` with ``M^H D M + j (G M - M^H G) - beta^2 D <= 0``, ``D >= I``; or None.
+
+    A semidefinite programme solved by Clarabel directly (the LMI's coefficient matrices
+    are built numerically, so nothing is compiled per call): minimise ``t`` subject to
+    ``LMI <= t I``, ``D >= I`` and ``t >= -1``; the scalings are returned when ``t < 0``.
+    Whatever the solver's accuracy, the bound used is recomputed from the scalings
+    (:func:`_bound_from_scalings`).
+    """
+    import clarabel
+    import scipy.sparse as sp
+
+    n = M.shape[0]
+    MH = M.conj().T
+    cols_lmi, d_parts, g_parts = [], [], []  # LMI coefficient per variable; D, G pieces
+    d_cones = []  # per block: (variable indices, embedded basis restricted to the block)
+    k = 0
+    for (size, kind), sl in zip(blocks, _slices(blocks)):
+        basis = [np.eye(size, dtype=complex)] if kind == "complex" else _hermitian_basis(size)
+        idx = []
+        for Bb in basis:
+            E = np.zeros((n, n), complex)
+            E[sl, sl] = Bb
+            cols_lmi.append(MH @ E @ M - beta**2 * E)
+            d_parts.append((k, sl, Bb))
+            idx.append(k)
+            k += 1
+        d_cones.append((size, kind, idx, basis))
+        if kind == "real":
+            for Bb in basis:
+                E = np.zeros((n, n), complex)
+                E[sl, sl] = Bb
+                cols_lmi.append(1j * (E @ M - MH @ E))
+                g_parts.append((k, sl, Bb))
+                k += 1
+    nv = k + 1  # and t
+    rows_A, b_parts, cones = [], [], []
+    # LMI - t I <= 0:  s = svec(t I - LMI)
+    N = 2 * n
+    ci, ri, wi = _svec_index(N)
+    A1 = np.empty((ci.size, nv))
+    for v, H in enumerate(cols_lmi):
+        A1[:, v] = _embed(0.5 * (H + H.conj().T))[ci, ri] * wi
+    A1[:, -1] = -np.eye(N)[ci, ri] * wi
+    rows_A.append(A1)
+    b_parts.append(np.zeros(ci.size))
+    cones.append(clarabel.PSDTriangleConeT(N))
+    for size, kind, idx, basis in d_cones:
+        if kind == "complex":
+            row = np.zeros((1, nv))
+            row[0, idx[0]] = -1.0
+            rows_A.append(row)
+            b_parts.append(np.array([-1.0]))
+            cones.append(clarabel.NonnegativeConeT(1))
+            continue
+        m = 2 * size
+        cj, rj, wj = _svec_index(m)
+        Ab = np.zeros((cj.size, nv))
+        for v, Bb in zip(idx, basis):
+            Ab[:, v] = -_embed(Bb)[cj, rj] * wj
+        rows_A.append(Ab)
+        b_parts.append(-np.eye(m)[cj, rj] * wj)
+        cones.append(clarabel.PSDTriangleConeT(m))
+    row = np.zeros((1, nv))
+    row[0, -1] = -1.0
+    rows_A.append(row)
+    b_parts.append(np.array([1.0]))
+    cones.append(clarabel.NonnegativeConeT(1))
+    A = sp.csc_matrix(np.vstack(rows_A))
+    b = np.concatenate(b_parts)
+    q = np.zeros(nv)
+    q[-1] = 1.0
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    sol = clarabel.DefaultSolver(sp.csc_matrix((nv, nv)), q, A, b, cones, settings).solve()
+    if str(sol.status) not in ("Solved", "AlmostSolved") or not sol.x[-1] < 0:
+        return None
+    x = np.asarray(sol.x)
+    D = np.zeros((n, n), complex)
+    G = np.zeros((n, n), complex)
+    for v, sl, Bb in d_parts:
+        D[sl, sl] += x[v] * Bb
+    for v, sl, Bb in g_parts:
+        G[sl, sl] += x[v] * Bb
+    if np.linalg.eigvalsh(0.5 * (D + D.conj().T))[0] <= 0:
+        return None
+    return D, G
+
+
+def _upper(M, blocks, lo: float, rtol: float = BISECTION_RTOL):
+    """Bisection of the D-G bound between ``lo`` and ``sigma_max(M)``, to ``rtol``.
 
     The bound kept is always one recomputed from scalings (:func:`_bound_from_scalings`);
     the bisection only steers which ``beta`` the LMI is asked for.
@@ -195,14 +267,14 @@ def _upper(M, blocks, lo: float):
         return best
     lo = min(max(lo, 0.0), hi)
     floor = 1e-9 * hi  # below it, mu is reported as this small bound (e.g. mu = 0)
-    while hi - lo > BISECTION_RTOL * best[0] and hi > floor:
+    while hi - lo > rtol * best[0] and hi > floor:
         mid = 0.5 * (lo + hi)
         found = _scalings_feasible(M, blocks, mid)
         if found is None:
             lo = mid
             continue
-        hi = mid
         bound = _bound_from_scalings(M, *found)
+        hi = min(mid, bound)
         if bound < best[0]:
             best = (bound, *found)
     return best

@@ -1,4 +1,5 @@
-"""Assertions for users' own test suites: a controller's robust margin, certified.
+"""Assertions for users' own test suites: a controller's robust margin and robust
+performance, certified.
 
 A control engineer keeps a controller honest the way a programmer keeps a function honest:
 with a test that fails when a change breaks it. :func:`assert_robust_margin` passes when
@@ -10,7 +11,11 @@ member that breaks the region (its parameters and its worst pole) and the method
 bound, and whether the requirement is out of reach (a violating member inside the required
 box) or only beyond what the certificate reached.
 
-Use it in pytest::
+:func:`assert_robust_performance` does the same for a weighted closed-loop bound
+(:func:`uncertainty.performance.robust_performance`): every member of the required box
+stable with ``||W_out T W_in||_inf < gamma``.
+
+Use them in pytest::
 
     from uncertainty.testing import assert_robust_margin
 
@@ -32,8 +37,9 @@ from uncertainty.margins import (
     margin_lower_bound,
     robust_margin,
 )
+from uncertainty.performance import certify_performance, performance_system, robust_performance
 
-__all__ = ["assert_robust_margin"]
+__all__ = ["assert_robust_margin", "assert_robust_performance"]
 
 
 def assert_robust_margin(
@@ -148,3 +154,98 @@ def _message(res, at_least: float) -> str:
     if not math.isfinite(res.upper):
         lines.append("  (no violating member found by the search)")
     return "\n".join(lines)
+
+
+def assert_robust_performance(
+    system,
+    *,
+    at_least: float,
+    controller: ct.StateSpace | None = None,
+    inputs=None,
+    outputs=None,
+    input_weight=None,
+    output_weight=None,
+    gamma: float = 1.0,
+    samples: int = 64,
+    seed: int = 0,
+) -> dict:
+    """Fail unless every member of the box scaled by ``at_least`` is certified stable with
+    ``||W_out T W_in||_inf < gamma``.
+
+    The box scaled by ``at_least`` is certified directly
+    (:func:`uncertainty.performance.certify_performance`, one scale); only when that fails
+    are both bounds of the margin computed, for the message.
+
+    Parameters
+    ----------
+    system : uncertainty.USS
+        The uncertain system, closed with ``controller`` when one is given.
+    at_least : float
+        Required scale of the parameters' box about the nominal (1 = the whole box), > 0.
+    controller, inputs, outputs, input_weight, output_weight, gamma
+        The weighted closed-loop map, as :func:`uncertainty.performance.performance_system`
+        takes them.
+    samples, seed : int
+        The upper bound's search, for the message when the certificate fails.
+
+    Returns
+    -------
+    dict
+        The certificate, when it passes.
+
+    Raises
+    ------
+    AssertionError
+        When the box is not certified; the message gives both bounds of the robust
+        performance margin, the worst member found (its parameters, its exact norm and
+        where it peaks), the frequency where the certificate failed and the methods.
+
+    Examples
+    --------
+    >>> from uncertainty import ureal, uss
+    >>> a = ureal("a", 2.0, 1.5, 3.0)
+    >>> cert = assert_robust_performance(uss([[-a]], [[1.0]], [[1.0]], [[0.0]]), at_least=1.0)
+    >>> cert["certified"]
+    True
+    """
+    at_least = check_scalar("at_least", at_least, POSITIVE, owner="assert_robust_performance")
+    weighted = dict(
+        controller=controller,
+        inputs=inputs,
+        outputs=outputs,
+        input_weight=input_weight,
+        output_weight=output_weight,
+        gamma=gamma,
+    )
+    cert = certify_performance(performance_system(system, **weighted), at_least)
+    if cert["certified"]:
+        return cert
+    res = robust_performance(system, samples=samples, seed=seed, **weighted)
+    lines = [
+        f"robust performance: the box scaled by {at_least:g} is not certified to keep every "
+        f"member stable with its weighted norm below {gamma:g}",
+        f"  certified lower bound {res.lower:.6g}, upper bound {res.upper:.6g} "
+        f"(nominal weighted norm {res.nominal_norm:.6g})",
+        f"  the certificate at {at_least:g}: {cert.get('reason', '')}",
+    ]
+    if res.upper <= at_least:
+        lines.append(
+            f"  out of reach: a member inside the required box (scale {res.upper:.6g}) "
+            "breaks the bound"
+        )
+    else:
+        lines.append(
+            "  not shown either way: no violating member found up to the requirement, and "
+            "the mu certificate did not reach it"
+        )
+    w = res.worst
+    if w is not None:
+        params = ", ".join(f"{k}={v:.6g}" for k, v in w["parameters"].items())
+        lines.append(f"  worst member: {params}")
+        lines.append(
+            f"  its weighted norm {w['norm'] * gamma:.6g} (bound {gamma:g}) at "
+            f"{w['frequency_hz']:.6g} Hz ({w['checked_with']})"
+        )
+    lines.append(f"  lower bound: {res.method['lower']}")
+    lines.append(f"  upper bound: {res.method['upper']}")
+    raise AssertionError("\n".join(lines))
