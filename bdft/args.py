@@ -38,9 +38,7 @@ import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from reports.html import check_report_target
 from robust.errors import ParameterError
-from robust.export import check_artifact_target
 
 __all__ = [
     "ArgumentParser",
@@ -561,6 +559,8 @@ def check_report_dir(option: str, path: str | os.PathLike) -> Path:
         If :func:`reports.html.check_report_target` refuses it (an existing file, a
         folder of the user's, an unwritable place).
     """
+    from reports.html import check_report_target  # (Matplotlib: not for --help)
+
     try:
         return check_report_target(path, option=option)
     except ParameterError as exc:
@@ -650,6 +650,8 @@ def check_artifact_targets(option: str, folder: str | os.PathLike, names: Sequen
         If the folder is not usable (:func:`check_output_dir`) or an existing file
         there is not a previous artifact (:func:`robust.export.check_artifact_target`).
     """
+    from robust.export import check_artifact_target  # (NumPy, python-control: not for --help)
+
     p = check_output_dir(option, folder)
     for name in names:
         try:

@@ -6,11 +6,8 @@ import json
 import os
 import sys
 
-from tqdm import tqdm
-
 from bdft.args import integer
-from robust.jsonio import round_significant, to_jsonable
-from uncertainty.margins import DEFAULT_BOXES
+from uncertainty.constants import DEFAULT_BOXES
 
 __all__ = [
     "print_json",
@@ -33,6 +30,8 @@ def print_json(obj) -> None:
     obj : object
         A JSON-able object (dicts, lists, numbers, strings, numpy values).
     """
+    from robust.jsonio import round_significant, to_jsonable
+
     out = round_significant(to_jsonable(obj))
     sys.stdout.write(json.dumps(out, indent=2, allow_nan=False) + "\n")
     sys.stdout.flush()
@@ -148,6 +147,8 @@ def member_progress(desc: str):
     def progress(done: int, total: int) -> None:
         bar = state.get("bar")
         if bar is None:
+            from tqdm import tqdm
+
             bar = state["bar"] = tqdm(
                 total=total, desc=desc, unit="member", file=sys.stderr, disable=None, leave=False
             )

@@ -19,11 +19,7 @@ from bdft.common import (
     member_progress,
     print_json,
 )
-from designs.calibration import REGION_RADIUS
-from designs.registry import DESIGNS, design_names, run_design
-from designs.scheduled import CELLS_PER_AXIS, scheduled_design
-from robust.jsonio import atomic_write_json
-from uncertainty import default_family
+from designs.constants import CELLS_PER_AXIS
 
 __all__ = ["register", "run"]
 
@@ -121,11 +117,15 @@ SCHEDULED_DESCRIPTION = (
 
 def _listing() -> list[dict]:
     """Every design's name and one-line description, in report order."""
+    from designs.registry import DESIGNS
+
     rows = [{"name": d.name, "description": d.description} for d in DESIGNS.values()]
     return [*rows, {"name": SCHEDULED, "description": SCHEDULED_DESCRIPTION}]
 
 
 def _all_names() -> list[str]:
+    from designs.registry import design_names
+
     return [*design_names(), SCHEDULED]
 
 
@@ -141,6 +141,11 @@ def _run_scheduled(args) -> int:
             f"its result); got {args.coverage_samples}"
         )
     out = check_artifact_targets("--out", args.out, [SCHEDULED])
+    from designs.calibration import REGION_RADIUS
+    from designs.scheduled import scheduled_design
+    from robust.jsonio import atomic_write_json
+    from uncertainty import default_family
+
     print(
         f"[bdft design] scheduled bank, {args.cells} cells per axis, coverage on "
         f"{args.coverage_samples} members (seed {args.seed + 2}) ...",
@@ -246,6 +251,8 @@ def run(args) -> int:
     if args.name == SCHEDULED:
         return _run_scheduled(args)
     check_artifact_targets("--out", args.out, [args.name])
+    from designs.registry import run_design
+
     print(
         f"[bdft design] running {args.name!r} on {args.samples} members (seed {args.seed}) ...",
         file=sys.stderr,

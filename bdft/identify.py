@@ -28,9 +28,6 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
-import scipy.signal
-
 from bdft.args import (
     UsageError,
     check_input_file,
@@ -42,11 +39,6 @@ from bdft.args import (
 )
 from bdft.common import print_json
 from robust.errors import ParameterError
-from robust.jsonio import atomic_write_group, to_jsonable
-from robust.sysid.fit import parse_form
-from robust.sysid.identify import identify_file
-from robust.sysid.model_file import save_component_fit
-from robust.sysid.plots import bode_figure, coherence_figure
 
 __all__ = ["MAX_RATIONAL_ORDER", "register", "run"]
 
@@ -184,6 +176,8 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(
             f"--input, --output: expected two different channels; got {args.input!r} for both"
         )
+    from robust.sysid.fit import parse_form
+
     try:
         parsed = parse_form(args.form)
     except ParameterError as exc:
@@ -206,6 +200,8 @@ def _check(args: argparse.Namespace) -> None:
             "Nyquist frequency"
         )
     if args.window is not None:
+        import scipy.signal
+
         try:
             scipy.signal.get_window(args.window, 16)
         except (ValueError, TypeError) as exc:
@@ -300,6 +296,11 @@ def run(args: argparse.Namespace) -> int:
         written or would replace a file of the user's.
     """
     _check(args)
+    from robust.jsonio import atomic_write_group, to_jsonable
+    from robust.sysid.identify import identify_file
+    from robust.sysid.model_file import save_component_fit
+    from robust.sysid.plots import bode_figure, coherence_figure
+
     band = (float(args.band[0]), float(args.band[1]))
     result = identify_file(
         args.data,
@@ -365,6 +366,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _table_csv(result, confidence: float) -> str:
+    import numpy as np
+
     est, fit = result.estimate, result.fit
     cols = est.table(confidence)
     h = fit.frequency_response(est.f_hz[1:])

@@ -9,16 +9,7 @@ from pathlib import Path
 
 from bdft.args import UsageError, check_report_dir, factor_list, integer, seed
 from bdft.common import add_jobs_argument, add_scheduler_argument, member_progress, print_json
-from designs.limit import (
-    ALL_SETS,
-    DEFAULT_SETS,
-    FORCE_SCALES,
-    LIMIT_SAMPLES,
-    basis_check,
-    limit_map,
-)
-from reports.limit import best_set, limit_conclusions, write_limit_report
-from uncertainty import default_family
+from designs.constants import ALL_SETS, DEFAULT_SETS, FORCE_SCALES, LIMIT_SAMPLES
 
 __all__ = ["register", "run"]
 
@@ -114,6 +105,10 @@ def run(args) -> int:
     if not args.force_scales:
         raise UsageError("--force-scales: expected at least one multiple; got none")
     out = check_report_dir("--out", Path(args.out))
+    from designs.limit import basis_check, limit_map
+    from reports.limit import best_set, limit_conclusions, write_limit_report
+    from uncertainty import default_family
+
     family = default_family()
     t0 = time.perf_counter()
     lm = limit_map(

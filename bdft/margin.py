@@ -4,13 +4,10 @@ from __future__ import annotations
 
 import sys
 
-from tqdm import tqdm
-
 from bdft.args import check_json_file, integer, real, seed
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import add_family_arguments, add_system_argument, build_family, read_system
-from uncertainty.files import load_controller
-from uncertainty.margins import DEFAULT_BOXES, LOWER_METHODS, Region, robust_margin
+from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
 
 __all__ = ["register", "run"]
 
@@ -122,6 +119,11 @@ def run(args) -> int:
         Exit code 0. Standard output gets one JSON object (``--json``) or a summary;
         progress goes to standard error.
     """
+    from tqdm import tqdm
+
+    from uncertainty.files import load_controller
+    from uncertainty.margins import Region, robust_margin
+
     region = Region.parse(args.region)
     if args.system is not None:
         family, controller = read_system(args)

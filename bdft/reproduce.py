@@ -6,8 +6,7 @@ import sys
 
 from bdft.args import check_report_dir
 from bdft.common import print_json
-from reports.reproduce import reproduce, result_to_json, write_reproduction_report
-from robust.model.human import HUMAN_VARIANT_NAMES
+from robust.constants import HUMAN_VARIANT_NAMES
 
 __all__ = ["register", "run"]
 
@@ -62,6 +61,8 @@ def run(args) -> int:
         (``--json``, with the report path under ``"report"``) or one line per claim and
         variant; progress goes to standard error.
     """
+    from reports.reproduce import reproduce, result_to_json, write_reproduction_report
+
     out = check_report_dir("--out", args.out)
     variants = HUMAN_VARIANT_NAMES if args.human == "all" else (args.human,)
 

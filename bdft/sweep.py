@@ -5,19 +5,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from bdft.args import check_report_dir, integer, real
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import add_family_arguments, build_family, check_family_arguments, progress_bar
-from reports.sweeps import write_sweep_report
-from robust.model.blocks import parameter_name
-from uncertainty import DEFAULT_CHUNK
-from uncertainty.sweeps import (
-    frequency_damping_sweep,
-    structure_frequency_sweep,
-    workspace_sweep,
-)
+from uncertainty.constants import DEFAULT_CHUNK
 
 __all__ = ["MAX_POINTS", "register", "run"]
 
@@ -88,6 +79,15 @@ def register(sub) -> None:
 
 
 def _run_sweep(args, family, progress):
+    import numpy as np
+
+    from robust.model.blocks import parameter_name
+    from uncertainty.sweeps import (
+        frequency_damping_sweep,
+        structure_frequency_sweep,
+        workspace_sweep,
+    )
+
     members = args.samples or _DEFAULT_MEMBERS[args.name]
     common = dict(
         members=members,
@@ -151,6 +151,8 @@ def run(args) -> int:
     """
     out = check_report_dir("--out", Path(args.out or f"reports/out/sweep-{args.name}"))
     check_family_arguments(args)
+    from reports.sweeps import write_sweep_report
+
     factor = (
         args.workspace_factor
         if args.workspace_factor is not None

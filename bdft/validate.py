@@ -5,8 +5,6 @@ from __future__ import annotations
 import sys
 import time
 
-from tqdm import tqdm
-
 from bdft.args import (
     UsageError,
     batch,
@@ -19,17 +17,8 @@ from bdft.args import (
     seed,
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
-from robust.analysis.stability import DAMPING_BAND_HZ
-from robust.model.literature import DEFAULT_POSTURE, POSTURES
-from robust.model.physical import nominal_params
-from uncertainty import (
-    DEFAULT_CHUNK,
-    RANGES,
-    default_family,
-    sample,
-    validate_family,
-)
-from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
+from robust.constants import DAMPING_BAND_HZ, DEFAULT_POSTURE, POSTURES
+from uncertainty.constants import DEFAULT_CHUNK, RANGES
 
 __all__ = [
     "add_family_arguments",
@@ -103,7 +92,7 @@ def add_family_arguments(p, *, samples: int) -> None:
         "--chunk",
         type=batch("--chunk"),
         default=None,
-        help=batch_help("members per batch (default: 20000)"),
+        help=batch_help(f"members per batch (default: {DEFAULT_CHUNK})"),
     )
 
 
@@ -199,6 +188,8 @@ def read_system(args):
     check_input_file(
         "--system", args.system, what="a Python file", max_bytes=1 << 20, suffixes=(".py",)
     )
+    from uncertainty.files import load_system
+
     return load_system(args.system)
 
 
@@ -237,6 +228,10 @@ def build_family(args):
         :func:`uncertainty.default_family` of that human variant, at the nominal
         workspace (factor 1).
     """
+    from robust.model.physical import nominal_params
+    from uncertainty import default_family
+    from uncertainty.files import family_nominals, load_component_fit
+
     fits = [load_component_fit(path) for path in args.plant_file]
     nominals = family_nominals(fits, human=args.human)
     if args.human == "physical":
@@ -261,6 +256,8 @@ def progress_bar(total: int, desc: str):
     tqdm.tqdm
         A context manager; ``bar.update(n)`` advances it by ``n`` members.
     """
+    from tqdm import tqdm
+
     return tqdm(
         total=total,
         desc=desc,
@@ -289,6 +286,8 @@ def _band(text):
 
 def _run_system(args, band) -> int:
     """``bdft validate --system FILE.py``: members of a user's uncertain system."""
+    from uncertainty import sample, validate_family
+
     system, controller = read_system(args)
     t0 = time.perf_counter()
     samples = sample(
@@ -365,6 +364,9 @@ def run(args) -> int:
     check_family_arguments(args)
     if args.controller is not None:
         check_json_file("--controller", args.controller)
+    from uncertainty import sample, validate_family
+    from uncertainty.files import load_controller
+
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller) if args.controller else None
     t0 = time.perf_counter()

@@ -16,9 +16,7 @@ outside the registry's pipeline: it is a bank, not one controller).
 Builds on :mod:`robust` and :mod:`uncertainty`; the reports and the command line build on it.
 """
 
-from designs.evaluate import DesignEvaluation, evaluate_design, intended_motion
-from designs.registry import DESIGNS, design_names, get_design, run_design
-from designs.result import Design, DesignResult
+from robust.lazy import lazy_exports
 
 __all__ = [
     "DESIGNS",
@@ -31,3 +29,25 @@ __all__ = [
     "intended_motion",
     "run_design",
 ]
+
+# the names above, each imported from its module on first use (robust.lazy)
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "designs.evaluate": (
+            "DesignEvaluation",
+            "evaluate_design",
+            "intended_motion",
+        ),
+        "designs.registry": (
+            "DESIGNS",
+            "design_names",
+            "get_design",
+            "run_design",
+        ),
+        "designs.result": (
+            "Design",
+            "DesignResult",
+        ),
+    },
+)

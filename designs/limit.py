@@ -57,6 +57,14 @@ import scipy.linalg as sla
 import scipy.signal as sig
 from joblib import delayed
 
+from designs.constants import (
+    ACTUATOR_SETS,
+    ALL_SETS,
+    DEFAULT_SETS,
+    FORCE_SCALES,
+    LIMIT_SAMPLES,
+    SENSOR_SETS,
+)
 from designs.effort import (
     Noise,
     correction_limits,
@@ -122,18 +130,9 @@ __all__ = [
     "limit_coverage_of",
 ]
 
-#: Actuator sets: name -> the loop's actuator signals.
-ACTUATOR_SETS = {
-    "force": ("f",),
-    "reference": ("r_corr",),
-    "force+reference": ("f", "r_corr"),
-}
-#: Sensor sets: name -> the measured signals (``None``: every state, noiseless).
-SENSOR_SETS = {
-    "full": None,
-    "handle": ("x",),
-    "handle+cab": ("x", "c"),
-}
+# ACTUATOR_SETS and SENSOR_SETS (name -> the loop's actuator signals, the measured signals),
+# and the map's defaults ALL_SETS, DEFAULT_SETS, FORCE_SCALES and LIMIT_SAMPLES, are defined
+# in designs.constants (the command line reads them without NumPy)
 #: Encoder resolution, mm (the Omni's): quantisation noise of the handle position.
 ENCODER_MM = 0.055
 #: Accelerometer noise RMS at the 1 kHz servo rate, in the paper's units of ``c`` (the
@@ -963,28 +962,6 @@ def _verify(
     return _set_limit(
         actuators, sensors, max(rc, rp), rms, peak, relaxation, binding, True, notes, gap
     )
-
-
-#: Force multiples of the map (the Omni's limits times 1, 2, 4).
-FORCE_SCALES = (1.0, 2.0, 4.0)
-#: Default members of the map's Latin hypercube (each takes about 4 core-seconds for the
-#: default sets: the exact re-checks, the cutting planes and the effort constraints).
-LIMIT_SAMPLES = 128
-#: Every set the map knows: ``"actuators/sensors"``.
-ALL_SETS = tuple(f"{a}/{s}" for s in SENSOR_SETS for a in ACTUATOR_SETS)
-#: The map's default sets: every actuator set with full information, and handle force and
-#: reference shaping with the handle's encoder and with the cab accelerometer added (the
-#: combined actuators under output feedback are left to ``sets``: with full information
-#: the reference alone already covers what they cover).
-DEFAULT_SETS = (
-    "force/full",
-    "reference/full",
-    "force+reference/full",
-    "force/handle",
-    "reference/handle",
-    "force/handle+cab",
-    "reference/handle+cab",
-)
 
 
 def split_set(name: str) -> tuple[str, str]:

@@ -88,6 +88,7 @@ from designs.calibration import (
     simulate_calibration,
 )
 from designs.cancellation import cancellation_controller
+from designs.constants import CELLS_PER_AXIS
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
 from designs.spec import N_TRACKING_FREQS, Specification
@@ -133,8 +134,8 @@ __all__ = [
 REGION_SAMPLES = 200
 #: The limit map's set the bank acts and measures with.
 LIMIT_SET = "reference/handle+cab"
-#: Default cells per identified quantity.
-CELLS_PER_AXIS = 5
+# CELLS_PER_AXIS (default cells per identified quantity) is defined in designs.constants
+# (the command line reads it without NumPy)
 #: What ``bdft design scheduled`` delivers, in one sentence (its JSON ``design``).
 DESIGN_RULE = (
     "at each operator's calibration: the cancellation of the identified human (masses "

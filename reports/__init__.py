@@ -7,17 +7,7 @@ them. Builds on :mod:`robust`, :mod:`uncertainty` and :mod:`designs`; the comman
 line builds on it.
 """
 
-from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
-from reports.designs import run_all_designs, verdict, write_design_report
-from reports.html import HtmlPage, fmt, write_report_dir
-from reports.reproduce import (
-    ReproductionResult,
-    VariantResult,
-    reproduce,
-    result_to_json,
-    write_reproduction_report,
-)
-from reports.sweeps import sweep_figures, write_sweep_report
+from robust.lazy import lazy_exports
 
 __all__ = [
     "FamilyCoverage",
@@ -37,3 +27,36 @@ __all__ = [
     "write_reproduction_report",
     "write_sweep_report",
 ]
+
+# the names above, each imported from its module on first use (robust.lazy)
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "reports.coverage": (
+            "FamilyCoverage",
+            "add_coverage_section",
+            "family_coverage",
+        ),
+        "reports.designs": (
+            "run_all_designs",
+            "verdict",
+            "write_design_report",
+        ),
+        "reports.html": (
+            "HtmlPage",
+            "fmt",
+            "write_report_dir",
+        ),
+        "reports.reproduce": (
+            "ReproductionResult",
+            "VariantResult",
+            "reproduce",
+            "result_to_json",
+            "write_reproduction_report",
+        ),
+        "reports.sweeps": (
+            "sweep_figures",
+            "write_sweep_report",
+        ),
+    },
+)

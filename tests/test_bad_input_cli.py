@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import bdft.design
-import bdft.identify
-import bdft.report
-import bdft.validate
+import designs.registry
+import reports.designs
+import robust.sysid.model_file
+import uncertainty
 from bdft import main
 from bdft.args import (
     BYTES_PER_BATCH_MEMBER,
@@ -321,7 +321,8 @@ def test_design_out_keeps_a_users_file_of_the_artifacts_name(tmp_path, capsys, s
 
 def test_design_out_is_checked_before_the_computation(tmp_path, capsys, monkeypatch):
     calls = []
-    monkeypatch.setattr(bdft.design, "run_design", lambda *a, **k: calls.append(a))
+    # (bdft design imports run_design when it runs: patched where it is defined)
+    monkeypatch.setattr(designs.registry, "run_design", lambda *a, **k: calls.append(a))
     target = _user_file(tmp_path)
     assert main(["design", "hinf-robust", "--out", str(target)]) == 2
     assert calls == []
@@ -330,7 +331,7 @@ def test_design_out_is_checked_before_the_computation(tmp_path, capsys, monkeypa
 
 def test_report_checks_its_artifact_folder_before_the_computation(tmp_path, capsys, monkeypatch):
     calls = []
-    monkeypatch.setattr(bdft.report, "run_designs_with", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(reports.designs, "run_designs_with", lambda *a, **k: calls.append(a))
     (tmp_path / "page-artifacts").write_text("not a folder")
     before = _listing(tmp_path)
     assert main(["report", "--out", str(tmp_path / "page")]) == 2
@@ -504,7 +505,7 @@ def test_identify_write_failure_leaves_no_output(tmp_path, capsys, chirp, monkey
     def boom(*a, **k):
         raise OSError("disk full")
 
-    monkeypatch.setattr(bdft.identify, "save_component_fit", boom)
+    monkeypatch.setattr(robust.sysid.model_file, "save_component_fit", boom)
     monkeypatch.setenv("BDFT_LOG_DIR", str(tmp_path))
     out = tmp_path / "out"
     assert main(_identify(chirp, "--save-model", str(tmp_path / "m.json"), out=out)) == 1
@@ -517,7 +518,7 @@ def test_internal_error_is_one_line_naming_the_traceback_file(tmp_path, capsys, 
     def broken(*a, **k):
         raise ZeroDivisionError("the bug")
 
-    monkeypatch.setattr(bdft.validate, "validate_family", broken)
+    monkeypatch.setattr(uncertainty, "validate_family", broken)
     monkeypatch.setenv("BDFT_LOG_DIR", str(tmp_path))
     assert main(["validate", "--samples", "5"]) == 1
     captured = capsys.readouterr()

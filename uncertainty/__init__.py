@@ -31,57 +31,7 @@ Public API (import from here; module layout may change):
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
 
-from robust.analysis.stability import DAMPING_BAND_HZ
-from uncertainty.batched import (
-    DEFAULT_CHUNK,
-    MAX_CHUNK_BYTES,
-    STABILITY_THRESHOLD,
-    ValidationResult,
-    batched_poles,
-    closed_loop_matrices,
-    member_metrics,
-    validate_family,
-)
-from uncertainty.family import (
-    BOUNDS_RTOL,
-    HUMAN_VARIANTS,
-    MODEL_PARAMETERS,
-    PHYSICAL_LIMITS,
-    RANGES,
-    Family,
-    default_family,
-)
-from uncertainty.files import family_nominals, load_component_fit, load_controller, load_system
-from uncertainty.lft import LFTForm, lft_form
-from uncertainty.loop import family_uss
-from uncertainty.margins import (
-    MarginResult,
-    Region,
-    margin_lower_bound,
-    margin_upper_bound,
-    robust_margin,
-    scaled_bounds,
-    worst_member,
-)
-from uncertainty.mu import MuBounds, mussv
-from uncertainty.parameters import DISTRIBUTIONS, UncertainParameter
-from uncertainty.performance import (
-    PerformanceResult,
-    certify_performance,
-    performance_system,
-    robust_performance,
-    worst_performance,
-)
-from uncertainty.sampling import MAX_SAMPLE_BYTES, METHODS, SampleSet, max_members, sample
-from uncertainty.sweeps import (
-    SWEEPS,
-    SweepResult,
-    frequency_damping_sweep,
-    structure_frequency_sweep,
-    workspace_sweep,
-)
-from uncertainty.ureal import UExpr, evaluate_matrix, umatrix, ureal
-from uncertainty.uss import USS, interconnect, uss
+from robust.lazy import lazy_exports
 
 __all__ = [
     "UExpr",
@@ -141,3 +91,92 @@ __all__ = [
     "frequency_damping_sweep",
     "structure_frequency_sweep",
 ]
+
+# the names above, each imported from its module on first use (robust.lazy)
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "robust.constants": ("DAMPING_BAND_HZ",),
+        "uncertainty.constants": (
+            "DEFAULT_CHUNK",
+            "RANGES",
+        ),
+        "uncertainty.batched": (
+            "MAX_CHUNK_BYTES",
+            "STABILITY_THRESHOLD",
+            "ValidationResult",
+            "batched_poles",
+            "closed_loop_matrices",
+            "member_metrics",
+            "validate_family",
+        ),
+        "uncertainty.family": (
+            "BOUNDS_RTOL",
+            "HUMAN_VARIANTS",
+            "MODEL_PARAMETERS",
+            "PHYSICAL_LIMITS",
+            "Family",
+            "default_family",
+        ),
+        "uncertainty.files": (
+            "family_nominals",
+            "load_component_fit",
+            "load_controller",
+            "load_system",
+        ),
+        "uncertainty.lft": (
+            "LFTForm",
+            "lft_form",
+        ),
+        "uncertainty.loop": ("family_uss",),
+        "uncertainty.margins": (
+            "MarginResult",
+            "Region",
+            "margin_lower_bound",
+            "margin_upper_bound",
+            "robust_margin",
+            "scaled_bounds",
+            "worst_member",
+        ),
+        "uncertainty.mu": (
+            "MuBounds",
+            "mussv",
+        ),
+        "uncertainty.performance": (
+            "PerformanceResult",
+            "certify_performance",
+            "performance_system",
+            "robust_performance",
+            "worst_performance",
+        ),
+        "uncertainty.parameters": (
+            "DISTRIBUTIONS",
+            "UncertainParameter",
+        ),
+        "uncertainty.sampling": (
+            "MAX_SAMPLE_BYTES",
+            "METHODS",
+            "SampleSet",
+            "max_members",
+            "sample",
+        ),
+        "uncertainty.sweeps": (
+            "SWEEPS",
+            "SweepResult",
+            "frequency_damping_sweep",
+            "structure_frequency_sweep",
+            "workspace_sweep",
+        ),
+        "uncertainty.ureal": (
+            "UExpr",
+            "evaluate_matrix",
+            "umatrix",
+            "ureal",
+        ),
+        "uncertainty.uss": (
+            "USS",
+            "interconnect",
+            "uss",
+        ),
+    },
+)

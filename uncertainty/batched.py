@@ -82,6 +82,7 @@ from robust.model.blocks import (
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
+from uncertainty.constants import DEFAULT_CHUNK
 from uncertainty.family import BOUNDS_RTOL, Family
 from uncertainty.interconnect import close_loops
 from uncertainty.sampling import SampleSet
@@ -106,9 +107,8 @@ __all__ = [
 #: A member is stable when every closed-loop pole has real part below this, rad/s
 #: (the definition of :mod:`robust.analysis.stability`).
 STABILITY_THRESHOLD = stability_bound(0.0)
-#: Members per chunk: about 27 MB of closed-loop matrices for a 13-state loop (smaller
-#: chunks reuse memory instead of faulting in fresh pages for every batch).
-DEFAULT_CHUNK = 20_000
+# DEFAULT_CHUNK (members per chunk) is defined in uncertainty.constants (the command line
+# reads it without NumPy)
 #: Memory budget of one chunk, bytes (about ``chunk * n^2 * 40`` for an ``n``-state loop): a
 #: larger ``chunk`` is reduced to fit, so a huge ``chunk`` never allocates more than this
 #: (chunking does not change any result).

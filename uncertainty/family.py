@@ -48,6 +48,7 @@ from robust.model.physical import (
     PhysicalHumanParams,
     nominal_params,
 )
+from uncertainty.constants import RANGES
 from uncertainty.parameters import UncertainParameter
 
 __all__ = [
@@ -65,8 +66,8 @@ __all__ = [
 ]
 
 HUMAN_VARIANTS = ("physical", "literal")
-#: Ranges a default family can span: the published ones, or the labelled stress variant.
-RANGES = ("published", "stress")
+# RANGES (the published ranges or the labelled stress variant) is defined in
+# uncertainty.constants (the command line reads it without NumPy)
 
 _VALVE = VALVE_FIELDS
 _STRUCT = STRUCTURE_FIELDS

@@ -80,6 +80,7 @@ from robust.engine import map_tasks, scheduler_address
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.synthesis.solve import solve_problem
 from uncertainty.batched import closed_loop_matrices
+from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
 from uncertainty.family import Family
 from uncertainty.loop import INTERVALS, LoopAssembly, fixed_parameters
 from uncertainty.uss import USS
@@ -102,14 +103,10 @@ __all__ = [
 
 #: Floor of a scaled linear range, relative to its upper end (keeps parameters physical).
 PHYSICAL_FLOOR = 1e-6
-#: Lower-bound methods: ``auto`` (the value-set zero exclusion where it applies, else the
-#: eigenvalue enclosures), verified eigenvalue enclosures, a quadratic Lyapunov certificate
-#: of the interval matrix, or zero exclusion on value sets (:mod:`uncertainty.valueset`).
-LOWER_METHODS = ("auto", "eigenvalues", "lyapunov", "valueset")
+# LOWER_METHODS (auto, eigenvalues, lyapunov, valueset) and DEFAULT_BOXES (sub-boxes per
+# scale) are defined in uncertainty.constants (the command line reads them without NumPy)
 #: Cells of the value-set certificate per sub-box of the budget (``max_boxes``).
 VALUESET_CELLS_PER_BOX = 500
-#: Sub-boxes tried per scale by the lower bound (sets the result on every machine).
-DEFAULT_BOXES = 400
 #: Sub-boxes taken from the search's stack and certified together per step, on every
 #: engine (one process, local processes, a Dask cluster), so that every engine gives the
 #: same statistics; the certified scales do not depend on it

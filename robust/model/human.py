@@ -20,6 +20,7 @@ from typing import Protocol, runtime_checkable
 import control as ct
 
 from robust.checks import POSITIVE, validate_fields
+from robust.constants import HUMAN_VARIANT_NAMES
 from robust.errors import ParameterError
 from robust.model.physical import EQN5_FIT, PhysicalHuman, nominal_params
 
@@ -140,8 +141,8 @@ class LiteralHuman:
         }
 
 
-#: Named nominal human variants (:func:`human_variant`).
-HUMAN_VARIANT_NAMES = ("literal", "physical", "physical-no-backrest", "eqn5-fit")
+# HUMAN_VARIANT_NAMES, the names human_variant knows, is defined in robust.constants (the
+# command line reads it without this module's libraries)
 
 
 def human_variant(name: str) -> HumanModel:

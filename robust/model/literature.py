@@ -55,6 +55,7 @@ from __future__ import annotations
 import dataclasses
 
 from robust.checks import POSITIVE, validate_fields
+from robust.constants import DEFAULT_POSTURE, POSTURES
 from robust.errors import ParameterError
 
 __all__ = [
@@ -68,11 +69,8 @@ __all__ = [
     "stress_box",
 ]
 
-#: Named postures of the seated operator.
-POSTURES = ("backrest", "no-backrest")
-#: The paper's operator sits in the backhoe's seat, which has a backrest (its LifeMOD
-#: model, Figure 8, is "a human operator on the backhoe seat").
-DEFAULT_POSTURE = "backrest"
+# POSTURES and DEFAULT_POSTURE (the backhoe's seat, with its backrest) are defined in
+# robust.constants (the command line reads them without this module's libraries)
 #: The modal parameters of the physical human, in the order families list them.
 MODAL_NAMES = ("body_mass", "m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
 
