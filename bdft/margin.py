@@ -74,7 +74,8 @@ def register(sub) -> None:
         help="lower-bound certificate: 'auto' (default: zero exclusion on value sets for the "
         "family's open loop and the region 'lhp', else the eigenvalue enclosures), "
         "'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic Lyapunov LMI "
-        "per sub-box) or 'valueset'",
+        "per sub-box), 'valueset', or 'mu' (a --system's state matrix as an LFT, mixed mu "
+        "below 1 at every frequency; decay-rate regions; --max-boxes caps its frequencies)",
     )
     p.add_argument(
         "--search-seed",

@@ -31,7 +31,7 @@ from uncertainty import (
     ureal,
     uss,
 )
-from uncertainty.performance import _crossings, _negative
+from uncertainty.mucover import _crossings, _negative
 
 
 def _lag():

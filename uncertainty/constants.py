@@ -18,7 +18,7 @@ RANGES = ("published", "stress")
 #: applies, else the eigenvalue enclosures), verified eigenvalue enclosures, a quadratic
 #: Lyapunov certificate of the interval matrix, or zero exclusion on value sets
 #: (:mod:`uncertainty.valueset`).
-LOWER_METHODS = ("auto", "eigenvalues", "lyapunov", "valueset")
+LOWER_METHODS = ("auto", "eigenvalues", "lyapunov", "valueset", "mu")
 #: Sub-boxes tried per scale by the robust margin's lower bound (sets the result on every
 #: machine).
 DEFAULT_BOXES = 400

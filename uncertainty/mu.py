@@ -38,8 +38,10 @@ import dataclasses
 import itertools
 import math
 
+import clarabel
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 
 from robust.errors import ParameterError, SolverError
 
@@ -165,7 +167,7 @@ def _hermitian_basis(s: int) -> list:
     return out
 
 
-def _scalings_feasible(M, blocks, beta: float):
+def _scalings_feasible(M, blocks, beta: float, g_max: float | None = None):
     """``(D, G)`` with ``M^H D M + j (G M - M^H G) - beta^2 D <= 0``, ``D >= I``; or None.
 
     A semidefinite programme solved by Clarabel directly (the LMI's coefficient matrices
@@ -173,10 +175,12 @@ def _scalings_feasible(M, blocks, beta: float):
     ``LMI <= t I``, ``D >= I`` and ``t >= -1``; the scalings are returned when ``t < 0``.
     Whatever the solver's accuracy, the bound used is recomputed from the scalings
     (:func:`_bound_from_scalings`).
-    """
-    import clarabel
-    import scipy.sparse as sp
 
+    ``g_max`` bounds each real block's ``G`` by ``-g_max D <= G <= g_max D``: a smaller set
+    of scalings, so still an upper bound, and one that varies continuously with ``M``
+    where a real parameter's mu is a spike at one frequency (the bound over an interval of
+    frequencies needs it, :mod:`uncertainty.mucover`).
+    """
     n = M.shape[0]
     MH = M.conj().T
     cols_lmi, d_parts, g_parts = [], [], []  # LMI coefficient per variable; D, G pieces
@@ -192,14 +196,16 @@ def _scalings_feasible(M, blocks, beta: float):
             d_parts.append((k, sl, Bb))
             idx.append(k)
             k += 1
-        d_cones.append((size, kind, idx, basis))
+        g_idx = []
         if kind == "real":
             for Bb in basis:
                 E = np.zeros((n, n), complex)
                 E[sl, sl] = Bb
                 cols_lmi.append(1j * (E @ M - MH @ E))
                 g_parts.append((k, sl, Bb))
+                g_idx.append(k)
                 k += 1
+        d_cones.append((size, kind, idx, basis, g_idx))
     nv = k + 1  # and t
     rows_A, b_parts, cones = [], [], []
     # LMI - t I <= 0:  s = svec(t I - LMI)
@@ -212,7 +218,7 @@ def _scalings_feasible(M, blocks, beta: float):
     rows_A.append(A1)
     b_parts.append(np.zeros(ci.size))
     cones.append(clarabel.PSDTriangleConeT(N))
-    for size, kind, idx, basis in d_cones:
+    for size, kind, idx, basis, g_idx in d_cones:
         if kind == "complex":
             row = np.zeros((1, nv))
             row[0, idx[0]] = -1.0
@@ -228,6 +234,16 @@ def _scalings_feasible(M, blocks, beta: float):
         rows_A.append(Ab)
         b_parts.append(-np.eye(m)[cj, rj] * wj)
         cones.append(clarabel.PSDTriangleConeT(m))
+        if g_max is not None:
+            for sign in (-1.0, 1.0):  # g_max D + sign G >= 0
+                Ag = np.zeros((cj.size, nv))
+                for v, Bb in zip(idx, basis):
+                    Ag[:, v] = -g_max * _embed(Bb)[cj, rj] * wj
+                for v, Bb in zip(g_idx, basis):
+                    Ag[:, v] = -sign * _embed(Bb)[cj, rj] * wj
+                rows_A.append(Ag)
+                b_parts.append(np.zeros(cj.size))
+                cones.append(clarabel.PSDTriangleConeT(m))
     row = np.zeros((1, nv))
     row[0, -1] = -1.0
     rows_A.append(row)
@@ -254,7 +270,7 @@ def _scalings_feasible(M, blocks, beta: float):
     return D, G
 
 
-def _upper(M, blocks, lo: float, rtol: float = BISECTION_RTOL):
+def _upper(M, blocks, lo: float, rtol: float = BISECTION_RTOL, g_max: float | None = None):
     """Bisection of the D-G bound between ``lo`` and ``sigma_max(M)``, to ``rtol``.
 
     The bound kept is always one recomputed from scalings (:func:`_bound_from_scalings`);
@@ -269,7 +285,7 @@ def _upper(M, blocks, lo: float, rtol: float = BISECTION_RTOL):
     floor = 1e-9 * hi  # below it, mu is reported as this small bound (e.g. mu = 0)
     while hi - lo > rtol * best[0] and hi > floor:
         mid = 0.5 * (lo + hi)
-        found = _scalings_feasible(M, blocks, mid)
+        found = _scalings_feasible(M, blocks, mid, g_max)
         if found is None:
             lo = mid
             continue

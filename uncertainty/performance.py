@@ -43,7 +43,6 @@ from collections.abc import Callable, Sequence
 
 import control as ct
 import numpy as np
-import scipy.linalg as sla
 from scipy.optimize import minimize
 from scipy.stats import qmc
 
@@ -51,13 +50,7 @@ from robust.analysis.norms import hinf_norm, sigma_max
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.lft import lft_form
 from uncertainty.margins import _member_scale, _scaled_t, _to_values, scaled_bounds
-from uncertainty.mu import (
-    _bound_from_scalings,
-    _power_iteration,
-    _structured,
-    _upper,
-    _verified_lower,
-)
+from uncertainty.mucover import MAX_FREQUENCIES, mu_cover
 from uncertainty.uss import USS, uss
 
 __all__ = [
@@ -68,14 +61,6 @@ __all__ = [
     "robust_performance",
 ]
 
-#: Relative tolerance of the D-G bisection at each frequency of the certificate.
-SCALING_RTOL = 1e-3
-#: A generalised eigenvalue ``lambda`` of the crossing pencil counts as imaginary (a frequency
-#: where ``det F = 0``) when ``|Re lambda| <= CROSSING_TOL * max(1, |lambda|)``; a looser
-#: test only shortens the certified intervals.
-CROSSING_TOL = 1e-6
-#: Frequencies the certificate of one scale may use before it gives up.
-MAX_FREQUENCIES = 400
 #: Relative tolerance of the norms the worst-case search compares (the member kept is
 #: re-checked at full accuracy).
 SEARCH_RTOL = 1e-5
@@ -405,156 +390,6 @@ def _square(M: ct.StateSpace, R: int):
     return A, B, C, D, s
 
 
-def _response(A, B, C, D, w: float) -> np.ndarray:
-    if math.isinf(w):
-        return D.astype(complex)
-    n = A.shape[0]
-    return D + C @ np.linalg.solve(1j * w * np.eye(n) - A, B.astype(complex))
-
-
-def _crossings(A, B, C, D, Dsc, Gsc) -> np.ndarray:
-    """Frequencies ``w >= 0`` (rad/s) where ``det(M^H D M + j (G M - M^H G) - D) = 0``.
-
-    The imaginary-axis zeros of ``Phi(s) = W~(s) Pi W(s)`` with ``W = [M; I]`` and
-    ``Pi = [[D, -jG], [jG, -D]]``, as finite eigenvalues of its Rosenbrock pencil.
-    """
-    n, m = B.shape
-    Pi = np.block([[Dsc, -1j * Gsc], [1j * Gsc, -Dsc]])
-    Cw = np.vstack([C, np.zeros((m, n))]).astype(complex)
-    Dw = np.vstack([D, np.eye(m)]).astype(complex)
-    AH, BH = A.conj().T, B.conj().T
-    Af = np.block([[A, np.zeros((n, n))], [Cw.conj().T @ Pi @ Cw, -AH]])
-    Bf = np.vstack([B, Cw.conj().T @ Pi @ Dw])
-    Cf = np.hstack([Dw.conj().T @ Pi @ Cw, -BH])
-    Df = Dw.conj().T @ Pi @ Dw
-    pencil = np.block([[Af, Bf], [Cf, Df]])
-    E = np.zeros_like(pencil)
-    E[: 2 * n, : 2 * n] = np.eye(2 * n)
-    alpha, beta = sla.eig(pencil, E, right=False, homogeneous_eigvals=True)
-    scale = np.abs(alpha) + np.abs(beta)
-    finite = np.abs(beta) > 1e-12 * scale
-    lam = alpha[finite] / beta[finite]
-    tol = CROSSING_TOL * np.maximum(1.0, np.abs(lam))
-    # only s = j w with w >= 0: with complex scalings F(-w) is not F(w) conjugated, and
-    # the certificate needs the non-negative frequencies only (mu(M(-jw)) = mu(M(jw)))
-    near = (np.abs(lam.real) <= tol) & (lam.imag >= -tol)
-    return np.sort(np.maximum(lam[near].imag, 0.0))
-
-
-def _negative(A, B, C, D, Dsc, Gsc, w) -> bool:
-    Mw = _response(A, B, C, D, w)
-    MH = Mw.conj().T
-    F = MH @ Dsc @ Mw + 1j * (Gsc @ Mw - MH @ Gsc) - Dsc
-    return bool(np.linalg.eigvalsh(0.5 * (F + F.conj().T))[-1] < 0)
-
-
-def _interval(A, B, C, D, Dsc, Gsc, w: float) -> tuple:
-    """Where ``F < 0`` about ``w`` with these scalings (``F(w) < 0`` was checked):
-    ``(a, b, a_included, b_included)``, an interval bounded by the nearest crossings
-    (:func:`_crossings`), 0 and ``inf`` included when no crossing separates them from ``w``.
-
-    The Hamiltonian test is backed by a direct one: ``F`` is evaluated at points inside the
-    interval, and one that is not negative definite ends the interval there."""
-    cross = _crossings(A, B, C, D, Dsc, Gsc)
-    if math.isinf(w):
-        a = float(cross.max()) if cross.size else 0.0
-        b, b_in = math.inf, True
-    else:
-        if np.any(cross == w):  # pragma: no cover - F(w) < 0 was checked
-            return w, w, True, True
-        below, above = cross[cross < w], cross[cross > w]
-        a = float(below.max()) if below.size else 0.0
-        b = float(above.min()) if above.size else math.inf
-        b_in = math.isinf(b) and _negative(A, B, C, D, Dsc, Gsc, math.inf)
-    a_in = a == 0.0 and not np.any(cross == 0.0)
-    # the direct check, on each side of w
-    for lo, hi, side in ((a, w, "below"), (w, b, "above")):
-        if not lo < hi:
-            continue
-        top = hi if math.isfinite(hi) else max(10.0 * max(lo, 1.0), 1e6)
-        bottom = lo if lo > 0 else min(1e-6, 1e-3 * top)
-        pts = np.geomspace(bottom, top, 10)[1:-1]
-        for x in pts if side == "above" else pts[::-1]:
-            if not _negative(A, B, C, D, Dsc, Gsc, float(x)):
-                if side == "above":
-                    b, b_in = float(x), False
-                else:
-                    a, a_in = float(x), False
-                break
-    return a, b, a_in, b_in
-
-
-def _covered(x: float, intervals) -> bool:
-    return any((a < x < b) or (x == a and ai) or (x == b and bi) for a, b, ai, bi in intervals)
-
-
-def _first_uncovered(intervals):
-    """The first point of ``[0, inf]`` the intervals leave out, or None."""
-    ends = sorted({0.0, math.inf} | {e for a, b, _, _ in intervals for e in (a, b)})
-    for e0, e1 in zip(ends[:-1], ends[1:]):
-        if not _covered(e0, intervals):
-            return e0
-        mid = (
-            math.sqrt(e0 * e1)
-            if e0 > 0 and math.isfinite(e1)
-            else (0.5 * e1 if math.isfinite(e1) else max(10.0 * e0, 1.0))
-        )
-        if not _covered(mid, intervals):
-            return mid
-    return None if _covered(math.inf, intervals) else math.inf
-
-
-def _start_bound(M, blocks) -> float:
-    """A cheap verified lower bound of mu: the complex blocks' power iteration (reals at 0)."""
-    parts = _power_iteration(M, blocks, np.random.default_rng(0), iterations=60)
-    return _verified_lower(M, blocks, _structured(blocks, parts))[0]
-
-
-def _cover(A, B, C, D, blocks, *, max_frequencies: int, deadline: float) -> dict:
-    """Certificate that ``mu(M(jw)) < 1`` at every ``w`` in ``[0, inf]`` (module notes)."""
-    shown: list = []
-    intervals: list = []
-    poles = np.linalg.eigvals(A) if A.shape[0] else np.zeros(0)
-    natural = sorted({float(abs(p)) for p in poles if abs(p) > 0})
-    queue = [0.0, math.inf] + natural[:: max(1, len(natural) // 6)]
-    while True:
-        w = queue.pop(0) if queue else _first_uncovered(intervals)
-        if w is None:
-            return {"certified": True, "frequencies": shown}
-        if _covered(w, intervals):
-            continue
-        if len(shown) >= max_frequencies or time.perf_counter() > deadline:
-            return {
-                "certified": False,
-                "reason": f"budget: {len(shown)} frequencies did not cover [0, inf]",
-                "frequencies": shown,
-            }
-        Mw = _response(A, B, C, D, w)
-        _, Dsc, Gsc = _upper(Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL)
-        beta = _bound_from_scalings(Mw, Dsc, Gsc)
-        if beta >= 1.0:
-            return {
-                "certified": False,
-                "reason": f"mu upper bound {beta:.6g} >= 1 at {_hz(w):.6g} Hz",
-                "frequency_hz": _hz(w),
-                "mu_upper": float(beta),
-                "frequencies": shown,
-            }
-        a, b, a_in, b_in = _interval(A, B, C, D, Dsc, Gsc, w)
-        intervals.append((a, b, a_in, b_in))
-        shown.append(
-            {
-                "frequency_hz": _hz(w),
-                "mu_upper": float(beta),
-                "interval_hz": [_hz(a), _hz(b)],
-            }
-        )
-
-
-def _hz(w: float) -> float:
-    return w / (2 * math.pi)
-
-
 def _lft_at(P: USS, k: float):
     lo, hi = scaled_bounds(P, k)
     return lft_form(P, bounds={n: (a, b) for n, a, b in zip(P.parameters, lo, hi)})
@@ -608,7 +443,7 @@ def certify_performance(
             frequencies=[],
         )
         return out
-    res = _cover(
+    res = mu_cover(
         A,
         B,
         C,
