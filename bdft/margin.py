@@ -123,7 +123,8 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from uncertainty.files import load_controller
-    from uncertainty.margins import Region, robust_margin
+    from uncertainty.margins import robust_margin
+    from uncertainty.region import Region
 
     region = Region.parse(args.region)
     if args.system is not None:

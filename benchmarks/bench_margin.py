@@ -19,12 +19,9 @@ import time
 
 from designs import design_names, run_design
 from uncertainty import default_family
-from uncertainty.margins import (
-    DEFAULT_BOXES,
-    LOWER_METHODS,
-    margin_lower_bound,
-    margin_upper_bound,
-)
+from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
+from uncertainty.margins import margin_lower_bound
+from uncertainty.search import margin_upper_bound
 
 
 def main() -> None:

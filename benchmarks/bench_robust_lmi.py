@@ -45,7 +45,7 @@ from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty import default_family
-from uncertainty.margins import scaled_bounds
+from uncertainty.search import scaled_bounds
 
 
 def main() -> None:

@@ -106,7 +106,7 @@ from robust.synthesis.youla import (
     uncontrollable_modes,
 )
 from uncertainty import sample
-from uncertainty.margins import worst_member
+from uncertainty.search import worst_member
 
 __all__ = [
     "ALL_SETS",
@@ -1300,7 +1300,7 @@ def limit_map(
         Multiples of the device's force limits reported.
     critical : bool
         Add the nominal member and the open loop's worst member of the box for the
-        specification's pole region (:func:`uncertainty.margins.worst_member`).
+        specification's pole region (:func:`uncertainty.search.worst_member`).
     basis_poles : sequence of float
         The lag basis, rad/s.
     duration_s : float

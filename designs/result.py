@@ -18,7 +18,7 @@ from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck, Specification
 from robust.analysis.sampled import SampledDataCheck
 from robust.analysis.saturation import SaturationCheck
-from uncertainty.margins import MarginResult
+from uncertainty.region import MarginResult
 
 __all__ = ["Design", "DesignResult", "DesignChecks", "HeldOutCheck", "SaturatedRun"]
 

@@ -11,7 +11,7 @@ The design, top to bottom (the same steps serve the three designs of this module
    scales it, :mod:`uncertainty.margins`). At each scale, rounds of:
 
    * design members: the nominal, then the member of the scaled box whose closed-loop
-     poles break the region most (:func:`uncertainty.margins.worst_member`) and the
+     poles break the region most (:func:`uncertainty.search.worst_member`) and the
      sampled member that binds the specification;
    * synthesis: a start placing every design member's poles in the region with the
      budgets' largest utilisation minimised, by linear programs
@@ -69,7 +69,8 @@ from robust.synthesis.pk import certify_regions, pksyn_multi
 from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.tuning import minimax_start, tune_members
-from uncertainty.margins import margin_lower_bound, scaled_bounds, worst_member
+from uncertainty.margins import margin_lower_bound
+from uncertainty.search import scaled_bounds, worst_member
 
 __all__ = [
     "RobustOptions",

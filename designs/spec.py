@@ -42,7 +42,7 @@ Constraints and their worst value over the members
 ``"damping"``
     Smallest damping ratio ``-Re p / |p|`` of the poles whose frequency
     ``|Im p| / (2 pi)`` lies in ``damping_band_hz`` (``inf`` without such a pole);
-    the band test is that of :class:`uncertainty.margins.Region`, so the check agrees
+    the band test is that of :class:`uncertainty.region.Region`, so the check agrees
     with :meth:`Specification.region`. Holds when it is at least ``min_damping``.
 ``"peak force"``
     Largest ``|f|`` of a simulated realistic intended motion
@@ -135,7 +135,7 @@ from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
 from robust.synthesis.pk import h2_norm
-from uncertainty.margins import Region
+from uncertainty.region import Region
 
 __all__ = [
     "CONSTRAINTS",

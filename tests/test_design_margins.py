@@ -13,7 +13,7 @@ from designs.registry import run_design
 from designs.spec import Specification, check_specification
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
-from uncertainty.margins import margin_upper_bound, scaled_bounds
+from uncertainty.search import margin_upper_bound, scaled_bounds
 from uncertainty.testing import assert_robust_margin
 
 SAMPLES, SEED = 500, 0

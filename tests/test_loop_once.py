@@ -15,7 +15,9 @@ from uncertainty import (
     validate_family,
     worst_member,
 )
-from uncertainty.margins import certify_box, closed_loop_enclosure, scaled_bounds
+from uncertainty.boxcert import certify_box
+from uncertainty.enclosure import closed_loop_enclosure
+from uncertainty.search import scaled_bounds
 
 # each valve parameter of Eqn 3 away from its nominal, in its own direction
 VALVE_EDGES = {"valve.k_vc": "high", "valve.p1": "low", "valve.wn_hz": "low", "valve.zeta": "low"}
@@ -79,7 +81,7 @@ def test_recalled_blocks_give_the_enclosures_of_fresh_ones_to_the_bit():
     # the assembly that recalls the blocks of recent boxes gives each enclosure exactly as a
     # new assembly (no memory) does, and builds a block only for parameters it has not seen
     from uncertainty import loop as loopmod
-    from uncertainty.margins import _Assembly
+    from uncertainty.enclosure import _Assembly
 
     fam = default_family("physical")
     K = _controller("f")

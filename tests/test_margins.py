@@ -18,15 +18,11 @@ from robust.analysis.intervals import Interval, norm2_bound
 from robust.errors import ParameterError
 from uncertainty import default_family, member_metrics, sample
 from uncertainty.batched import closed_loop_matrices
-from uncertainty.margins import (
-    Region,
-    certify_box,
-    certify_interval_matrix,
-    closed_loop_enclosure,
-    margin_lower_bound,
-    margin_upper_bound,
-    scaled_bounds,
-)
+from uncertainty.boxcert import certify_box, certify_interval_matrix
+from uncertainty.enclosure import closed_loop_enclosure
+from uncertainty.margins import margin_lower_bound
+from uncertainty.region import Region
+from uncertainty.search import margin_upper_bound, scaled_bounds
 
 
 def _msd(c_lo, c_hi, k=4.0, m=1.0):

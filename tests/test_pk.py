@@ -44,7 +44,7 @@ from robust.synthesis.region import PoleRegion, sym
 from robust.synthesis.solve import DEFAULT_SOLVERS, deterministic_solvers, solve_problem
 from robust.synthesis.tuning import _Terms, minimax_start, region_start, tune_members
 from uncertainty import default_family
-from uncertainty.margins import scaled_bounds
+from uncertainty.search import scaled_bounds
 
 REGION = PoleRegion(decay_rate=0.1, min_damping=0.1)
 

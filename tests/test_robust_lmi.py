@@ -34,7 +34,8 @@ from robust.cache import CACHE_ENV, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from uncertainty import default_family
-from uncertainty.margins import margin_lower_bound, scaled_bounds
+from uncertainty.margins import margin_lower_bound
+from uncertainty.search import scaled_bounds
 
 OPTIONS = RobustOptions(ladder=(0.005,), rounds=2, bisection=0, margin_boxes=20, spec_samples=4)
 

@@ -30,7 +30,7 @@ from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, in_band
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
-from uncertainty.margins import Region
+from uncertainty.region import Region
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,7 @@ from uncertainty import (
     validate_family,
     worst_member,
 )
-from uncertainty.margins import certify_box
+from uncertainty.boxcert import certify_box
 from uncertainty.testing import assert_robust_margin
 
 

@@ -9,14 +9,9 @@ import pytest
 from robust.errors import ParameterError
 from uncertainty import Region, default_family, robust_margin
 from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
-from uncertainty.margins import (
-    _loop,
-    _perron_bound,
-    _scaled_t,
-    _to_values,
-    margin_lower_bound,
-    worst_member,
-)
+from uncertainty.enclosure import _loop
+from uncertainty.margins import _perron_bound, margin_lower_bound
+from uncertainty.search import _scaled_t, _to_values, worst_member
 from uncertainty.valueset import ValueSetLoop
 
 
@@ -180,7 +175,7 @@ def test_open_loop_margin_certified_within_a_twentieth_of_an_unstable_member(fam
 def test_the_critical_member_is_the_first_unstable_one_on_its_segment(family, margin):
     # the upper bound is not quantised: 0.1 % closer to the nominal along the critical
     # member's segment the member is stable, and the critical member's own scale is the bound
-    from uncertainty.margins import _coords, _member_scale, _to_values
+    from uncertainty.search import _coords, _member_scale, _to_values
 
     logs, tn, *_ = _coords(family)
     row = np.array([margin.critical["parameters"][n] for n in family.names])

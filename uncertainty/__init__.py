@@ -130,13 +130,8 @@ __getattr__, __dir__ = lazy_exports(
         ),
         "uncertainty.loop": ("family_uss",),
         "uncertainty.margins": (
-            "MarginResult",
-            "Region",
             "margin_lower_bound",
-            "margin_upper_bound",
             "robust_margin",
-            "scaled_bounds",
-            "worst_member",
         ),
         "uncertainty.mu": (
             "MuBounds",
@@ -153,12 +148,21 @@ __getattr__, __dir__ = lazy_exports(
             "DISTRIBUTIONS",
             "UncertainParameter",
         ),
+        "uncertainty.region": (
+            "MarginResult",
+            "Region",
+        ),
         "uncertainty.sampling": (
             "MAX_SAMPLE_BYTES",
             "METHODS",
             "SampleSet",
             "max_members",
             "sample",
+        ),
+        "uncertainty.search": (
+            "margin_upper_bound",
+            "scaled_bounds",
+            "worst_member",
         ),
         "uncertainty.sweeps": (
             "SWEEPS",

@@ -49,8 +49,8 @@ from scipy.stats import qmc
 from robust.analysis.norms import hinf_norm, sigma_max
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.lft import lft_form
-from uncertainty.margins import _member_scale, _scaled_t, _to_values, scaled_bounds
 from uncertainty.mucover import MAX_FREQUENCIES, mu_cover
+from uncertainty.search import _member_scale, _scaled_t, _to_values, scaled_bounds
 from uncertainty.uss import USS, uss
 
 __all__ = [
@@ -232,7 +232,7 @@ def _member_norm(P: USS, names, row, rtol: float = 1e-9) -> tuple[float, float]:
 
 
 class _Loop:
-    """The weighted map seen by the scaled-box helpers of :mod:`uncertainty.margins`."""
+    """The weighted map seen by the scaled-box helpers of :mod:`uncertainty.search`."""
 
     def __init__(self, P: USS):
         self.system = P
@@ -491,7 +491,7 @@ def robust_performance(
     """Both bounds of the robust performance margin (module notes).
 
     The margin is the largest scale ``k`` of the parameters' box about the nominal
-    (:func:`uncertainty.margins.scaled_bounds`) at which every member is stable with
+    (:func:`uncertainty.search.scaled_bounds`) at which every member is stable with
     ``||W_out T W_in||_inf < gamma``, ``T`` the closed loop's map from ``inputs`` to
     ``outputs``.
 

@@ -31,13 +31,10 @@ import control as ct
 import numpy as np
 
 from robust.checks import POSITIVE, check_scalar
-from uncertainty.margins import (
-    DEFAULT_BOXES,
-    Region,
-    margin_lower_bound,
-    robust_margin,
-)
+from uncertainty.constants import DEFAULT_BOXES
+from uncertainty.margins import margin_lower_bound, robust_margin
 from uncertainty.performance import certify_performance, performance_system, robust_performance
+from uncertainty.region import Region
 
 __all__ = ["assert_robust_margin", "assert_robust_performance"]
 
