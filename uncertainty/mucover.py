@@ -27,6 +27,7 @@ import scipy.linalg as sla
 from uncertainty.mu import (
     _bound_from_scalings,
     _power_iteration,
+    _scalings_feasible,
     _structured,
     _upper,
     _verified_lower,
@@ -212,7 +213,15 @@ def mu_cover(A, B, C, D, blocks, *, max_frequencies: int, deadline: float) -> di
                 "frequencies": shown,
             }
         Mw = _response(A, B, C, D, w)
-        _, Dsc, Gsc = _upper(Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL, g_max=G_MAX)
+        # one LMI at the bound itself first (its scalings as negative as it can make F);
+        # the bisection for the least bound only where that fails
+        found = _scalings_feasible(Mw, blocks, 1.0 - 10 * MU_MARGIN, G_MAX)
+        if found is None:
+            _, Dsc, Gsc = _upper(
+                Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL, g_max=G_MAX
+            )
+        else:
+            Dsc, Gsc = found
         beta = _bound_from_scalings(Mw, Dsc, Gsc)
         if beta >= 1.0 - MU_MARGIN:
             return {
