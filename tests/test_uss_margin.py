@@ -222,3 +222,12 @@ def test_the_mu_route_on_an_observer_based_noncollocated_loop():
     lower, cert = margin_lower_bound(S, controller=K, method="mu")
     assert cert["method"] == "mu"
     assert 0.9 * exact <= lower <= exact, (lower, exact)
+
+
+def test_a_margin_prints_as_one_readable_line():
+    c = ureal("c", 1.0, 0.2, 3.0)
+    res = robust_margin(_second_order(c, 4.0), region=Region(decay_rate=0.3))
+    text = str(res)
+    assert "\n" not in text and len(text) < 200
+    assert text.startswith(f"robust margin in [{res.lower:.4g}, {res.upper:.4g}] for the real")
+    assert "critical member c=0.5996" in text and "rightmost pole -0.2998" in text

@@ -188,6 +188,22 @@ class MarginResult:
     search: dict
     timings_s: dict
 
+    def __str__(self) -> str:
+        text = (
+            f"robust margin in [{self.lower:.4g}, {self.upper:.4g}] for the "
+            f"{self.region.describe()} (lower: {self.certificate.get('method', '?')})"
+        )
+        crit = self.critical
+        if crit is None:
+            return text + "; no violating member found"
+        params = ", ".join(f"{k}={v:.4g}" for k, v in crit["parameters"].items())
+        poles = np.asarray(crit["poles"])
+        worst = ""
+        if poles.size:
+            p = poles[int(np.argmax(poles.real))]
+            worst = f", rightmost pole {p.real:.4g}{p.imag:+.4g}j"
+        return f"{text}; critical member {params}{worst}"
+
     def to_json(self) -> dict:
         """JSON-ready dict (poles as ``{"re", "im"}`` pairs)."""
         crit = None
