@@ -78,3 +78,17 @@ def test_bad_requests_raise(kw, match):
     args.update(kw)
     with pytest.raises(ParameterError, match=match):
         sample(PARAMS, args.pop("n"), **args)
+
+
+def test_sample_takes_a_uss_a_family_or_any_iterable_of_parameters():
+    from uncertainty import default_family, ureal, uss
+
+    k = ureal("k", 1.0, 0.5, 2.0)
+    m = ureal("m", 1.0, 0.8, 1.5)
+    G = uss([[-k / m]], [[1.0]], [[1.0]], [[0.0]])
+    ref = sample(list(G.parameters.values()), 7, seed=3)
+    for source in (G, G.parameters.values(), iter(G.parameters.values()), G.parameters):
+        got = sample(source, 7, seed=3)
+        assert got.names == ("k", "m") and np.array_equal(got.values, ref.values)
+    fam = default_family()
+    assert sample(fam, 4, seed=1).names == tuple(p.name for p in fam.parameters)

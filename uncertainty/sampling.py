@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 from scipy.stats import qmc
@@ -146,14 +146,16 @@ def _unit_samples(method: str, n: int, d: int, rng: np.random.Generator) -> np.n
 
 
 def sample(
-    parameters: Sequence[UncertainParameter], n: int, *, method: str = "lhs", seed: int | None = 0
+    parameters: Iterable[UncertainParameter], n: int, *, method: str = "lhs", seed: int | None = 0
 ) -> SampleSet:
     """Draw ``n`` members of the box spanned by ``parameters``.
 
     Parameters
     ----------
-    parameters : sequence of UncertainParameter
-        The uncertain parameters (names must be unique).
+    parameters : sequence of UncertainParameter, uss or Family
+        The uncertain parameters (names must be unique): a sequence or any iterable of them
+        (``dict.values()`` too), or an uncertain system (:func:`uncertainty.uss`) or a
+        family, whose parameters are taken in their order.
     n : int
         Number of members, >= 1. A request whose sample would exceed
         :data:`MAX_SAMPLE_BYTES` (``members * d * 8`` bytes; see :func:`max_members`) is
@@ -180,14 +182,16 @@ def sample(
         positive integer or asks for more than :data:`MAX_SAMPLE_BYTES` of members,
         ``method`` is unknown or ``seed`` is not a non-negative integer or None.
     """
-    if isinstance(parameters, (str, bytes, UncertainParameter)) or not isinstance(
-        parameters, Sequence
-    ):
+    # an uncertain system or a family gives its own parameters; a mapping its values
+    source = getattr(parameters, "parameters", parameters)
+    if isinstance(source, Mapping):
+        source = source.values()
+    if isinstance(source, (str, bytes, UncertainParameter)) or not isinstance(source, Iterable):
         raise ParameterError(
-            "sample: parameters must be a sequence of UncertainParameter; "
-            f"got {type(parameters).__name__}"
+            "sample: parameters must be a sequence of UncertainParameter (or any iterable of "
+            f"them, a uss or a family); got {type(parameters).__name__}"
         )
-    params = list(parameters)
+    params = list(source)
     if not params:
         raise ParameterError("sample: need at least one uncertain parameter; got none")
     for p in params:
