@@ -50,7 +50,7 @@ from robust.analysis.norms import hinf_norm, sigma_max
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.lft import lft_form
 from uncertainty.mucover import MAX_FREQUENCIES, mu_cover
-from uncertainty.search import _member_scale, _scaled_t, _to_values, scaled_bounds
+from uncertainty.search import _scaled_t, _to_values, first_violation_on_segment, scaled_bounds
 from uncertainty.uss import USS, uss
 
 __all__ = [
@@ -301,24 +301,9 @@ def worst_performance(
 
 def _ray_violation(loop: _Loop, row, rel: float = 1e-3):
     """The first member with norm >= 1 on the segment from the nominal to ``row``."""
-    logs = np.array([p.distribution == "loguniform" for p in loop.parameters])
-    nom = np.array([p.nominal for p in loop.parameters], float)
-    tn = np.where(logs, np.log(np.where(logs, nom, 1.0)), nom)
-    row = np.asarray(row, float)
-    tr = np.where(logs, np.log(np.where(logs, row, 1.0)), row)
-
-    def at(s):
-        return _to_values(loop, (tn + s * (tr - tn))[None])[0]
-
-    lo, hi = 0.0, 1.0
-    while hi - lo > rel * hi:
-        mid = 0.5 * (lo + hi)
-        if _member_norm(loop.system, loop.names, at(mid))[0] >= 1.0:
-            hi = mid
-        else:
-            lo = mid
-    out = at(hi)
-    return _member_scale(loop, out), out
+    return first_violation_on_segment(
+        loop, row, lambda m: _member_norm(loop.system, loop.names, m)[0] >= 1.0, rel
+    )
 
 
 def _worst_record(loop: _Loop, row, k: float) -> dict:

@@ -82,30 +82,39 @@ def _member_scale(loop, row) -> float:
     return k if k > 0 else 0.0  # (the nominal itself: 0, not -0.0)
 
 
-def _ray_critical(loop, row, region, rel: float = 1e-3):
-    """The first violating member on the segment from the nominal to the violating member
-    ``row``, to ``rel`` of its scale by bisection: ``(scale, row)``.
+def first_violation_on_segment(loop, row, violates, rel: float = 1e-3):
+    """The first member on the segment from the nominal to the member ``row`` (values) for
+    which ``violates(member)`` holds, to ``rel`` of its scale by bisection (in the scaled
+    coordinates, log for log-uniform parameters): ``(scale, member)``.
 
-    The nominal must meet the region (as every margin requires); the member returned
-    violates it, so its scale is an upper bound of the margin."""
+    ``row`` itself must violate and the nominal must not; the member returned violates, so
+    its scale is an upper bound of any margin the predicate defines."""
     logs, tn, _, _, _ = _coords(loop)
     row = np.asarray(row, float)
     t_row = np.where(logs, np.log(np.where(logs, row, 1.0)), row)
 
     def at(s):
-        return _to_values(loop, (tn + s * (t_row - tn))[None])
+        return _to_values(loop, (tn + s * (t_row - tn))[None])[0]
 
     lo, hi = 0.0, 1.0
     for _ in range(60):
         if hi - lo <= rel * hi:
             break
         mid = 0.5 * (lo + hi)
-        if _violations(loop, at(mid), region)[0][0] > 0:
+        if violates(at(mid)):
             hi = mid
         else:
             lo = mid
-    out = at(hi)[0]
+    out = at(hi)
     return _member_scale(loop, out), out
+
+
+def _ray_critical(loop, row, region, rel: float = 1e-3):
+    """The first member outside ``region`` on the segment from the nominal to ``row``
+    (:func:`first_violation_on_segment`): ``(scale, row)``."""
+    return first_violation_on_segment(
+        loop, row, lambda m: _violations(loop, m[None], region)[0][0] > 0, rel
+    )
 
 
 def scaled_bounds(family, k: float) -> tuple[np.ndarray, np.ndarray]:

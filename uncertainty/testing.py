@@ -125,20 +125,17 @@ def _message(res, at_least: float) -> str:
         f"{res.region.describe()}",
         f"  certified lower bound {res.lower:.6g}, upper bound {res.upper:.6g}",
     ]
-    if res.upper <= at_least:
-        lines.append(
-            f"  out of reach: a member inside the required box (scale {res.upper:.6g}) "
-            "violates the region"
+    lines.append(
+        _reach(
+            res.upper,
+            at_least,
+            "violates the region",
+            "; a larger certificate budget (max_boxes) may certify it",
         )
-    else:
-        lines.append(
-            "  not shown either way: no violating member found up to the requirement; a "
-            "larger certificate budget (max_boxes) may certify it"
-        )
+    )
     crit = res.critical
     if crit is not None:
-        params = ", ".join(f"{k}={v:.6g}" for k, v in crit["parameters"].items())
-        lines.append(f"  critical member: {params}")
+        lines.append(f"  critical member: {_member(crit['parameters'])}")
         poles = np.asarray(crit["poles"])
         if poles.size:
             worst = poles[int(np.argmax(poles.real))]
@@ -225,20 +222,12 @@ def assert_robust_performance(
         f"(nominal weighted norm {res.nominal_norm:.6g})",
         f"  the certificate at {at_least:g}: {cert.get('reason', '')}",
     ]
-    if res.upper <= at_least:
-        lines.append(
-            f"  out of reach: a member inside the required box (scale {res.upper:.6g}) "
-            "breaks the bound"
-        )
-    else:
-        lines.append(
-            "  not shown either way: no violating member found up to the requirement, and "
-            "the mu certificate did not reach it"
-        )
+    lines.append(
+        _reach(res.upper, at_least, "breaks the bound", ", and the mu certificate did not reach it")
+    )
     w = res.worst
     if w is not None:
-        params = ", ".join(f"{k}={v:.6g}" for k, v in w["parameters"].items())
-        lines.append(f"  worst member: {params}")
+        lines.append(f"  worst member: {_member(w['parameters'])}")
         lines.append(
             f"  its weighted norm {w['norm'] * gamma:.6g} (bound {gamma:g}) at "
             f"{w['frequency_hz']:.6g} Hz ({w['checked_with']})"
@@ -246,3 +235,14 @@ def assert_robust_performance(
     lines.append(f"  lower bound: {res.method['lower']}")
     lines.append(f"  upper bound: {res.method['upper']}")
     raise AssertionError("\n".join(lines))
+
+
+def _reach(upper: float, at_least: float, breaks: str, undecided: str) -> str:
+    """Whether a requirement the certificate missed is out of reach or only undecided."""
+    if upper <= at_least:
+        return f"  out of reach: a member inside the required box (scale {upper:.6g}) {breaks}"
+    return f"  not shown either way: no violating member found up to the requirement{undecided}"
+
+
+def _member(parameters: dict) -> str:
+    return ", ".join(f"{k}={v:.6g}" for k, v in parameters.items())
