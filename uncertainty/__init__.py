@@ -17,7 +17,8 @@ Public API (import from here; module layout may change):
   :func:`load_system` (a user's uncertain system from a Python file);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
-  :func:`interconnect` (by signal names);
+  :func:`interconnect` (by signal names); uncertain transfer functions: :func:`tf`
+  (``tf("s")``, the Laplace variable), :class:`UTF`;
 * the family's loop as an uncertain system: :func:`family_uss`; the LFT form of an
   uncertain system: :func:`lft_form`, :class:`LFTForm`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
@@ -41,6 +42,8 @@ __all__ = [
     "USS",
     "uss",
     "interconnect",
+    "UTF",
+    "tf",
     "family_uss",
     "LFTForm",
     "lft_form",
@@ -181,6 +184,10 @@ __getattr__, __dir__ = lazy_exports(
             "USS",
             "interconnect",
             "uss",
+        ),
+        "uncertainty.utf": (
+            "UTF",
+            "tf",
         ),
     },
 )

@@ -78,9 +78,15 @@ class UExpr:
             if not np.isfinite(v):
                 raise ParameterError(f"{where}: a constant must be finite; got {x!r}")
             return UExpr("const", (v,), {})
+        hint = (
+            "; lift a python-control system first: uncertainty.tf(sys) (one input, one "
+            "output) or uncertainty.uss(sys)"
+            if hasattr(x, "ninputs") and hasattr(x, "noutputs")
+            else ""
+        )
         raise ParameterError(
-            f"{where}: an operand must be a real number or an uncertain expression; "
-            f"got {type(x).__name__}"
+            f"{where}: an operand must be a real number, an uncertain expression or an "
+            f"uncertain system; got {type(x).__name__}{hint}"
         )
 
     @staticmethod
@@ -91,6 +97,8 @@ class UExpr:
         return self._args[0] if self._op == "const" else None
 
     def _binary(self, op: str, other, reflected: bool = False) -> UExpr:
+        if _is_system(other):  # an uncertain system does the arithmetic (its reflected op)
+            return NotImplemented
         if isinstance(other, np.ndarray):  # with a matrix: entry by entry, a matrix of them
             out = np.empty(other.shape, dtype=object)
             for idx, v in np.ndenumerate(other):
@@ -266,6 +274,13 @@ class UExpr:
         if not isinstance(out, Interval):  # an expression without parameters
             return float(out), float(out)
         return float(out.lo), float(out.hi)
+
+
+def _is_system(x) -> bool:
+    """An uncertain system (:class:`uncertainty.USS`, :class:`uncertainty.UTF`): an operand
+    that does its own arithmetic with numbers and uncertain expressions (it defers numpy's
+    operators to itself, ``__array_ufunc__ = None``, and is not an expression)."""
+    return not isinstance(x, UExpr) and getattr(type(x), "__array_ufunc__", 0) is None
 
 
 def merge_parameters(*dicts) -> dict:

@@ -95,6 +95,10 @@ class USS:
         Signal names.
     """
 
+    #: numpy defers its operators to this class (``np.float64(2) * G`` is a uss), and so do
+    #: uncertain expressions (``k * G``)
+    __array_ufunc__ = None
+
     def __init__(self, A, B, C, D, inputs=None, outputs=None):
         self.A, self.B, self.C, self.D = A, B, C, D
         self.parameters = _params(A, B, C, D)
@@ -198,13 +202,21 @@ class USS:
         return out
 
     def at(self, values: Mapping) -> ct.StateSpace:
-        """The member at ``values`` (name -> number; others nominal), a python-control system."""
+        """The member at ``values`` (name -> number; others nominal), a python-control system.
+
+        Its signal names are the system's (python-control's defaults where names repeat).
+        """
         for k, v in values.items():
             if np.ndim(v) != 0:
                 raise ParameterError(
                     f"USS.at: values[{k!r}] must be a number; got shape {np.shape(v)}"
                 )
-        return ct.ss(*self.matrices(values))
+        names = {}
+        if len(set(self.inputs)) == len(self.inputs):
+            names["inputs"] = list(self.inputs)
+        if len(set(self.outputs)) == len(self.outputs):
+            names["outputs"] = list(self.outputs)
+        return ct.ss(*self.matrices(values), **names)
 
     def nominal(self) -> ct.StateSpace:
         """The nominal member, a python-control system."""
@@ -215,6 +227,8 @@ class USS:
     def _as_uss(other, where: str) -> USS:
         if isinstance(other, USS):
             return other
+        if hasattr(other, "to_uss"):  # an uncertain transfer function (uncertainty.tf)
+            return other.to_uss()
         if isinstance(other, ct.StateSpace):
             if not other.isctime():
                 raise ModelStructureError(
@@ -234,7 +248,8 @@ class USS:
             return uss([], [], [], [[other]]) if np.ndim(other) == 0 else uss([], [], [], other)
         except ParameterError:
             raise ParameterError(
-                f"{where}: expected a uss, a python-control system, a number or a matrix; "
+                f"{where}: expected a uss, an uncertain transfer function, a python-control "
+                f"system, a number, an uncertain expression or a matrix; "
                 f"got {type(other).__name__}"
             ) from None
 
@@ -330,20 +345,35 @@ class USS:
         return USS(_obj(A), _obj(B), _obj(Cy), _obj(Dy), g.inputs, g.outputs)
 
 
-def uss(A, B, C, D, *, inputs=None, outputs=None) -> USS:
-    """An uncertain state-space system from uncertain (or plain) matrices.
+def uss(A, B=None, C=None, D=None, *, inputs=None, outputs=None) -> USS:
+    """An uncertain state-space system from uncertain (or plain) matrices, or from a system.
 
     Parameters
     ----------
     A, B, C, D : array_like
         Matrices of numbers and uncertain expressions (:func:`uncertainty.ureal`);
         ``A`` square (or empty for a static gain), the shapes conformal.
+        With ``A`` alone: a system to convert, a python-control ``StateSpace`` or
+        ``TransferFunction`` (continuous time; its signal names kept), an uncertain
+        transfer function (:func:`uncertainty.tf`, realised by
+        :meth:`~uncertainty.UTF.to_uss`), a ``uss`` (returned as it is, renamed if names
+        are given) or a number or uncertain expression (a static gain).
     inputs, outputs : str or list of str, optional
-        Signal names (default ``u[i]``, ``y[i]``), for :func:`interconnect`.
+        Signal names (default ``u[i]``, ``y[i]``, or the system's own), for
+        :func:`interconnect`.
 
     Returns
     -------
     USS
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If only some of ``B, C, D`` are given, an entry is neither a number nor an
+        uncertain expression, or a name list has the wrong length.
+    robust.errors.ModelStructureError
+        If the matrices are not conformal, a system is discrete-time or an uncertain
+        transfer function is improper.
 
     Examples
     --------
@@ -357,7 +387,37 @@ def uss(A, B, C, D, *, inputs=None, outputs=None) -> USS:
     >>> loop = G.feedback(ct.ss([], [], [], [[2.0]]))
     >>> [float(p) for p in abs(loop.at({"k": 2.0}).poles()).round(3)]
     [2.0, 2.0]
+
+    A python-control system becomes a ``uss`` with its signal names:
+
+    >>> P = uss(ct.tf([1.0], [1.0, 1.0], inputs="u", outputs="y"))
+    >>> P.nstates, P.inputs, P.outputs
+    (1, ['u'], ['y'])
     """
+    given = [M is not None for M in (B, C, D)]
+    if not any(given):
+        if isinstance(A, (list, tuple, np.ndarray)):
+            raise ParameterError(
+                "uss: a matrix alone is not a system; expected the four matrices A, B, C, D "
+                "or one system (python-control, uncertain transfer function); "
+                f"got {type(A).__name__}"
+            )
+        sys = USS._as_uss(A, "uss")
+        if inputs is None and outputs is None:
+            return sys
+        return USS(
+            sys.A,
+            sys.B,
+            sys.C,
+            sys.D,
+            sys.inputs if inputs is None else inputs,
+            sys.outputs if outputs is None else outputs,
+        )
+    if not all(given):
+        raise ParameterError(
+            "uss: expected the four matrices A, B, C, D or one system; "
+            f"got {', '.join(n for n, g in zip('BCD', given) if g)} besides A"
+        )
     D = _obj(D, where="uss D")
     A = _obj(A, shape=(0, 0), where="uss A")
     n = A.shape[0]
