@@ -19,6 +19,9 @@ Public API (import from here; module layout may change):
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
   :func:`interconnect` (by signal names); uncertain transfer functions: :func:`tf`
   (``tf("s")``, the Laplace variable), :class:`UTF`;
+* synthesis for an uncertain system: :func:`augw` (the mixed-sensitivity generalized
+  plant, an :class:`UncertainPlant`), :func:`hinfsyn_nominal` (its nominal member),
+  :func:`hinfsyn_members` (sampled members, each certified);
 * the family's loop as an uncertain system: :func:`family_uss`; the LFT form of an
   uncertain system: :func:`lft_form`, :class:`LFTForm`;
 * structured singular value: :func:`mussv` (lower and upper bounds), :class:`MuBounds`;
@@ -44,6 +47,10 @@ __all__ = [
     "interconnect",
     "UTF",
     "tf",
+    "UncertainPlant",
+    "augw",
+    "hinfsyn_nominal",
+    "hinfsyn_members",
     "family_uss",
     "LFTForm",
     "lft_form",
@@ -184,6 +191,12 @@ __getattr__, __dir__ = lazy_exports(
             "USS",
             "interconnect",
             "uss",
+        ),
+        "uncertainty.synthesis": (
+            "UncertainPlant",
+            "augw",
+            "hinfsyn_members",
+            "hinfsyn_nominal",
         ),
         "uncertainty.utf": (
             "UTF",

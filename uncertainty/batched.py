@@ -739,7 +739,7 @@ def validate_family(
         (:func:`uncertainty.uss`; its members are the values of its uncertain reals).
     samples : SampleSet
         Members; its names must equal ``family.names`` (a system's: the names of
-        ``system.parameters``, in order).
+        ``system.parameters``, in any order).
     controller : control.StateSpace, optional
         Compensator (a family: inputs among ``x, c, y``, outputs among ``f, r_corr``; a
         system: in its feedback path, ``system.feedback(controller)``).
@@ -840,14 +840,16 @@ def _validate_system(
             f"{where}: samples must be an uncertainty.SampleSet; got {type(samples).__name__}"
         )
     names = tuple(system.parameters)
-    if tuple(samples.names) != names:
+    if sorted(samples.names) != sorted(names):
         raise ParameterError(
             f"{where}: sample names {list(samples.names)} do not match the system's "
             f"parameters {list(names)}"
         )
     chunk, (lo, hi) = _check_options(where, chunk, band_hz, progress)
     threshold = check_scalar(f"{where}: stability_threshold", threshold, FINITE)
-    values = np.asarray(samples.values, float)
+    # the columns in the system's order (a sample of the same parameters in another order,
+    # e.g. of the transfer function the system realises, is the same members)
+    values = np.asarray(samples.values, float)[:, [samples.names.index(n) for n in names]]
     N = values.shape[0]
     if N == 0:
         raise ParameterError(f"{where}: samples holds no members; got 0 rows")
