@@ -6,7 +6,13 @@ import sys
 
 from bdft.args import check_json_file, integer, real, seed
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
-from bdft.validate import add_family_arguments, add_system_argument, build_family, read_system
+from bdft.validate import (
+    add_family_arguments,
+    add_system_argument,
+    build_family,
+    controller_source,
+    read_system,
+)
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
 
 __all__ = ["register", "run"]
@@ -37,7 +43,9 @@ def register(sub) -> None:
     p.add_argument(
         "--controller",
         default=None,
-        help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact)",
+        help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact): of "
+        "the BDFT loop, or with --system of that system (in place of the file's `controller`; "
+        "paired with its signals by name, or by position)",
     )
     p.add_argument(
         "--region",
@@ -133,7 +141,7 @@ def run(args) -> int:
         if args.controller is not None:
             check_json_file("--controller", args.controller)
         family = build_family(args).with_workspace_factor(args.workspace_factor)
-        controller = load_controller(args.controller) if args.controller else None
+        controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
     search_seed = args.seed if args.search_seed is None else args.search_seed
     with tqdm(desc="margin", unit="step", file=sys.stderr, disable=None) as bar:
 
@@ -162,7 +170,7 @@ def run(args) -> int:
         obj.update(
             system=args.system,
             parameters=_parameters_json(family),
-            controller="defined in the file" if controller is not None else None,
+            controller=controller_source(args, controller),
         )
     else:
         obj.update(

@@ -24,6 +24,7 @@ __all__ = [
     "add_family_arguments",
     "add_system_argument",
     "read_system",
+    "controller_source",
     "build_family",
     "check_family_arguments",
     "progress_bar",
@@ -132,7 +133,10 @@ def register(sub) -> None:
         "--controller",
         metavar="FILE",
         default=None,
-        help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact)",
+        help="controller JSON (A, B, C, D, inputs, outputs; or a bdft-controller artifact): "
+        "of the BDFT loop (inputs among x, c, y; outputs among f, r_corr), or with --system "
+        "of that system (in place of the file's `controller`; its signals paired with the "
+        "system's by name, or by position)",
     )
     p.add_argument(
         "--workspace-factor",
@@ -169,28 +173,43 @@ def read_system(args):
     Parameters
     ----------
     args : argparse.Namespace
-        Parsed options with ``system`` (the file) and ``controller`` (must be unset: the
-        file defines its own).
+        Parsed options with ``system`` (the file) and ``controller`` (a controller file,
+        or None for the file's own ``controller``).
 
     Returns
     -------
     (uncertainty.USS, control.StateSpace or None)
+        The controller of ``--controller`` when given (in place of the file's), with its
+        signals paired to the system's (:func:`uncertainty.files.match_controller`: by
+        name, or by position).
 
     Raises
     ------
     bdft.args.UsageError
-        If the file is not a readable ``.py`` file or ``--controller`` is also given.
+        If the file is not a readable ``.py`` file, or the controller file is not a
+        readable JSON file.
+    robust.errors.ParameterError
+        If the controller does not fit the system (numbers of signals, names).
     """
-    if getattr(args, "controller", None) is not None:
-        raise UsageError(
-            "--controller: applies to the BDFT family; with --system the file defines `controller`"
-        )
     check_input_file(
         "--system", args.system, what="a Python file", max_bytes=1 << 20, suffixes=(".py",)
     )
-    from uncertainty.files import load_system
+    path = getattr(args, "controller", None)
+    if path is not None:
+        check_json_file("--controller", path)
+    from uncertainty.files import load_controller, load_system, match_controller
 
-    return load_system(args.system)
+    system, controller = load_system(args.system)
+    if path is not None:
+        controller = match_controller(system, load_controller(path), where=f"--controller {path}")
+    return system, controller
+
+
+def controller_source(args, controller):
+    """What ``controller`` of the JSON output says for a ``--system`` run."""
+    if getattr(args, "controller", None) is not None:
+        return args.controller
+    return "defined in the file" if controller is not None else None
 
 
 def check_family_arguments(args) -> None:
@@ -310,7 +329,7 @@ def _run_system(args, band) -> int:
     obj.update(
         requested_samples=samples.requested,
         system=args.system,
-        controller="defined in the file" if controller is not None else None,
+        controller=controller_source(args, controller),
     )
     if args.json:
         print_json(obj)
@@ -368,7 +387,7 @@ def run(args) -> int:
     from uncertainty.files import load_controller
 
     family = build_family(args).with_workspace_factor(args.workspace_factor)
-    controller = load_controller(args.controller) if args.controller else None
+    controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
     t0 = time.perf_counter()
     samples = sample(family.parameters, args.samples, method=args.method, seed=args.seed)
     with progress_bar(len(samples), "validate") as bar:

@@ -31,7 +31,6 @@ import scipy.linalg
 
 from robust.errors import ArtifactError, ModelStructureError, ParameterError
 from robust.jsonio import atomic_write_group, to_jsonable
-from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.version import __version__
 
 __all__ = [
@@ -142,8 +141,12 @@ class ControllerArtifact:
     name : str
         Name of the design (the file name stem when loaded from a file without one).
     continuous : control.StateSpace
-        Continuous-time controller; its input names are among ``x, c, y`` and its
-        output names among ``f, r_corr`` (see :data:`SIGNAL_UNITS`).
+        Continuous-time controller with distinct signal names: a controller of the BDFT
+        loop measures among ``x, c, y`` and drives among ``f, r_corr`` (see
+        :data:`SIGNAL_UNITS`), a controller of a user's own system has any names
+        (python-control's ``u[0]``, ``y[0]`` too). The names are kept as they are; the
+        BDFT loop checks its own where it is closed
+        (:meth:`robust.model.loop.BDFTLoop.system`).
     discrete : control.StateSpace
         Its Tustin discretisation (:func:`discretize`), same signals, sample time
         ``discrete.dt`` in s.
@@ -524,16 +527,11 @@ def _read_document(path: Path) -> dict:
     return d
 
 
-def _signals(d: dict, key: str, allowed: tuple, path: Path) -> list[str]:
+def _signals(d: dict, key: str, path: Path) -> list[str]:
     v = d.get(key)
-    if not isinstance(v, list) or not v or not all(isinstance(s, str) for s in v):
+    if not isinstance(v, list) or not v or not all(isinstance(s, str) and s for s in v):
         raise ArtifactError(
             f"{path}: field {key!r} must be a non-empty list of signal names; got {_show(v)}"
-        )
-    bad = [s for s in v if s not in allowed]
-    if bad:
-        raise ArtifactError(
-            f"{path}: field {key!r}: unknown signal name(s) {bad}; expected names among {allowed}"
         )
     if len(set(v)) != len(v):
         raise ArtifactError(f"{path}: field {key!r} names a signal twice; got {v}")
@@ -557,14 +555,16 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
     Returns
     -------
     ControllerArtifact
-        The controller, rebuilt from the file; the free-form sections are as
-        stored (numbers in JSON form).
+        The controller, rebuilt from the file with its signal names (any distinct names:
+        the BDFT loop's or a user system's); the free-form sections are as stored
+        (numbers in JSON form).
 
     Raises
     ------
     ArtifactError
         On a missing, unreadable or oversized file, a directory, bytes that are not
-        UTF-8 JSON, a wrong kind or version, a field of the wrong type, malformed or
+        UTF-8 JSON, a wrong kind or version, a field of the wrong type (signal names
+        that are not a non-empty list of distinct non-empty strings), malformed or
         non-finite matrices, inconsistent shapes, a non-positive sample time, a
         prewarping frequency outside (0, Nyquist), or discrete matrices that are not
         the Tustin transform of the continuous ones. The message names the file and
@@ -579,8 +579,8 @@ def load_artifact(path: str | Path, *, rtol: float = 1e-8) -> ControllerArtifact
         raise ArtifactError(
             f"{path}: format_version must be {FORMAT_VERSION}; got {_show(version)}"
         )
-    ins = _signals(d, "inputs", CONTROLLER_INPUTS, path)
-    outs = _signals(d, "outputs", CONTROLLER_OUTPUTS, path)
+    ins = _signals(d, "inputs", path)
+    outs = _signals(d, "outputs", path)
     for sec in ("continuous", "discrete"):
         if not isinstance(d.get(sec), dict):
             raise ArtifactError(

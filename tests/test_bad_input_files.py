@@ -140,7 +140,7 @@ FIELD_CASES = [
     ("version-float", ("format_version",), 1.0, r"format_version must be 1; got 1.0"),
     ("inputs-string", ("inputs",), "x", r"field 'inputs' must be a non-empty list"),
     ("inputs-numbers", ("inputs",), [1, 2], r"field 'inputs' must be a non-empty list"),
-    ("inputs-unknown", ("inputs",), ["x", "q"], r"field 'inputs': unknown signal name"),
+    ("inputs-empty-name", ("inputs",), ["x", ""], r"field 'inputs' must be a non-empty list"),
     ("inputs-twice", ("inputs",), ["x", "x"], r"field 'inputs' names a signal twice"),
     ("outputs-empty", ("outputs",), [], r"field 'outputs' must be a non-empty list"),
     ("outputs-dict", ("outputs",), {"f": 1}, r"field 'outputs' must be a non-empty list"),

@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["ureal", "uss", "utf", "synthesis", "loop", "margins", "mu", "lft"]
+MODULES = ["ureal", "uss", "utf", "synthesis", "files", "loop", "margins", "mu", "lft"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -68,7 +68,7 @@ def _corrupt(tmp_path, artifact, change):
         ),
         (lambda d: d["discrete"].update(dt=-0.001), r"discrete.dt must be a positive sample time"),
         (lambda d: d["discrete"]["A"][0].__setitem__(0, 0.5), r"not the Tustin transform"),
-        (lambda d: d.update(inputs=["x", "q"]), r"unknown signal name\(s\) \['q'\]"),
+        (lambda d: d.update(inputs=["x", "x"]), r"field 'inputs' names a signal twice"),
     ],
     ids=["kind", "version", "nan", "shape", "dt", "tampered", "signal"],
 )

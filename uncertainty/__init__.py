@@ -14,7 +14,8 @@ Public API (import from here; module layout may change):
   :func:`closed_loop_matrices`, :func:`batched_poles`, :func:`member_metrics`,
   :data:`DAMPING_BAND_HZ` (the one default damping band, also the pole region's);
 * files: :func:`load_controller`, :func:`load_component_fit`, :func:`family_nominals`,
-  :func:`load_system` (a user's uncertain system from a Python file);
+  :func:`load_system` (a user's uncertain system from a Python file),
+  :func:`match_controller` (a controller's signals paired with a user system's);
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
   :func:`interconnect` (by signal names); uncertain transfer functions: :func:`tf`
@@ -93,6 +94,7 @@ __all__ = [
     "member_metrics",
     "load_controller",
     "load_system",
+    "match_controller",
     "load_component_fit",
     "family_nominals",
     "SWEEPS",
@@ -133,6 +135,7 @@ __getattr__, __dir__ = lazy_exports(
             "load_component_fit",
             "load_controller",
             "load_system",
+            "match_controller",
         ),
         "uncertainty.lft": (
             "LFTForm",

@@ -5,7 +5,10 @@ Two formats are read here:
 * a controller, :func:`load_controller`: either a bare continuous state-space
   JSON object ``{"A": .., "B": .., "C": .., "D": .., "inputs": [..], "outputs": [..]}``
   or a controller artifact (``"kind": "bdft-controller"``) written by
-  :mod:`robust.export`, of which the continuous controller is used;
+  :mod:`robust.export`, of which the continuous controller is used. Its signal names are
+  its own: the BDFT loop's (``x, c, y`` to ``f, r_corr``) where it closes the BDFT loop
+  (``bdft_loop=True``), or any names for a user's own system, whose signals
+  :func:`match_controller` pairs them with (by name, or by position);
 * a component fit, :func:`load_component_fit` (``"kind": "bdft-component-fit"``,
   written by the system-identification tools)::
 
@@ -34,16 +37,19 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from robust.errors import ArtifactError, BDFTError, ParameterError
+from robust.errors import ArtifactError, BDFTError, ModelStructureError, ParameterError
 from robust.export import load_artifact
 from robust.model.components import StructureParams, ValveCylinderParams
 from robust.model.human import LiteralHumanParams
+from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.sysid import read_component_fit
 from uncertainty.family import HUMAN_VARIANTS
 from uncertainty.uss import USS
+from uncertainty.utf import UTF
 
 __all__ = [
     "load_controller",
+    "match_controller",
     "load_component_fit",
     "family_nominals",
     "load_system",
@@ -114,7 +120,7 @@ def _labels(obj: dict, key: str, where: str) -> list[str]:
     return v
 
 
-def load_controller(path) -> ct.StateSpace:
+def load_controller(path, *, bdft_loop: bool = False) -> ct.StateSpace:
     """Read a continuous state-space controller for :func:`uncertainty.validate_family`.
 
     Parameters
@@ -122,31 +128,68 @@ def load_controller(path) -> ct.StateSpace:
     path : str or Path
         JSON file: a bare state-space object or a ``bdft-controller`` artifact
         (see the module docstring).
+    bdft_loop : bool
+        The controller closes the BDFT loop: its inputs must be among ``x, c, y`` and its
+        outputs among ``f, r_corr``, checked here so that the message names the file
+        (default False: any distinct names, those of a user's own system or
+        python-control's ``u[0]``, ``y[0]``; :func:`match_controller` pairs them with a
+        system's signals).
 
     Returns
     -------
     control.StateSpace
-        Continuous-time, with named inputs (among ``x, c, y``) and outputs (among
-        ``f, r_corr``); the loop checks the names when it is connected.
+        Continuous-time, with the file's signal names.
 
     Raises
     ------
     ArtifactError
         If the file is unreadable, not JSON, or its matrices are missing,
-        non-numeric, non-finite or of inconsistent shapes.
+        non-numeric, non-finite or of inconsistent shapes; with ``bdft_loop``, if a
+        signal name is not one of the loop's.
+
+    Examples
+    --------
+    A controller saved under python-control's default names loads with them:
+
+    >>> import tempfile, control as ct
+    >>> from robust.export import ControllerArtifact, discretize, write_artifact
+    >>> from uncertainty import load_controller
+    >>> K = ct.ss([[-10.0]], [[1.0]], [[-20.0]], [[3.0]])
+    >>> art = ControllerArtifact("pd", K, discretize(K, 0.001), None)
+    >>> path = write_artifact(art, tempfile.mkdtemp() + "/pd.json", mat=False)["json"]
+    >>> load_controller(path).input_labels, load_controller(path).output_labels
+    (['u[0]'], ['y[0]'])
     """
     where = f"controller file {str(path)!r}"
     obj = _read_json(path, "controller file")
     if obj.get("kind") == "bdft-controller":
         try:
-            return load_artifact(path).continuous
+            K = load_artifact(path).continuous
         except BDFTError as exc:
             raise ArtifactError(f"{where}: {exc}") from None
-    if "kind" in obj:
+    elif "kind" in obj:
         raise ArtifactError(
             f"{where}: unknown kind {obj['kind']!r}; expected 'bdft-controller' or a bare "
             "state-space object with A, B, C, D, inputs, outputs"
         )
+    else:
+        K = _bare_controller(obj, where)
+    if bdft_loop:
+        ins, outs = list(K.input_labels), list(K.output_labels)
+        if any(n not in CONTROLLER_INPUTS for n in ins) or any(
+            n not in CONTROLLER_OUTPUTS for n in outs
+        ):
+            raise ArtifactError(
+                f"{where}: controller inputs must be among {CONTROLLER_INPUTS} and outputs "
+                f"among {CONTROLLER_OUTPUTS} to close the BDFT loop; got inputs {ins}, "
+                f"outputs {outs} (a controller of your own system goes with its system: "
+                "--system FILE.py)"
+            )
+    return K
+
+
+def _bare_controller(obj: dict, where: str) -> ct.StateSpace:
+    """The controller of a bare state-space JSON object."""
     if obj.get("dt") not in (None, 0, 0.0):
         raise ArtifactError(
             f"{where}: the controller must be continuous-time (dt 0 or absent); "
@@ -166,6 +209,91 @@ def load_controller(path) -> ct.StateSpace:
         )
     except ValueError as exc:
         raise ArtifactError(f"{where}: not a valid state-space controller: {exc}") from None
+
+
+def match_controller(system: USS, controller, *, where: str = "controller") -> ct.StateSpace:
+    """A controller of a user's system with its signals paired to the system's.
+
+    The controller sits in the feedback path (``system.feedback(controller)``): it
+    measures the system's outputs and drives its inputs. When its input names are the
+    system's output names and its output names the system's input names (in any order),
+    the signals are paired by name; when they share none of them (python-control's
+    defaults ``u[0]``, ``y[0]``, or other names), by position. The controller returned
+    carries the system's names, in the system's order.
+
+    Parameters
+    ----------
+    system : USS
+        The user's uncertain system.
+    controller : control.StateSpace, control.TransferFunction or number
+        Continuous-time, ``system.noutputs`` inputs and ``system.ninputs`` outputs.
+    where : str
+        Where the controller comes from, for the messages (a file, an option).
+
+    Returns
+    -------
+    control.StateSpace
+
+    Raises
+    ------
+    ParameterError
+        If the controller is not a continuous-time system or a number, its numbers of
+        inputs and outputs are not the system's numbers of outputs and inputs, or its names
+        match some of the system's signals but not all (ambiguous: name them all as the
+        system's, or none).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from uncertainty import match_controller, ureal, uss
+    >>> k = ureal("k", 1.0, 0.5, 2.0)
+    >>> P = uss([[-k, 0], [0, -1]], [[1, 0], [0, 1]], [[1, 0], [0, 1]], [[0, 0], [0, 0]],
+    ...         inputs=["f1", "f2"], outputs=["x1", "x2"])
+    >>> K = ct.ss([], [], [], [[0.0, 2.0], [5.0, 0.0]], inputs=["x2", "x1"], outputs=["f1", "f2"])
+    >>> match_controller(P, K).D  # reordered to read x1, x2
+    array([[2., 0.],
+           [0., 5.]])
+    """
+    K = controller
+    if isinstance(K, ct.TransferFunction):
+        K = ct.ss(K)
+    elif isinstance(K, (int, float, np.integer, np.floating)) and not isinstance(K, bool):
+        K = ct.ss([], [], [], [[float(K)]])
+    if not isinstance(K, ct.StateSpace):
+        raise ParameterError(
+            f"{where}: the controller must be a python-control system or a number; "
+            f"got {type(K).__name__}"
+        )
+    if not K.isctime():
+        raise ParameterError(f"{where}: the controller must be continuous-time; got dt={K.dt}")
+    if (K.ninputs, K.noutputs) != (system.noutputs, system.ninputs):
+        raise ParameterError(
+            f"{where}: the controller must map the system's {system.noutputs} outputs "
+            f"{system.outputs} to its {system.ninputs} inputs {system.inputs}; got "
+            f"{K.ninputs} inputs {list(K.input_labels)} and {K.noutputs} outputs "
+            f"{list(K.output_labels)}"
+        )
+    ins, outs = list(K.input_labels), list(K.output_labels)
+    by_name = sorted(ins) == sorted(system.outputs) and sorted(outs) == sorted(system.inputs)
+    shared = set(ins) & set(system.outputs) or set(outs) & set(system.inputs)
+    if not by_name and shared:
+        raise ParameterError(
+            f"{where}: the controller's signals {ins} -> {outs} name some of the system's "
+            f"outputs {system.outputs} and inputs {system.inputs} but not all; name the "
+            "controller's inputs as the system's outputs and its outputs as its inputs, or "
+            "use other names (then they are paired by position)"
+        )
+    ii = [ins.index(n) for n in system.outputs] if by_name else list(range(len(ins)))
+    oi = [outs.index(n) for n in system.inputs] if by_name else list(range(len(outs)))
+    return ct.ss(
+        K.A,
+        np.asarray(K.B)[:, ii].reshape(K.nstates, len(ii)),
+        np.asarray(K.C)[oi, :].reshape(len(oi), K.nstates),
+        np.asarray(K.D)[np.ix_(oi, ii)],
+        inputs=list(system.outputs),
+        outputs=list(system.inputs),
+        name=K.name,
+    )
 
 
 def load_component_fit(path):
@@ -275,9 +403,11 @@ def load_system(path) -> tuple[USS, ct.StateSpace | None]:
 
     The file is run as a script (it is code: run only files you trust) and must define
     ``system``, an uncertain system built with :func:`uncertainty.uss` and
-    :func:`uncertainty.ureal`; it may define ``controller``, a continuous python-control
-    system (state space or transfer function) or a number, closed around ``system`` by
-    negative feedback (``system.feedback(controller)``).
+    :func:`uncertainty.ureal` (or an uncertain transfer function, :func:`uncertainty.tf`);
+    it may define ``controller``, a continuous python-control system (state space or
+    transfer function) or a number, closed around ``system`` by negative feedback
+    (``system.feedback(controller)``), its signals paired with the system's by
+    :func:`match_controller`.
 
     Parameters
     ----------
@@ -288,12 +418,14 @@ def load_system(path) -> tuple[USS, ct.StateSpace | None]:
     -------
     system : USS
     controller : control.StateSpace or None
+        With the system's signal names (:func:`match_controller`).
 
     Raises
     ------
     ParameterError
         If the file cannot be run (the message carries the file's own error), defines no
-        ``system`` or one that is not a ``uss``, or a ``controller`` of another kind.
+        ``system`` or one that is not a ``uss`` (or an uncertain transfer function), or a
+        ``controller`` of another kind or of other sizes.
     """
     where = f"system file {os.fspath(path)}"
     try:
@@ -303,6 +435,11 @@ def load_system(path) -> tuple[USS, ct.StateSpace | None]:
     if "system" not in ns:
         raise ParameterError(f"{where}: must define `system` (an uncertainty.uss); it does not")
     system = ns["system"]
+    if isinstance(system, UTF):
+        try:
+            system = system.to_uss()
+        except ModelStructureError as exc:
+            raise ParameterError(f"{where}: `system`: {exc}") from None
     if not isinstance(system, USS):
         raise ParameterError(
             f"{where}: `system` must be an uncertain system (uncertainty.uss); "
@@ -315,24 +452,4 @@ def load_system(path) -> tuple[USS, ct.StateSpace | None]:
     controller = ns.get("controller")
     if controller is None:
         return system, None
-    if isinstance(controller, ct.TransferFunction):
-        controller = ct.ss(controller)
-    elif isinstance(controller, (int, float, np.integer, np.floating)) and not isinstance(
-        controller, bool
-    ):
-        controller = ct.ss([], [], [], [[float(controller)]])
-    if not isinstance(controller, ct.StateSpace):
-        raise ParameterError(
-            f"{where}: `controller` must be a python-control system or a number; "
-            f"got {type(controller).__name__}"
-        )
-    if not controller.isctime():
-        raise ParameterError(
-            f"{where}: `controller` must be continuous-time; got dt={controller.dt}"
-        )
-    if (controller.ninputs, controller.noutputs) != (system.noutputs, system.ninputs):
-        raise ParameterError(
-            f"{where}: `controller` must map the system's {system.noutputs} outputs to its "
-            f"{system.ninputs} inputs; got {controller.ninputs} -> {controller.noutputs}"
-        )
-    return system, controller
+    return system, match_controller(system, controller, where=f"{where}: `controller`")
