@@ -122,9 +122,10 @@ def register(sub) -> None:
         "--band",
         default=None,
         metavar="LO-HI",
-        help="frequency band of the reported minimum damping ratio, Hz (default: the "
-        f"damping band of the specification and the pole region, "
-        f"{DAMPING_BAND_HZ[0]:g}-{DAMPING_BAND_HZ[1]:g} Hz)",
+        help="frequency band of the reported minimum damping ratio, Hz, HI may be inf "
+        f"(default: the BDFT family's damping band, {DAMPING_BAND_HZ[0]:g}-"
+        f"{DAMPING_BAND_HZ[1]:g} Hz, that of the specification and the pole region; with "
+        "--system, every frequency)",
     )
     p.add_argument(
         "--method", choices=_METHODS, default="lhs", help="sampling method (default: %(default)s)"
@@ -289,16 +290,18 @@ def progress_bar(total: int, desc: str):
 
 
 def _band(text):
+    """The ``--band`` option: None (the default of what is validated) or ``(low, high)``."""
     if text is None:
-        return DAMPING_BAND_HZ
+        return None
     lo, sep, hi = str(text).partition("-")
     try:
         band = (float(lo), float(hi))
     except ValueError:
         band = None
-    if not sep or band is None or not (0 <= band[0] < band[1] < float("inf")):
+    if not sep or band is None or not 0 <= band[0] < band[1]:  # (HI may be inf; not NaN)
         raise UsageError(
-            f"--band: expected LO-HI in Hz with 0 <= LO < HI (e.g. 2-12); got {text!r}"
+            f"--band: expected LO-HI in Hz with 0 <= LO < HI, HI may be inf (e.g. 2-12); "
+            f"got {text!r}"
         )
     return band
 
@@ -345,10 +348,9 @@ def _run_system(args, band) -> int:
 def _print_metrics(res) -> None:
     print(f"  fraction stable   {res.fraction_stable:.6f}  ({res.n_unstable} unstable)")
     print(f"  max real pole     {res.max_real_pole:.6g} 1/s")
-    print(
-        f"  min damping       {res.min_damping:.6g}  "
-        f"(poles in {res.band_hz[0]:g}-{res.band_hz[1]:g} Hz)"
-    )
+    lo, hi = res.band_hz
+    where = "at every frequency" if (lo, hi) == (0.0, float("inf")) else f"in {lo:g}-{hi:g} Hz"
+    print(f"  min damping       {res.min_damping:.6g}  (poles {where})")
     print("  worst member:")
     for k, v in res.worst.items():
         print(f"    {k:18s} {v:.6g}")

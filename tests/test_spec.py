@@ -322,9 +322,13 @@ def test_several_members_with_an_unstable_one(mixed_members, damper):
 
 def test_one_default_damping_band_and_one_damping_ratio():
     # the specification, the pole region and the validation report one band by default
+    # (a region leaves it to what is analysed: the family's loop gives it this band,
+    # tests/test_own_system_defaults.py)
     fam = default_family()
     v = validate_family(fam, sample(fam.parameters, 4, method="lhs", seed=0))
-    assert Specification().damping_band_hz == Region().band_hz == v.band_hz == DAMPING_BAND_HZ
+    assert Specification().damping_band_hz == v.band_hz == DAMPING_BAND_HZ
+    assert Region().with_default_band(DAMPING_BAND_HZ).band_hz == DAMPING_BAND_HZ
+    assert Region().band_hz is None
 
     def pole(f_hz, zeta):
         wn = 2 * np.pi * f_hz / np.sqrt(1 - zeta**2)

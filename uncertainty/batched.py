@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from collections.abc import Callable
 
 import control as ct
@@ -85,6 +86,7 @@ from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnec
 from uncertainty.constants import DEFAULT_CHUNK
 from uncertainty.family import BOUNDS_RTOL, Family
 from uncertainty.interconnect import close_loops
+from uncertainty.region import EVERY_FREQUENCY_HZ
 from uncertainty.sampling import SampleSet
 from uncertainty.uss import USS
 
@@ -533,7 +535,8 @@ class ValidationResult:
     stability_threshold : float
         Threshold on the real part used for ``fraction_stable``, 1/s.
     band_hz : (float, float)
-        The BDFT band of ``min_damping``, Hz.
+        The band of ``min_damping``, Hz: the BDFT band by default for a family, every
+        frequency ``(0, inf)`` for a user's uncertain system.
     nstates : int
         Closed-loop order.
     controller_states : int
@@ -587,9 +590,11 @@ def _check_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[flo
             f"{where}: band_hz must be a pair (low, high) in Hz; got {band_hz!r}"
         ) from None
     lo = check_scalar(f"{where}: band_hz[0]", lo, FINITE)
-    hi = check_scalar(f"{where}: band_hz[1]", hi, FINITE)
+    hi = math.inf if hi == math.inf else check_scalar(f"{where}: band_hz[1]", hi, FINITE)
     if not (0.0 <= lo < hi):
-        raise ParameterError(f"{where}: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
+        raise ParameterError(
+            f"{where}: band_hz must satisfy 0 <= low < high; got {band_hz!r} (high may be inf)"
+        )
     check_callable("progress", progress, owner=where)
     return chunk, (lo, hi)
 
@@ -719,7 +724,7 @@ def validate_family(
     *,
     controller: ct.StateSpace | None = None,
     chunk: int = DEFAULT_CHUNK,
-    band_hz: tuple[float, float] = DAMPING_BAND_HZ,
+    band_hz: tuple[float, float] | None = None,
     stability_threshold: float = STABILITY_THRESHOLD,
     progress: Callable[[int], None] | None = None,
     check_bounds: bool = True,
@@ -746,8 +751,10 @@ def validate_family(
     chunk : int
         Members per batch (bounds memory: about ``chunk * n^2 * 40`` bytes; reduced to
         keep within :data:`MAX_CHUNK_BYTES`, which changes no result).
-    band_hz : (float, float)
-        Frequency band of the poles whose damping is reported, Hz.
+    band_hz : (float, float), optional
+        Frequency band of the poles whose damping is reported, Hz (``high`` may be
+        ``inf``). Default: the BDFT band (:data:`DAMPING_BAND_HZ`, 0.5-10 Hz) for a
+        family, every frequency (``(0, inf)``) for an uncertain system.
     stability_threshold : float
         A member is stable when all its poles have real part below this, 1/s.
     progress : callable, optional
@@ -783,9 +790,11 @@ def validate_family(
         For an invalid controller, an ill-posed loop or non-finite poles.
     """
     if isinstance(family, USS):
+        band_hz = EVERY_FREQUENCY_HZ if band_hz is None else band_hz
         return _validate_system(
             family, samples, controller, chunk, band_hz, stability_threshold, progress, check_bounds
         )  # (small systems: in this process)
+    band_hz = DAMPING_BAND_HZ if band_hz is None else band_hz
     _check_family(family, "validate_family")
     if not isinstance(samples, SampleSet):
         raise ParameterError(

@@ -39,7 +39,7 @@ from robust.analysis.intervals import Interval, norm2_bound
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError
 from robust.synthesis.solve import solve_problem
-from uncertainty.enclosure import _loop, _Unbounded
+from uncertainty.enclosure import _loop, _Unbounded, loop_region
 from uncertainty.family import Family
 from uncertainty.region import Region
 from uncertainty.search import _to_values
@@ -326,7 +326,7 @@ def certify_box(
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     lo_t = np.where(logs, np.log(np.where(logs, lo, 1.0)), lo)
     hi_t = np.where(logs, np.log(np.where(logs, hi, 1.0)), hi)
-    return _certify_box(loop, lo_t, hi_t, region or Region(), spot_checks, seed)
+    return _certify_box(loop, lo_t, hi_t, loop_region(loop, region), spot_checks, seed)
 
 
 def _certify_box(loop, lo_t, hi_t, region, spot_checks, seed) -> dict:

@@ -27,10 +27,12 @@ import numpy as np
 
 from robust.analysis.intervals import Gradient, Interval, imatrix
 from robust.analysis.loops import loop_poles
+from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.batched import closed_loop_matrices
 from uncertainty.family import Family
 from uncertainty.loop import INTERVALS, LoopAssembly, fixed_parameters
+from uncertainty.region import EVERY_FREQUENCY_HZ, Region
 from uncertainty.uss import USS
 
 __all__ = ["closed_loop_enclosure"]
@@ -119,6 +121,9 @@ class _Assembly(LoopAssembly):
 class _FamilyLoop:
     """The BDFT loop of a family with a fixed controller: what the margin needs of it."""
 
+    #: the damping band of a region that leaves it to the default: the BDFT band
+    default_band_hz = DAMPING_BAND_HZ
+
     def __init__(self, family: Family, controller):
         self.family, self.controller = family, controller
         self.parameters = tuple(family.parameters)
@@ -160,6 +165,10 @@ class _SystemLoop:
     members), intervals and interval gradients (the certificate's enclosures) run through
     the same expressions, shared sub-expressions evaluated once.
     """
+
+    #: the damping band of a region that leaves it to the default: every frequency (a
+    #: user's own system has no band of its own)
+    default_band_hz = EVERY_FREQUENCY_HZ
 
     def __init__(self, system: USS, controller):
         closed = system if controller is None else system.feedback(controller, sign=-1)
@@ -208,3 +217,10 @@ def _loop(system, controller):
         f"robust margin: expected a Family or an uncertain system (uncertainty.uss); "
         f"got {type(system).__name__}"
     )
+
+
+def loop_region(loop, region: Region | None) -> Region:
+    """``region`` (default: the open left half-plane) with the loop's default damping band
+    where it leaves the band to the default: 0.5-10 Hz for the BDFT family's loop, every
+    frequency for a user's own system."""
+    return (region or Region()).with_default_band(loop.default_band_hz)

@@ -91,7 +91,13 @@ from robust.engine import map_tasks, scheduler_address
 from robust.errors import BDFTError, ParameterError
 from uncertainty.boxcert import _box_task, _boxes_task, certify_box, certify_interval_matrix
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
-from uncertainty.enclosure import _FamilyLoop, _loop, _SystemLoop, closed_loop_enclosure
+from uncertainty.enclosure import (
+    _FamilyLoop,
+    _loop,
+    _SystemLoop,
+    closed_loop_enclosure,
+    loop_region,
+)
 from uncertainty.family import Family
 from uncertainty.lft import lft_form
 from uncertainty.mucover import mu_cover
@@ -368,20 +374,24 @@ def margin_lower_bound(
     certificate : dict
         Per-scale statistics and the summary of the certified scale.
     """
-    region = region or Region()
     if method not in LOWER_METHODS:
         raise ParameterError(f"method: expected one of {LOWER_METHODS}; got {method!r}")
-    if method == "lyapunov":
-        region = Region(decay_rate=region.decay_rate)
     jobs = check_int("margin_lower_bound: jobs", jobs, low=1)
     loop = _loop(family, controller)
+    region = loop_region(loop, region)
+    if method == "lyapunov":
+        region = Region(decay_rate=region.decay_rate)
     method = _resolve_method(loop, region, method)
     if method == "valueset":
         why = (
             "needs a family without a compensator"
             if not isinstance(loop, _FamilyLoop) or loop.controller is not None
             else ValueSetLoop.why_not(loop.family)
-            or ("certifies the open left half-plane only" if region != Region() else "")
+            or (
+                "certifies the open left half-plane only"
+                if region.decay_rate > 0 or region.min_damping > 0
+                else ""
+            )
         )
         if why:
             raise ParameterError(f"margin_lower_bound: method 'valueset' {why}")
@@ -511,7 +521,9 @@ def robust_margin(
         Compensator in the loop's convention (a family) or in the feedback path of the
         system (``system.feedback(controller)``).
     region : Region, optional
-        Required region (default: open left half-plane).
+        Required region (default: open left half-plane). A damping requirement without a
+        band (``Region(min_damping=z)``) applies in the BDFT band (0.5-10 Hz) for a family
+        and to every pole for an uncertain system.
     samples, seed : int
         Upper-bound search: Latin-hypercube members per scale and seed.
     max_boxes : int
@@ -546,8 +558,8 @@ def robust_margin(
     >>> round(res.lower, 3), round(res.upper, 4), round(res.critical["parameters"]["c"], 4)
     (0.485, 0.5005, 0.5996)
     """
-    region = region or Region()
     loop = _loop(family, controller)
+    region = loop_region(loop, region)
     t0 = time.perf_counter()
     upper, critical, search = margin_upper_bound(
         loop,

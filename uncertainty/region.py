@@ -20,10 +20,14 @@ import math
 
 import numpy as np
 
-from robust.analysis.stability import DAMPING_BAND_HZ, STABILITY_TOL, in_band
+from robust.analysis.stability import STABILITY_TOL, in_band
 from robust.errors import ParameterError
 
-__all__ = ["Region", "MarginResult"]
+__all__ = ["Region", "MarginResult", "EVERY_FREQUENCY_HZ"]
+
+#: The damping band of a user's own system by default: every pole, whatever its frequency
+#: (the BDFT family's default is :data:`robust.analysis.stability.DAMPING_BAND_HZ`).
+EVERY_FREQUENCY_HZ = (0.0, math.inf)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,13 +42,17 @@ class Region:
     min_damping : float
         Poles whose frequency ``|Im p| / (2 pi)`` lies in ``band_hz`` must have damping
         ratio ``-Re p / |p|`` of at least this (0: no requirement).
-    band_hz : (float, float)
-        The band of the damping requirement, Hz.
+    band_hz : (float, float) or None
+        The band of the damping requirement, Hz (``high`` may be ``inf``). None (default):
+        the default band of what is analysed, set by the margin functions
+        (:meth:`with_default_band`): the BDFT band
+        (:data:`robust.analysis.stability.DAMPING_BAND_HZ`, 0.5-10 Hz) for the BDFT
+        family, every frequency (:data:`EVERY_FREQUENCY_HZ`) for a user's own system.
     """
 
     decay_rate: float = 0.0
     min_damping: float = 0.0
-    band_hz: tuple[float, float] = DAMPING_BAND_HZ
+    band_hz: tuple[float, float] | None = None
 
     def __post_init__(self):
         a, z = float(self.decay_rate), float(self.min_damping)
@@ -52,12 +60,35 @@ class Region:
             raise ParameterError(f"Region.decay_rate must be a finite value >= 0; got {a!r}")
         if not (math.isfinite(z) and 0 <= z < 1):
             raise ParameterError(f"Region.min_damping must be in [0, 1); got {z!r}")
-        lo, hi = (float(b) for b in self.band_hz)
-        if not (0 <= lo < hi and math.isfinite(hi)):
-            raise ParameterError(f"Region.band_hz must satisfy 0 <= low < high; got {self.band_hz}")
         object.__setattr__(self, "decay_rate", a)
         object.__setattr__(self, "min_damping", z)
+        if self.band_hz is None:
+            return
+        lo, hi = (float(b) for b in self.band_hz)
+        if not (math.isfinite(lo) and 0 <= lo < hi):
+            raise ParameterError(
+                f"Region.band_hz must satisfy 0 <= low < high; got {self.band_hz} (high may be "
+                "inf; None: the default band of what is analysed)"
+            )
         object.__setattr__(self, "band_hz", (lo, hi))
+
+    def with_default_band(self, band_hz) -> Region:
+        """This region, its band ``band_hz`` if it was left to the default (None).
+
+        Parameters
+        ----------
+        band_hz : (float, float)
+            The default band of what is analysed, Hz.
+        """
+        return self if self.band_hz is not None else dataclasses.replace(self, band_hz=band_hz)
+
+    def _band(self) -> tuple[float, float]:
+        if self.band_hz is None:
+            raise ParameterError(
+                "Region: the damping band was left to the default of what is analysed; "
+                "give band_hz or resolve it with Region.with_default_band"
+            )
+        return self.band_hz
 
     @classmethod
     def parse(cls, text: str) -> Region:
@@ -65,8 +96,9 @@ class Region:
 
         ``lhp`` (the open left half-plane), ``decay:A`` (real parts below ``-A``
         rad/s), ``damping:Z`` or ``damping:Z@LO-HI`` (damping ratio at least ``Z`` for
-        poles in ``LO-HI`` Hz, default 0.5-10 Hz), joined by ``,`` (e.g.
-        ``decay:0.1,damping:0.1``).
+        poles in ``LO-HI`` Hz, ``HI`` may be ``inf``; without a band, the default of what
+        is analysed: 0.5-10 Hz for the BDFT family, every frequency for a user's own
+        system), joined by ``,`` (e.g. ``decay:0.1,damping:0.1``).
 
         Parameters
         ----------
@@ -105,10 +137,15 @@ class Region:
             else "open left half-plane"
         ]
         if self.min_damping > 0:
-            parts.append(
-                f"damping ratio >= {self.min_damping:g} for poles in "
-                f"{self.band_hz[0]:g}-{self.band_hz[1]:g} Hz"
+            band = self.band_hz
+            where = (
+                "in the default band"
+                if band is None
+                else "at every frequency"
+                if band == EVERY_FREQUENCY_HZ
+                else f"in {band[0]:g}-{band[1]:g} Hz"
             )
+            parts.append(f"damping ratio >= {self.min_damping:g} for poles {where}")
         return "; ".join(parts)
 
     def distance_inside(self, poles) -> np.ndarray:
@@ -145,7 +182,7 @@ class Region:
         p = np.atleast_2d(np.asarray(poles))
         v = p.real.max(axis=1) + max(self.decay_rate, STABILITY_TOL)
         if self.min_damping > 0:
-            d = np.where(in_band(p, self.band_hz), p.real + self.min_damping * np.abs(p), -np.inf)
+            d = np.where(in_band(p, self._band()), p.real + self.min_damping * np.abs(p), -np.inf)
             v = np.maximum(v, d.max(axis=1))
         return v
 

@@ -34,7 +34,7 @@ from scipy.stats import qmc
 
 from robust.analysis.stability import STABILITY_TOL, in_band
 from robust.errors import ParameterError
-from uncertainty.enclosure import _loop
+from uncertainty.enclosure import _loop, loop_region
 from uncertainty.family import Family
 from uncertainty.region import Region
 from uncertainty.uss import USS
@@ -257,10 +257,11 @@ def worst_member(
     """
     if not (math.isfinite(k) and k >= 0):
         raise ParameterError(f"worst_member: k must be a finite scale >= 0; got {k!r}")
+    loop = _loop(family, controller)
     return _worst_in_box(
-        _loop(family, controller),
+        loop,
         float(k),
-        region or Region(),
+        loop_region(loop, region),
         samples=samples,
         seed=seed,
         starts=starts,
@@ -313,8 +314,8 @@ def margin_upper_bound(
     search : dict
         Settings and the bisection history.
     """
-    region = region or Region()
     loop = _loop(family, controller)
+    region = loop_region(loop, region)
     step = progress or (lambda msg: None)
     history = []
 
