@@ -10,6 +10,7 @@ from robust import hinf_norm
 from robust.errors import ModelStructureError, ParameterError
 from uncertainty import (
     Region,
+    UncertainPlant,
     augw,
     hinfsyn_members,
     hinfsyn_nominal,
@@ -119,5 +120,7 @@ def test_bad_input_names_the_parameter():
     P = augw(G, w1=W1, w2=W2)
     with pytest.raises(ParameterError, match="sample names .* must be the plant's parameters"):
         P.members(sample([ureal("q", 1.0, 0.5, 2.0).parameters["q"]], 2))
+    with pytest.raises(ModelStructureError, match=r"outputs \['z2'\] are in no partition"):
+        UncertainPlant(P.sys, w=("w",), u=("u",), z=("z1",), y=("v",))
     with pytest.raises(ModelStructureError, match="K must map the 1 measurements to the 1"):
         P.closed_loop(ct.ss([], [], [], [[1.0, 2.0]]))

@@ -61,9 +61,11 @@ class UncertainPlant:
     Parameters
     ----------
     sys : USS
-        Inputs ordered ``w + u``, outputs ``z + y`` (the names below, in that order).
+        The plant; its signal names are partitioned by the names below.
     w, u, z, y : tuple of str
-        Exogenous inputs, controls, performance outputs and measurements.
+        Exogenous inputs, controls, performance outputs and measurements: every input of
+        ``sys`` in one of ``w, u`` and every output in one of ``z, y``
+        (:meth:`robust.synthesis.GeneralizedPlant.from_system` checks them).
 
     Attributes
     ----------
@@ -84,14 +86,7 @@ class UncertainPlant:
             )
         for part in ("w", "u", "z", "y"):
             object.__setattr__(self, part, tuple(getattr(self, part)))
-        if list(self.sys.inputs) != [*self.w, *self.u] or list(self.sys.outputs) != [
-            *self.z,
-            *self.y,
-        ]:
-            raise ModelStructureError(
-                f"UncertainPlant: sys's inputs {self.sys.inputs} and outputs {self.sys.outputs} "
-                f"must be w + u = {[*self.w, *self.u]} and z + y = {[*self.z, *self.y]}"
-            )
+        self.nominal()  # the partition checked once, by GeneralizedPlant's own rules
 
     @property
     def parameters(self) -> dict:

@@ -30,7 +30,7 @@ from robust.analysis.intervals import Interval
 from robust.errors import ParameterError
 from uncertainty.parameters import UncertainParameter
 
-__all__ = ["UExpr", "ureal", "umatrix", "evaluate_matrix"]
+__all__ = ["UExpr", "ureal", "umatrix", "evaluate_matrix", "Arithmetic"]
 
 
 def _reciprocal(x):
@@ -39,7 +39,41 @@ def _reciprocal(x):
     return 1.0 / x
 
 
-class UExpr:
+class Arithmetic:
+    """``+ - * /`` and their reflected forms, each ``self._binary(op, other, reflected)``.
+
+    The one place the operators are spelled out for the uncertain types built by arithmetic
+    (:class:`UExpr`, :class:`uncertainty.UTF`); each defines ``_binary``.
+    """
+
+    __slots__ = ()
+
+    def __add__(self, other):
+        return self._binary("+", other)
+
+    def __radd__(self, other):
+        return self._binary("+", other, reflected=True)
+
+    def __sub__(self, other):
+        return self._binary("-", other)
+
+    def __rsub__(self, other):
+        return self._binary("-", other, reflected=True)
+
+    def __mul__(self, other):
+        return self._binary("*", other)
+
+    def __rmul__(self, other):
+        return self._binary("*", other, reflected=True)
+
+    def __truediv__(self, other):
+        return self._binary("/", other)
+
+    def __rtruediv__(self, other):
+        return self._binary("/", other, reflected=True)
+
+
+class UExpr(Arithmetic):
     """An expression of named uncertain reals (build with :func:`ureal` and arithmetic).
 
     Parameters
@@ -123,30 +157,6 @@ class UExpr:
         if op == "/" and ca == 0.0:
             return UExpr("const", (0.0,), {})
         return UExpr(op, (a, b), self._merge(a, b))
-
-    def __add__(self, other):
-        return self._binary("+", other)
-
-    def __radd__(self, other):
-        return self._binary("+", other, reflected=True)
-
-    def __sub__(self, other):
-        return self._binary("-", other)
-
-    def __rsub__(self, other):
-        return self._binary("-", other, reflected=True)
-
-    def __mul__(self, other):
-        return self._binary("*", other)
-
-    def __rmul__(self, other):
-        return self._binary("*", other, reflected=True)
-
-    def __truediv__(self, other):
-        return self._binary("/", other)
-
-    def __rtruediv__(self, other):
-        return self._binary("/", other, reflected=True)
 
     def __neg__(self):
         c = self._const()
@@ -240,15 +250,7 @@ class UExpr:
 
     def at(self, values: Mapping) -> float:
         """The value with ``values`` (name -> number) and the other parameters nominal."""
-        unknown = [n for n in values if n not in self.parameters]
-        if unknown:
-            raise ParameterError(
-                f"UExpr.at: {unknown} are not parameters of this expression "
-                f"({list(self.parameters)})"
-            )
-        full = {n: p.nominal for n, p in self.parameters.items()}
-        full.update({n: float(v) for n, v in values.items()})
-        return float(self.evaluate(full))
+        return float(self.evaluate(member_values(self.parameters, values, "UExpr.at")))
 
     def interval(self, box: Mapping | None = None) -> tuple[float, float]:
         """An enclosure ``(low, high)`` of the expression's values over a box.
@@ -281,6 +283,43 @@ def _is_system(x) -> bool:
     that does its own arithmetic with numbers and uncertain expressions (it defers numpy's
     operators to itself, ``__array_ufunc__ = None``, and is not an expression)."""
     return not isinstance(x, UExpr) and getattr(type(x), "__array_ufunc__", 0) is None
+
+
+def member_values(parameters: Mapping, values: Mapping, where: str) -> dict:
+    """Every parameter's value: ``values`` (name -> number) and the others' nominals.
+
+    Parameters
+    ----------
+    parameters : mapping
+        Name -> :class:`~uncertainty.parameters.UncertainParameter` of an expression or a
+        system.
+    values : mapping
+        Name -> number for some of them.
+    where : str
+        The caller, for the messages.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        If a name is not one of ``parameters`` or a value is not a real number.
+    """
+    unknown = [n for n in values if n not in parameters]
+    if unknown:
+        raise ParameterError(
+            f"{where}: {unknown} are not parameters of this expression or system "
+            f"({list(parameters)})"
+        )
+    full = {n: p.nominal for n, p in parameters.items()}
+    for n, v in values.items():
+        try:
+            if isinstance(v, (bool, np.bool_)) or np.ndim(v) != 0 or np.iscomplexobj(v):
+                raise TypeError
+            full[n] = float(v)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"{where}: values[{n!r}] must be a real number; got {v!r:.60}"
+            ) from None
+    return full
 
 
 def merge_parameters(*dicts) -> dict:

@@ -34,7 +34,7 @@ import control as ct
 import numpy as np
 
 from robust.errors import ModelStructureError, ParameterError
-from uncertainty.ureal import UExpr, merge_parameters
+from uncertainty.ureal import Arithmetic, UExpr, member_values, merge_parameters
 from uncertainty.uss import USS, uss
 
 __all__ = ["UTF", "tf"]
@@ -145,7 +145,7 @@ def _check_leading(a0: UExpr) -> None:
         )
 
 
-class UTF:
+class UTF(Arithmetic):
     """An uncertain transfer function of one input and one output (build with :func:`tf`).
 
     Parameters
@@ -200,17 +200,7 @@ class UTF:
         values : mapping
             Name -> number for some of :attr:`parameters`.
         """
-        unknown = [n for n in values if n not in self.parameters]
-        if unknown:
-            raise ParameterError(
-                f"UTF.at: {unknown} are not parameters of this transfer function "
-                f"({list(self.parameters)})"
-            )
-        full = {n: p.nominal for n, p in self.parameters.items()}
-        for n, v in values.items():
-            if not _is_real(v):
-                raise ParameterError(f"UTF.at: values[{n!r}] must be a number; got {v!r}")
-            full[n] = float(v)
+        full = member_values(self.parameters, values, "UTF.at")
         num = [float(c.evaluate(full)) for c in self.num]
         den = [float(c.evaluate(full)) for c in self.den]
         return ct.tf(num, den, inputs=self.inputs, outputs=self.outputs)
@@ -332,30 +322,6 @@ class UTF:
                 raise ParameterError("uncertain transfer function /: division by zero")
             num, den = _pmul(a.num, b.den), _pmul(a.den, b.num)
         return UTF(num, den, **self._names(a, b, series=op in "*/"))
-
-    def __add__(self, other):
-        return self._binary("+", other)
-
-    def __radd__(self, other):
-        return self._binary("+", other, reflected=True)
-
-    def __sub__(self, other):
-        return self._binary("-", other)
-
-    def __rsub__(self, other):
-        return self._binary("-", other, reflected=True)
-
-    def __mul__(self, other):
-        return self._binary("*", other)
-
-    def __rmul__(self, other):
-        return self._binary("*", other, reflected=True)
-
-    def __truediv__(self, other):
-        return self._binary("/", other)
-
-    def __rtruediv__(self, other):
-        return self._binary("/", other, reflected=True)
 
     def __neg__(self) -> UTF:
         return UTF(_pneg(self.num), self.den, self.inputs[0], self.outputs[0], gain=self._gain)
