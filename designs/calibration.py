@@ -765,6 +765,13 @@ def confidence_points(values, covariance, radius: float = REGION_RADIUS, log_axe
     numpy.ndarray, shape (2 n, n)
         Rows ``+axis 1, -axis 1, +axis 2, ...``.
     """
+    # (a logarithm's point too far out to be a number is returned as inf)
+    with np.errstate(over="ignore", under="ignore"):
+        return _values(_axis_coords(values, covariance, radius, log_axes), log_axes)
+
+
+def _axis_coords(values, covariance, radius: float, log_axes=LOG_AXES) -> np.ndarray:
+    """:func:`confidence_points` in the fit coordinates (always finite)."""
     C = np.asarray(covariance, float)
     v0 = np.asarray(values, float)
     if C.shape != (v0.size, v0.size) or not np.all(np.isfinite(C)):
@@ -777,11 +784,10 @@ def confidence_points(values, covariance, radius: float = REGION_RADIUS, log_axe
     V = V * np.where(V[np.abs(V).argmax(axis=0), np.arange(V.shape[1])] < 0, -1.0, 1.0)
     z0 = _coords(v0, log_axes)
     steps = radius * np.sqrt(np.maximum(lam, 0.0))[None, :] * V  # column k: axis k
-    rows = [z0 + g * steps[:, k] for k in range(v0.size) for g in (1.0, -1.0)]
-    out = _values(np.array(rows), log_axes)
+    rows = np.array([z0 + g * steps[:, k] for k in range(v0.size) for g in (1.0, -1.0)])
     lin = ~np.asarray(log_axes, bool)
-    out[:, lin] = np.maximum(out[:, lin], 0.01)
-    return out
+    rows[:, lin] = np.maximum(rows[:, lin], 0.01)  # (damping ratios: values = coordinates)
+    return rows
 
 
 def response_distance(family, estimate: OperatorEstimate, a, b, handle_gain: float) -> np.ndarray:
@@ -842,8 +848,11 @@ def region_points(
     standard deviations at radius 3); where the two modes nearly coincide the ellipsoid's
     points move it by tens of standard deviations, estimates no record of that operator
     returns. The first crossing along each axis is found on ``grid`` steps up to ``reach``
-    times the ellipsoid's distance, then by bisection (to 1e-4 of the step); an axis that
-    never reaches the radius ends at ``reach``.
+    times the ellipsoid's distance, then by bisection (to 1e-4 of the step, or of the
+    distance when the crossing comes before the first step); an axis that
+    never reaches the radius ends at ``reach``. A point whose values or response overflow
+    (an ellipsoid wide enough to reach them) counts as beyond the radius: the axis ends
+    before it, at finite values.
 
     Parameters
     ----------
@@ -871,17 +880,21 @@ def region_points(
         raise ParameterError("region_points: estimate must carry its covariance")
     c0 = np.asarray(centre, float)
     z0 = _coords(c0)
-    lin = _coords(confidence_points(c0, estimate.covariance, radius)) - z0[None, :]
+    lin = _axis_coords(c0, estimate.covariance, radius) - z0[None, :]
 
     def at(t):  # t shape (8, k): the points z0 + t * lin, as values
-        v = _values(z0[None, None, :] + t[:, :, None] * lin[:, None, :])
+        with np.errstate(over="ignore", under="ignore"):  # (overflow: beyond the region)
+            v = _values(z0[None, None, :] + t[:, :, None] * lin[:, None, :])
         v[..., 1::2] = np.maximum(v[..., 1::2], 0.01)
         return v
 
     def dist(t):
+        # a point whose values or response overflow is no operator's: it counts as
+        # beyond the radius, so the region ends before it (never a NaN taken as inside)
         v = at(t)
-        d = response_distance(family, estimate, v.reshape(-1, 4), c0, handle_gain)
-        return d.reshape(t.shape)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+            d = response_distance(family, estimate, v.reshape(-1, 4), c0, handle_gain)
+        return np.where(np.isfinite(d), d, np.inf).reshape(t.shape)
 
     ts = np.linspace(0.0, reach, grid + 1)[1:]
     g = dist(np.broadcast_to(ts, (lin.shape[0], ts.size)).copy())
@@ -891,11 +904,15 @@ def region_points(
     lo = np.where(j > 0, ts[np.maximum(j - 1, 0)], 0.0)
     crossed = over.any(axis=1)
     step = reach / grid
-    while np.max(hi - lo) > 1e-4 * step:
+    # (to 1e-4 of the step, or of the crossing's own distance when it comes before the first
+    # step: a steep response)
+    while np.any(hi - lo > 1e-4 * np.minimum(step, hi)):
         mid = 0.5 * (lo + hi)
         up = dist(mid[:, None])[:, 0] >= radius
         hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
     t = np.where(crossed, hi, reach)
+    # where the crossing is an overflow's edge, the last point inside (finite)
+    t = np.where(np.isfinite(dist(t[:, None])[:, 0]), t, lo)
     return at(t[:, None])[:, 0, :], t
 
 

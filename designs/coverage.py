@@ -22,11 +22,11 @@ depend on how the members are split.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 
 import control as ct
 import numpy as np
-from joblib import Parallel, delayed
 
 from designs.spec import (
     CONSTRAINTS,
@@ -39,6 +39,7 @@ from designs.spec import (
 from robust.analysis.loops import closed_loop_poles
 from robust.analysis.stability import damping_in_band
 from robust.checks import check_int
+from robust.engine import run_calls
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.jsonio import to_jsonable
 from robust.synthesis.solve import deterministic_solvers
@@ -265,8 +266,9 @@ def member_verdicts(
     rows = family.check_members(values, where="member_verdicts")
     n = rows.shape[0]
     starts = list(range(0, n, _CHUNK))
-    tasks = (
-        delayed(_check_chunk)(
+    calls = [
+        functools.partial(
+            _check_chunk,
             family,
             rows[a : a + _CHUNK],
             controller,
@@ -275,20 +277,15 @@ def member_verdicts(
             duration_s,
         )
         for a in starts
-    )
-    parts = []
-    if n_jobs == 1:
-        for a, task in zip(starts, tasks):
-            fn, args, kwargs = task
-            parts.append(fn(*args, **kwargs))
-            if progress:
-                progress(min(a + _CHUNK, n), n)
-    else:
-        gen = Parallel(n_jobs=n_jobs, return_as="generator")(tasks)
-        for a, part in zip(starts, gen):
-            parts.append(part)
-            if progress:
-                progress(min(a + _CHUNK, n), n)
+    ]
+    done = [0]
+
+    def step(i):
+        done[0] += min(_CHUNK, n - starts[i])
+        if progress:
+            progress(done[0], n)
+
+    parts = run_calls(calls, jobs=n_jobs, progress=step)
     return MemberVerdicts(
         violated=np.vstack([p[0] for p in parts]),
         binding=tuple(b for p in parts for b in p[1]),

@@ -59,13 +59,13 @@ mismatch).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 from collections.abc import Callable
 
 import control as ct
 import numpy as np
-from joblib import Parallel, delayed
 
 from designs.calibration import (
     CAB_IDENTIFIED,
@@ -96,6 +96,7 @@ from robust.analysis.loops import resolvent_times
 from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import check_int
+from robust.engine import run_calls
 from robust.errors import ModelStructureError, ParameterError
 from robust.model.blocks import VALVE_FIELDS, block_of, parameter_name
 from robust.model.components import ValveCylinderParams, realise_siso
@@ -363,9 +364,9 @@ class Calibrations:
         return len(self.estimates)
 
 
-def _run(jobs, n_jobs: int) -> list:
-    """joblib ``delayed`` tasks in ``n_jobs`` processes (in this one for 1), in order."""
-    return Parallel(n_jobs=n_jobs)(jobs) if n_jobs > 1 else [f(*a, **k) for f, a, k in jobs]
+def _run(calls, n_jobs: int) -> list:
+    """Calls (partials) in ``n_jobs`` processes (in this one for 1 or a single call), in order."""
+    return run_calls(list(calls), jobs=n_jobs)
 
 
 def _within(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -455,19 +456,18 @@ def calibrate_members(
         else check_int("regions", regions, low=0, owner="calibrate_members")
     )
     reg = np.arange(len(rows)) < n_reg
-    jobs = (
-        delayed(_calibrate_chunk)(family, rows[a:b], seeds[a:b], protocol, reg[a:b])
+    calls = [
+        functools.partial(_calibrate_chunk, family, rows[a:b], seeds[a:b], protocol, reg[a:b])
         for a, b in chunks
-    )
-    parts = []
-    runner = Parallel(n_jobs=n_jobs, return_as="generator") if n_jobs > 1 else None
-    it = runner(jobs) if runner is not None else (f(*a, **k) for f, a, k in jobs)
-    done = 0
-    for part in it:
-        parts.append(part)
-        done += len(part)
+    ]
+    done = [0]
+
+    def step(i):
+        done[0] += chunks[i][1] - chunks[i][0]
         if progress:
-            progress(done, len(rows))
+            progress(done[0], len(rows))
+
+    parts = run_calls(calls, jobs=n_jobs, progress=step)
     return Calibrations(
         *(
             np.concatenate([getattr(p, f.name) for p in parts])
@@ -817,8 +817,13 @@ def continuous_coverage(
     size = 25
     chunks = [(i, min(i + size, len(rows))) for i in range(0, len(rows), size)]
     jobs = [
-        delayed(_continuous_chunk)(
-            family, rows[a:b], estimates[a:b], spec, None if cabs is None else cabs[a:b]
+        functools.partial(
+            _continuous_chunk,
+            family,
+            rows[a:b],
+            estimates[a:b],
+            spec,
+            None if cabs is None else cabs[a:b],
         )
         for a, b in chunks
     ]
@@ -1005,7 +1010,8 @@ def border_check(
     size = 5  # 16 designs per member: small chunks keep both processes busy to the end
     chunks = [(i, min(i + size, len(rows))) for i in range(0, len(rows), size)]
     jobs = [
-        delayed(_border_chunk)(family, rows[a:b], cal[a:b], spec, construction) for a, b in chunks
+        functools.partial(_border_chunk, family, rows[a:b], cal[a:b], spec, construction)
+        for a, b in chunks
     ]
     parts = _run(jobs, n_jobs)
     labels = [lab for p in parts for lab in p[0]]
@@ -1126,7 +1132,7 @@ def operator_certificates(
     n_jobs = check_int("n_jobs", n_jobs, low=1, owner="operator_certificates")
     # one member per task: the margins take unequal times, and pairs left one process idle
     chunks = [(i, i + 1) for i in range(len(cal))]
-    jobs = [delayed(_certify_chunk)(family, cal[a:b], spec, max_boxes) for a, b in chunks]
+    jobs = [functools.partial(_certify_chunk, family, cal[a:b], spec, max_boxes) for a, b in chunks]
     res = [r for part in _run(jobs, n_jobs) for r in part]
     lower = [r["lower"] for r in res]
     upper = [r["upper"] for r in res]

@@ -31,6 +31,7 @@ from robust.errors import BDFTError, ParameterError
 
 __all__ = [
     "map_tasks",
+    "run_calls",
     "scheduler_address",
     "SCHEDULER_ENV",
     "jobs_available",
@@ -255,3 +256,28 @@ def map_tasks(
         out.append(r)
         step(i)
     return out
+
+
+def _call(task: Callable):
+    return task()
+
+
+def run_calls(
+    calls: Sequence[Callable], *, jobs: int = 1, progress: Callable[[int], None] | None = None
+) -> list:
+    """``[c() for c in calls]`` on :func:`map_tasks`' engines, in order.
+
+    For tasks that are different functions or take several arguments: each call a
+    :func:`functools.partial` of a module-level function. One call (or ``jobs=1``) runs in
+    this process: no worker process is started for it.
+
+    Parameters
+    ----------
+    calls : sequence of callable
+        Functions of no argument, importable by name.
+    jobs : int
+        Local worker processes, as :func:`map_tasks`.
+    progress : callable, optional
+        Called with a call's index when it finishes.
+    """
+    return map_tasks(_call, calls, jobs=jobs, progress=progress)

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import warnings
 
 import control as ct
 import numpy as np
@@ -419,6 +420,27 @@ def test_noise_free_estimate_and_the_joint_error_region(records):
         noise_free_estimate(loop, FAM, dataclasses.replace(est, weights=None), seed=100)
     with pytest.raises(ParameterError, match="residual variance"):
         response_distance(FAM, dataclasses.replace(est, residual_variance=None), v0, v0, 1.0)
+
+
+@pytest.mark.parametrize("scale", [1e4, 1e8])
+def test_region_points_of_a_wide_estimate_lie_on_the_radius(records, scale):
+    # an estimate much less certain than the records give (its covariance scaled up): the
+    # response reaches the radius well inside the first step, and far out along the axes
+    # the logarithms' values overflow. Each point still lies on the radius, at finite values,
+    # without a floating-point warning (an overflow's NaN distance was taken as inside, and
+    # the bisection stopped at 1e-4 of the step, coarser than such a crossing)
+    row, loop, rec = records[0]
+    est = identify_operator(rec, FAM, loop.handle_gain)
+    wide = dataclasses.replace(est, covariance=est.covariance * scale)
+    v0 = np.array([est.values[k] for k in IDENTIFIED])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with np.errstate(all="raise"):
+            rp, fac = region_points(FAM, wide, v0, loop.handle_gain)
+    assert np.all(np.isfinite(rp)) and np.all(fac > 0) and np.all(fac < 0.25)
+    np.testing.assert_allclose(
+        response_distance(FAM, wide, rp, v0, loop.handle_gain), REGION_RADIUS, rtol=1e-4
+    )
 
 
 def _cab_problem(seed: int):
