@@ -32,6 +32,8 @@ Public API (import from here; module layout may change):
 * robust performance (a weighted closed-loop bound over the box, certified by mu):
   :func:`robust_performance`, :class:`PerformanceResult`, :func:`performance_system`,
   :func:`certify_performance`, :func:`worst_performance`;
+* mu-synthesis of an uncertain generalized plant by D-K or D-G-K iteration, its peak mu
+  certified at every frequency: :func:`musyn`, :class:`MusynResult`;
 * sweeps: :func:`workspace_sweep`, :func:`frequency_damping_sweep`,
   :func:`structure_frequency_sweep`, :class:`SweepResult`.
 """
@@ -69,6 +71,8 @@ __all__ = [
     "performance_system",
     "certify_performance",
     "worst_performance",
+    "MusynResult",
+    "musyn",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "HUMAN_VARIANTS",
@@ -129,6 +133,10 @@ __getattr__, __dir__ = lazy_exports(
             "PHYSICAL_LIMITS",
             "Family",
             "default_family",
+        ),
+        "uncertainty.dgk": (
+            "MusynResult",
+            "musyn",
         ),
         "uncertainty.files": (
             "family_nominals",

@@ -1,0 +1,976 @@
+"""Mu-synthesis of an uncertain generalized plant by D-K and D-G-K iteration.
+
+The plant ``P`` (:func:`uncertainty.uss`) has inputs ``[w; u]`` (performance inputs, then
+control inputs) and outputs ``[z; y]`` (performance outputs, then measurements), as
+:func:`control.hinfsyn`; its uncertain reals are pulled out by :func:`uncertainty.lft_form`
+(each ``p = c + h delta``, ``|delta| <= 1``), which gives a certain plant ``M`` with the
+``Delta`` channels in front. A controller ``u = K y`` (the lower LFT, as
+:func:`control.hinfsyn`) gives the closed loop ``M_K`` from ``[w_Delta; w]`` to
+``[z_Delta; z]``; robust performance is ``mu(M_K(jw)) < 1`` at every frequency for the
+structure ``diag(delta_1 I_r1, ..., delta_n I_rn, Delta_p)``, ``Delta_p`` a full complex
+performance block (the main loop theorem, Packard & Doyle, Automatica 29(1), 1993; the
+block padded square as :func:`uncertainty.certify_performance` does).
+
+**The iteration** (Doyle, "Synthesis of robust controllers and filters", CDC 1983;
+Balas, Doyle, Glover, Packard & Smith, *mu-Analysis and Synthesis Toolbox*, 1993):
+
+1. *K-step*: H-infinity synthesis on the scaled plant (below): SLICOT ``sb10ad``, the
+   routine behind :func:`control.hinfsyn`, asked for the central controller at
+   ``gamma = 1`` (Glover & Doyle, Systems & Control Letters 11, 1988) while ``beta`` is
+   bisected; the first iterate on ``M`` itself (no scalings).
+2. *mu-step*: the D-G upper bound of ``mu(M_K(jw))`` on the frequency grid
+   (:mod:`uncertainty.mu`, Fan, Tits & Doyle, IEEE TAC 36(1), 1991), with its scalings
+   ``(D, G)`` at each frequency, in the structure the iteration designs for (below).
+3. *D-step*: each uncertainty channel's ``D`` fitted by a stable, minimum-phase real
+   rational ``d_i(s)`` (second-order sections, which follow a lightly damped resonance, and
+   a first-order one; a weighted least-squares fit of ``log |d_i(jw)|^2``) and, in D-G-K,
+   its ``G`` by the para-skew ``Y_i(s)`` below (real poles, variable projection). Each pair
+   of orders (0 to 4 by default) is scored by its *excess*: how far the bound the fitted
+   scalings give the current closed loop rises above the grid's mu, relative to mu's peak
+   (the criterion of dkpy's automatic order, a one-sided version); the two best are refined
+   to lower their largest excess directly, and the lowest total order within 1 % is kept.
+4. Repeat until the grid peak improves by less than 0.5 % twice in a row (or
+   ``max_iter``); the iterate with the lowest grid peak of the designed-for mu is kept.
+
+**Design structure.** Each uncertainty channel gets its own scalar ``d_i`` and (D-G-K) ``g_i``:
+a diagonal ``D`` and ``G``. For a parameter that appears once (``r_i = 1``) that is the
+full set of scalings; a repeated real scalar (``r_i > 1``) allows full Hermitian ``D_i``,
+``G_i``, and the diagonal ones bound the mu of each channel as its own real scalar, a larger
+set (still an upper bound; first version). D-K (``method="dk"``) treats every channel as a
+complex scalar (``G = 0``). The *reported* figures always use the true structure: repeated
+real scalars with full ``D_i``, ``G_i``.
+
+**The D-G-K scaled plant.** At one frequency, with ``N = D^(1/2) M D^(-1/2)`` and the
+scaled ``G_1 = D^(-1/2) G D^(-1/2)``, the D-G condition
+``M^H D M + j (G M - M^H G) - beta^2 D <= 0`` reads
+
+    N^H N + j (G_1 N - N^H G_1) <= beta^2 I,
+
+equivalently ``sigma_max((N / beta - j G_1 / beta)(I + G_1^2 / beta^2)^(-1/2)) <= 1``
+(Young, "Controller design for mixed uncertainties", Automatica 32(8), 1996; Young, Newlin
+& Doyle, IJRNC 1995). ``-j G_1(w)`` is the value on the imaginary axis of a para-skew real
+rational ``Y(s) = -Y(-s)``, which cannot be stable, so it is not a plant block as it
+stands. Factor the multiplier instead (a J-spectral factorisation,
+``Pi = Psi~ diag(I, -I) Psi`` with ``Psi = [[A, A Y / beta], [0, E]]``):
+
+* ``A(s) = prod (a_j - s) / (a_j + s)``: all-pass, its poles those of the stable half of
+  ``Y``; ``Y(s) = -sum_j h_j 2 a_j s / (a_j^2 - s^2)``, so ``A Y`` is stable;
+* ``E(s)``: the stable, minimum-phase spectral factor of ``1 + Y~ Y / beta^2``, from the
+  Riccati equation of the return-difference identity (Kalman's equality), so that
+  ``(A Y / beta) E^(-1)`` and ``E^(-1)`` share one stable realisation.
+
+Then, for any stable minimum-phase ``d_i(s)`` and any ``Y_i`` of that form,
+
+    X_beta = A (D M_K D^-1 + Y) E_beta^-1 / beta,  ||X_beta||_inf < 1
+
+implies at every frequency ``(A N + A Y)^H (A N + A Y) <= beta^2 E^H E = beta^2 I + Y^H Y``,
+which is the D-G condition above with ``D = |d(jw)|^2`` and ``G = |d(jw)|^2 j Y(jw)``: the
+mixed-mu upper bound of ``M_K`` is below ``beta`` at *every* frequency, whatever the fit's
+quality (the fit only decides how conservative). ``X_beta`` is a lower LFT of the scaled
+plant and ``K``, so the K-step bisects ``beta`` for the least one at which
+:func:`control.hinfsyn` reaches ``||X_beta||_inf < 1``; each such norm is re-computed by the
+Bruinsma-Steinbuch algorithm (:func:`robust.analysis.norms.hinf_norm`) before it is used.
+D-K is the case ``Y = 0`` (``A = E = 1``): one synthesis, ``beta = ||D M_K D^-1||_inf``.
+
+**The reported figure is independent of all this.** For the best iterate (lowest grid
+peak of the designed-for mu), the closed loop's eigenvalues are checked (stable), the D-G
+bound with the true structure is evaluated on the grid (``mu_peak_grid``), and the cover of
+:func:`uncertainty.mucover.mu_cover` (no grid trusted between frequencies) certifies
+``mu(M_K(jw) / b) < 1`` on ``[0, inf]``; ``b`` is raised from just above the grid peak by
+factors ``1 + CERT_RTOL`` (or to the cover's own bound where a frequency fails) until a
+cover is found: ``mu_peak_certified = b``. By the main loop theorem, every member with
+``|delta_i| <= 1 / b`` is then stable with weighted closed-loop norm ``< b``: with ``b < 1``
+the whole box (and more) meets the specification.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+import slycot
+from scipy.optimize import least_squares, minimize
+
+from robust.analysis.norms import hinf_norm, is_stable
+from robust.errors import (
+    AssumptionError,
+    InfeasibleError,
+    ModelStructureError,
+    ParameterError,
+    VerificationError,
+)
+from robust.synthesis.assumptions import check_hinf_assumptions
+from robust.synthesis.genplant import GeneralizedPlant
+from uncertainty.lft import lft_form
+from uncertainty.mu import _upper
+from uncertainty.mucover import G_MAX, MAX_FREQUENCIES, _response, _start_bound, mu_cover
+from uncertainty.uss import USS
+
+__all__ = ["MusynResult", "musyn", "METHODS", "DEFAULT_ORDERS"]
+
+#: The iterations: ``"dgk"`` (D and G scalings on real parameters) and ``"dk"`` (every
+#: uncertainty channel treated as a complex scalar, D scalings only).
+METHODS = ("dgk", "dk")
+#: Orders the scalings' fits may take (each fit's order chosen per iteration among them).
+DEFAULT_ORDERS = (0, 1, 2, 3, 4)
+#: Relative tolerance of the grid's D-G bisection at each frequency.
+MU_RTOL = 1e-3
+#: Relative tolerance of the K-step's bisection on ``beta``.
+BETA_RTOL = 2e-3
+#: The iteration stops when a grid peak improves on the best so far by less than this.
+IMPROVE_RTOL = 5e-3
+#: Ratio of the ladder on the certified bound (``b`` tried at the grid peak times
+#: ``1 + CERT_RTOL``, then raised by that factor).
+CERT_RTOL = 5e-3
+#: Scaled-G bound of the design scalings (``|G_i| <= G_MAX D_i``), that of the mu cover.
+G_DESIGN_MAX = G_MAX
+#: A fit whose bound exceeds the grid's mu by at most this (relative to mu's peak) is
+#: good enough: the lowest total order among such fits wins.
+FIT_TOL = 1e-2
+#: Fits within this of the least excess count as equally good (the lowest total order wins).
+ORDER_SLACK = 2e-3
+#: Damping ratios a D fit's second-order sections may take.
+ZETA_MIN, ZETA_MAX = 0.02, 5.0
+#: Smallest ratio between successive poles of a G fit (keeps its realisation conditioned).
+POLE_RATIO = 1.3
+
+
+@dataclasses.dataclass(frozen=True)
+class MusynResult:
+    """The controller of a mu-synthesis and its certified robust performance.
+
+    Parameters
+    ----------
+    controller : control.StateSpace
+        ``u = K y`` (lower LFT, as :func:`control.hinfsyn`): ``nmeas`` inputs, ``ncon`` outputs.
+    mu_peak_grid : float
+        Largest mixed-mu upper bound (D-G scalings, the true structure) of the closed loop on
+        the frequency grid.
+    mu_peak_certified : float
+        ``b`` with ``mu(M_K(jw)) < b`` at every frequency in ``[0, inf]``, certified by
+        :func:`uncertainty.mucover.mu_cover` (module notes); ``inf`` if no cover was found.
+    history : tuple of dict
+        Per iteration: ``iteration``, ``step`` (``"D-K"`` or ``"D-G-K"``), ``gamma`` (the
+        K-step's least ``beta`` with an exact ``||X_beta|| < 1``: an upper bound of the
+        designed-for mu at every frequency), ``mu_peak_design`` (grid peak of the mu the
+        iteration minimises), ``mu_peak_grid`` (the true structure's), ``orders`` (``D`` and
+        ``G`` fit orders), ``fit_peak`` (the fitted scalings' peak bound on the grid for the
+        previous closed loop), ``controller_order``, ``seconds``.
+    method : str
+        ``"D-K"`` or ``"D-G-K"``.
+    best_iteration : int
+        The iterate returned (index into ``history``).
+    frequencies : numpy.ndarray
+        The grid, rad/s.
+    blocks : tuple of (int, str)
+        The true structure: ``(r_i, "real")`` per uncertain real, then the performance block.
+    certificate : dict
+        The cover at ``mu_peak_certified`` (its frequencies and intervals) and the ladder of
+        bounds tried (``tried``).
+    """
+
+    controller: ct.StateSpace
+    mu_peak_grid: float
+    mu_peak_certified: float
+    history: tuple
+    method: str
+    best_iteration: int
+    frequencies: np.ndarray
+    blocks: tuple
+    certificate: dict
+
+    def __str__(self) -> str:
+        h = self.history[self.best_iteration]
+        return (
+            f"musyn ({self.method}): peak mu certified {self.mu_peak_certified:.4g} "
+            f"(grid {self.mu_peak_grid:.4g}) at iteration {self.best_iteration} of "
+            f"{len(self.history) - 1}; controller order {self.controller.nstates}; "
+            f"{sum(x['seconds'] for x in self.history):.3g} s"
+            + (
+                f"; orders D {h['orders']['D']}, G {h['orders']['G']}"
+                if self.best_iteration
+                else ""
+            )
+        )
+
+
+# -- the LFT plant -----------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class _Plant:
+    """The LFT of ``P`` as a generalized plant, the perfomance block padded square."""
+
+    gp: GeneralizedPlant
+    R: int  # uncertainty channels
+    s: int  # size of the (square) performance block
+    true_blocks: tuple
+    form: object
+
+
+def _check_inputs(P, nmeas, ncon, method, max_iter, orders, frequencies):
+    if not isinstance(P, USS):
+        raise ModelStructureError(
+            f"musyn: P must be an uncertain system (uncertainty.uss); got {type(P).__name__}"
+        )
+    if not P.parameters:
+        raise ParameterError(
+            "musyn: P has no uncertain real; mu-synthesis needs uncertainty (build its "
+            "matrices with uncertainty.ureal), or use control.hinfsyn for a certain plant"
+        )
+    for label, val, top in (("nmeas", nmeas, P.noutputs), ("ncon", ncon, P.ninputs)):
+        if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or not 0 < val < top:
+            raise ModelStructureError(
+                f"musyn: {label} must be an integer in [1, {top - 1}] (P has {P.noutputs} "
+                f"outputs and {P.ninputs} inputs: performance channels first); got {val!r}"
+            )
+    if method not in METHODS:
+        raise ParameterError(f"musyn: method must be one of {METHODS}; got {method!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise ParameterError(f"musyn: max_iter must be an integer >= 0; got {max_iter!r}")
+    orders = tuple(orders)
+    if not orders or any(
+        isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= 8
+        for k in orders
+    ):
+        raise ParameterError(f"musyn: orders must be integers in [0, 8]; got {orders!r}")
+    if frequencies is not None:
+        w = np.asarray(frequencies, dtype=float)
+        if w.ndim != 1 or w.size < 3 or not np.all(np.isfinite(w)) or np.any(w <= 0):
+            raise ParameterError(
+                "musyn: frequencies must be at least 3 finite values > 0, rad/s; got "
+                f"{np.asarray(frequencies)!r}"
+            )
+        frequencies = np.unique(w)
+    return tuple(sorted(set(int(k) for k in orders))), frequencies
+
+
+def _lft_plant(P: USS, nmeas: int, ncon: int) -> _Plant:
+    form = lft_form(P)
+    M = form.M
+    R = sum(r for _, r in form.blocks)
+    nw, nz = P.ninputs - ncon, P.noutputs - nmeas
+    s = max(nw, nz)
+    A, B, C, D = (np.asarray(x, float) for x in (M.A, M.B, M.C, M.D))
+    n = A.shape[0]
+    # pad the performance channels square: zero inputs after w, zero outputs after z
+    B = np.hstack([B[:, : R + nw], np.zeros((n, s - nw)), B[:, R + nw :]])
+    D = np.hstack([D[:, : R + nw], np.zeros((D.shape[0], s - nw)), D[:, R + nw :]])
+    C = np.vstack([C[: R + nz], np.zeros((s - nz, n)), C[R + nz :]])
+    D = np.vstack([D[: R + nz], np.zeros((s - nz, D.shape[1])), D[R + nz :]])
+    sys = ct.ss(
+        A,
+        B,
+        C,
+        D,
+        inputs=[f"dw[{i}]" for i in range(R)]
+        + [f"pw[{j}]" for j in range(s)]
+        + [f"u[{k}]" for k in range(ncon)],
+        outputs=[f"dz[{i}]" for i in range(R)]
+        + [f"pz[{j}]" for j in range(s)]
+        + [f"y[{k}]" for k in range(nmeas)],
+    )
+    gp = GeneralizedPlant.from_counts(sys, nmeas=nmeas, ncon=ncon)
+    true_blocks = tuple((r, "real") for _, r in form.blocks) + ((s, "complex"),)
+    return _Plant(gp, R, s, true_blocks, form)
+
+
+def _default_frequencies(plant: _Plant) -> np.ndarray:
+    """10 points a decade over the plant's natural frequencies, a decade beyond each end."""
+    p = np.abs(np.linalg.eigvals(plant.gp.A)) if plant.gp.nx else np.zeros(0)
+    p = p[p > 1e-8]
+    lo, hi = (p.min(), p.max()) if p.size else (1.0, 1.0)
+    lo, hi = math.floor(math.log10(lo)) - 1, math.ceil(math.log10(hi)) + 1
+    lo = max(lo, hi - 8)
+    return np.logspace(lo, hi, 10 * (hi - lo) + 1)
+
+
+# -- the mu-step -------------------------------------------------------------------------------
+def _abcd(sys):
+    return tuple(np.asarray(x, float) for x in (sys.A, sys.B, sys.C, sys.D))
+
+
+def _mu_grid(cl: ct.StateSpace, freqs, blocks, g_max):
+    """Per frequency: the D-G bound and its scalings ``(D, G)``."""
+    A, B, C, D = _abcd(cl)
+    bounds, Ds, Gs = [], [], []
+    for w in freqs:
+        Mw = _response(A, B, C, D, float(w))
+        b, Dsc, Gsc = _upper(Mw, blocks, _start_bound(Mw, blocks), rtol=MU_RTOL, g_max=g_max)
+        bounds.append(b)
+        Ds.append(Dsc)
+        Gs.append(Gsc)
+    return np.array(bounds), Ds, Gs
+
+
+def _true_peak(cl: ct.StateSpace, freqs, blocks, mu_design) -> float:
+    """The grid peak of the D-G bound in the true structure (full ``D_i``, free ``G_i``).
+
+    Its scalings include the design structure's, so its bound is at most the design bound
+    at each frequency (up to :data:`MU_RTOL`): frequencies are taken in decreasing order of
+    the design bound, and the rest skipped once that falls below the peak found."""
+    A, B, C, D = _abcd(cl)
+    peak = 0.0
+    for i in np.argsort(-np.asarray(mu_design)):
+        if mu_design[i] * (1 + 2 * MU_RTOL) < peak:
+            break
+        Mw = _response(A, B, C, D, float(freqs[i]))
+        peak = max(peak, _upper(Mw, blocks, _start_bound(Mw, blocks), rtol=MU_RTOL)[0])
+    return float(peak)
+
+
+# -- the D-step: fits ---------------------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class _DFit:
+    """``d(s) = gain * prod (s^2 + 2 z_z w_z s + w_z^2) / (s^2 + 2 z_p w_p s + w_p^2)
+    * prod (s + z) / (s + p)``, every ``w, z > 0``: stable and minimum phase.
+
+    ``quads`` holds ``(w_z, zeta_z, w_p, zeta_p)`` per second-order section (lightly damped
+    ones follow a resonance), ``firsts`` ``(z, p)`` per first-order one; an order ``k`` fit
+    has ``k // 2`` of the first and ``k % 2`` of the second."""
+
+    gain: float
+    quads: np.ndarray
+    firsts: np.ndarray
+
+    @property
+    def order(self) -> int:
+        """The number of poles."""
+        return 2 * self.quads.shape[0] + self.firsts.shape[0]
+
+    @staticmethod
+    def constant(gain: float) -> _DFit:
+        """The order-0 fit."""
+        return _DFit(float(gain), np.zeros((0, 4)), np.zeros((0, 2)))
+
+    @staticmethod
+    def from_x(x: np.ndarray, k: int) -> _DFit:
+        """From ``[log gain, log quads, log firsts]``."""
+        n2, n1 = divmod(k, 2)
+        return _DFit(
+            float(np.exp(x[0])),
+            np.exp(x[1 : 1 + 4 * n2]).reshape(n2, 4),
+            np.exp(x[1 + 4 * n2 : 1 + 4 * n2 + 2 * n1]).reshape(n1, 2),
+        )
+
+    def x(self) -> np.ndarray:
+        """``[log gain, log quads, log firsts]``."""
+        return np.log(np.concatenate([[self.gain], self.quads.ravel(), self.firsts.ravel()]))
+
+    def magnitude2(self, w) -> np.ndarray:
+        """``|d(jw)|^2``."""
+        w2 = np.asarray(w, float)[:, None] ** 2
+        out = np.full(w2.shape[0], self.gain**2)
+        for wz, zz, wp, zp in self.quads:
+            out *= ((wz**2 - w2[:, 0]) ** 2 + 4 * zz**2 * wz**2 * w2[:, 0]) / (
+                (wp**2 - w2[:, 0]) ** 2 + 4 * zp**2 * wp**2 * w2[:, 0]
+            )
+        for z, p in self.firsts:
+            out *= (w2[:, 0] + z**2) / (w2[:, 0] + p**2)
+        return out
+
+    def system(self, inverse: bool = False) -> ct.StateSpace:
+        """``d`` (or ``1 / d``): its sections in cascade, each ``1 + (b1 s + b0) / den`` with
+        the state ``[w_p q, s q]`` of ``den q = input`` (frequency-scaled companion form)."""
+        out = ct.ss([], [], [], [[1.0 / self.gain if inverse else self.gain]])
+        for wz, zz, wp, zp in self.quads:
+            if inverse:
+                wz, zz, wp, zp = wp, zp, wz, zz
+            b1, b0 = 2 * zz * wz - 2 * zp * wp, wz**2 - wp**2
+            sec = ct.ss([[0, wp], [-wp, -2 * zp * wp]], [[0], [1]], [[b0 / wp, b1]], [[1]])
+            out = sec * out
+        for z, p in self.firsts:
+            if inverse:
+                z, p = p, z
+            out = ct.ss([[-p]], [[1]], [[z - p]], [[1]]) * out
+        return out
+
+
+@dataclasses.dataclass(frozen=True)
+class _GFit:
+    """``G_1(w) = sum_j h_j 2 a_j w / (a_j^2 + w^2)``, the value on the imaginary axis of
+    ``j Y(jw)`` with ``Y(s) = -sum_j h_j 2 a_j s / (a_j^2 - s^2)`` (para-skew)."""
+
+    a: np.ndarray
+    h: np.ndarray
+
+    @staticmethod
+    def from_x(x: np.ndarray, k: int) -> _GFit:
+        """From ``[log a_1, ..., log a_k, h_1, ..., h_k]``; the poles sorted, each at least
+        :data:`POLE_RATIO` above the one before (keeps the realisation conditioned)."""
+        return _GFit(_separated(np.exp(x[:k])), np.asarray(x[k : 2 * k], float))
+
+    def x(self) -> np.ndarray:
+        """``[log a_1, ..., log a_k, h_1, ..., h_k]``."""
+        return np.concatenate([np.log(self.a), self.h])
+
+    def value(self, w) -> np.ndarray:
+        """``G_1(w)``."""
+        w = np.asarray(w, float)[:, None]
+        return np.sum(self.h * 2 * self.a * w / (self.a**2 + w**2), axis=1)
+
+    def stable_part(self):
+        """``(A_b, B_b, C_b)`` of ``A(s) Y(s)``, ``A`` the all-pass of :func:`_allpass`:
+        strictly proper, a double pole at each ``-a_j``, in Jordan form; the residues by
+        least squares on exact evaluations, checked."""
+        k = self.a.size
+        Ab = np.zeros((2 * k, 2 * k))
+        Bb = np.zeros((2 * k, 1))
+        for j, a in enumerate(self.a):
+            Ab[2 * j : 2 * j + 2, 2 * j : 2 * j + 2] = [[-a, 1.0], [0.0, -a]]
+            Bb[2 * j + 1, 0] = 1.0
+        s = 1j * np.geomspace(self.a.min() / 30, self.a.max() * 30, 8 * k + 8)
+        target = self._ay(s)
+        basis = np.empty((s.size, 2 * k), complex)
+        for j, a in enumerate(self.a):
+            basis[:, 2 * j] = 1 / (s + a) ** 2
+            basis[:, 2 * j + 1] = 1 / (s + a)
+        lhs = np.vstack([basis.real, basis.imag])
+        Cb, *_ = np.linalg.lstsq(lhs, np.concatenate([target.real, target.imag]), rcond=None)
+        err = np.max(np.abs(basis @ Cb - target)) / max(np.max(np.abs(target)), 1e-300)
+        if err > 1e-8:
+            raise VerificationError(
+                f"musyn D-step: the realisation of a fitted G scaling misses its transfer "
+                f"function by {err:.3g} (relative); poles {self.a}"
+            )
+        return Ab, Bb, Cb[None, :]
+
+    def _ay(self, s):
+        """``A(s) Y(s)`` evaluated term by term in its stable form."""
+        s = np.asarray(s)[:, None]
+        ap = (self.a - s) / (self.a + s)
+        total = np.zeros(s.shape[0], complex)
+        for j, a in enumerate(self.a):
+            others = np.prod(np.delete(ap, j, axis=1), axis=1)
+            total += -self.h[j] * 2 * a * s[:, 0] / (a + s[:, 0]) ** 2 * others
+        return total
+
+
+def _separated(a: np.ndarray) -> np.ndarray:
+    """``a`` sorted, each entry raised to at least :data:`POLE_RATIO` times the one before."""
+    a = np.sort(np.asarray(a, float))
+    for j in range(1, a.size):
+        a[j] = max(a[j], a[j - 1] * POLE_RATIO)
+    return a
+
+
+def _d_bounds(w, order: int):
+    lw = np.log(w)
+    lo, hi = lw.min() - math.log(10), lw.max() + math.log(10)
+    zlo, zhi = math.log(ZETA_MIN), math.log(ZETA_MAX)
+    n2, n1 = divmod(order, 2)
+    return (
+        np.concatenate([[-np.inf], np.tile([lo, zlo, lo, zlo], n2), np.full(2 * n1, lo)]),
+        np.concatenate([[np.inf], np.tile([hi, zhi, hi, zhi], n2), np.full(2 * n1, hi)]),
+    )
+
+
+def _g_bounds(w, order: int):
+    lw = np.log(w)
+    lo, hi = lw.min() - math.log(10), lw.max() + math.log(10)
+    hmax = 10 * G_DESIGN_MAX
+    return (
+        np.concatenate([np.full(order, lo), np.full(order, -hmax)]),
+        np.concatenate([np.full(order, hi), np.full(order, hmax)]),
+    )
+
+
+def _fit_d(w, mag2, weight, order: int) -> _DFit:
+    """Weighted least squares of ``log |d(jw)|^2`` against ``log mag2`` (a few starts: the
+    sections spread over the grid, or one at the data's steepest change)."""
+    y = np.log(mag2)
+    sw = np.sqrt(weight)
+    centre = float(np.exp(np.sum(weight * y) / np.sum(weight) / 2))
+    if order == 0:
+        return _DFit.constant(centre)
+
+    def resid(x):
+        return sw * (np.log(_DFit.from_x(x, order).magnitude2(w)) - y)
+
+    n2, n1 = divmod(order, 2)
+    lw = np.log(w)
+    slope = np.abs(np.gradient(y, lw))
+    steep = lw[np.argmax(slope * sw)]
+    starts = []
+    for shift in (0.5, -0.5):
+        for spread in (True, False):
+            c = (
+                np.linspace(lw.min(), lw.max(), n2 + n1 + 2)[1:-1]
+                if spread
+                else np.full(n2 + n1, steep)
+            )
+            q = [
+                [ci + shift, math.log(0.7), ci, math.log(0.3 if not spread else 0.7)]
+                for ci in c[:n2]
+            ]
+            f = [[ci + shift, ci] for ci in c[n2:]]
+            starts.append(np.concatenate([[math.log(centre)], np.ravel(q), np.ravel(f)]))
+    lo, hi = _d_bounds(w, order)
+    best = None
+    for x0 in starts:
+        x0 = np.clip(x0, lo, hi)
+        x0[0] -= np.sum(weight * resid(x0) / sw) / np.sum(weight) / 2
+        res = least_squares(resid, x0, bounds=(lo, hi), method="trf", max_nfev=100)
+        if best is None or res.cost < best.cost:
+            best = res
+    return _DFit.from_x(best.x, order)
+
+
+def _fit_g(w, g1, weight, order: int) -> _GFit:
+    """Weighted least squares of ``G_1`` by :class:`_GFit` (the poles by variable projection)."""
+    if order == 0 or not np.any(g1 != 0):
+        return _GFit(np.zeros(0), np.zeros(0))
+    sw = np.sqrt(weight)
+    lo, hi = _g_bounds(w, order)
+
+    def solve(xa):
+        a = _separated(np.exp(xa))
+        Phi = 2 * a * w[:, None] / (a**2 + w[:, None] ** 2)
+        h, *_ = np.linalg.lstsq(Phi * sw[:, None], g1 * sw, rcond=None)
+        return np.clip(h, lo[order:], hi[order:]), Phi
+
+    big = w[np.abs(g1) * sw >= 0.1 * np.max(np.abs(g1) * sw)]
+    start = np.linspace(np.log(big.min()), np.log(big.max()), order)
+    xa0 = np.clip(start, lo[:order], hi[:order])
+    res = least_squares(
+        lambda xa: sw * (solve(xa)[1] @ solve(xa)[0] - g1),
+        xa0,
+        bounds=(lo[:order], hi[:order]),
+        method="trf",
+        max_nfev=100,
+    )
+    return _GFit.from_x(np.concatenate([res.x, solve(res.x)[0]]), order)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Scalings:
+    """Per uncertainty channel, ``d_i`` and (empty ``a``: none) ``G_1,i``."""
+
+    d: tuple
+    g: tuple
+
+    def orders(self) -> dict:
+        """The fits' orders."""
+        return {
+            "D": max((f.order for f in self.d), default=0),
+            "G": max((f.a.size for f in self.g), default=0),
+        }
+
+    def bounds(self, Mws: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The D-G bound these scalings give ``M(jw)`` at each ``w`` (module notes)."""
+        F, n = Mws.shape[0], Mws.shape[1]
+        dd, gg = np.ones((F, n)), np.zeros((F, n))
+        for i, (d, g) in enumerate(zip(self.d, self.g)):
+            dd[:, i] = d.magnitude2(w)
+            if g.a.size:
+                gg[:, i] = g.value(w)
+        return _scaled_bounds(Mws, dd, gg)
+
+
+def _scaled_bounds(Mws, dd, gg) -> np.ndarray:
+    """``sqrt(lambda_max(N^H N + j (G_1 N - N^H G_1)))``, ``N = D^(1/2) M D^(-1/2)``, at each
+    frequency: the least ``beta`` of the D-G condition with ``D = diag(dd)``,
+    ``G = diag(gg dd)``."""
+    dh = np.sqrt(dd)
+    N = dh[:, :, None] * Mws / dh[:, None, :]
+    NH = np.conj(np.swapaxes(N, 1, 2))
+    H = NH @ N + 1j * (gg[:, :, None] * N - NH * gg[:, None, :])
+    H = 0.5 * (H + np.conj(np.swapaxes(H, 1, 2)))
+    return np.sqrt(np.maximum(np.linalg.eigvalsh(H)[:, -1], 0.0))
+
+
+def _excess(sc: _Scalings, Mws, w, mu) -> np.ndarray:
+    """How far the fitted scalings' bound lies above the grid's mu, relative to its peak."""
+    return (sc.bounds(Mws, w) - mu) / mu.max()
+
+
+def _refine(sc: _Scalings, Mws, w, mu) -> _Scalings:
+    """The fits' parameters moved to lower their largest excess over the grid's mu (a smooth
+    maximum, L-BFGS-B); kept if it drops."""
+    kd = [f.order for f in sc.d]
+    kg = [g.a.size for g in sc.g]
+    parts = [f.x() for f in sc.d] + [g.x() for g in sc.g if g.a.size]
+    lo = np.concatenate([_d_bounds(w, k)[0] for k in kd] + [_g_bounds(w, k)[0] for k in kg if k])
+    hi = np.concatenate([_d_bounds(w, k)[1] for k in kd] + [_g_bounds(w, k)[1] for k in kg if k])
+    x0 = np.clip(np.concatenate(parts), lo, hi)
+    lo, hi = np.where(np.isinf(lo), x0 - 20, lo), np.where(np.isinf(hi), x0 + 20, hi)
+    cuts = np.cumsum([p.size for p in parts])[:-1]
+
+    def unpack(x):
+        xs = np.split(x, cuts)
+        R = len(kd)
+        rest = iter(xs[R:])
+        return _Scalings(
+            tuple(_DFit.from_x(xs[i], kd[i]) for i in range(R)),
+            tuple(
+                _GFit.from_x(next(rest), k) if k else _GFit(np.zeros(0), np.zeros(0)) for k in kg
+            ),
+        )
+
+    tau = 1e-3
+
+    def f(x):
+        e = _excess(unpack(x), Mws, w, mu)
+        m = e.max()
+        return m + tau * math.log(np.sum(np.exp((e - m) / tau)))
+
+    res = minimize(f, x0, method="L-BFGS-B", bounds=list(zip(lo, hi)), options={"maxiter": 60})
+    new = unpack(res.x)
+    return new if _excess(new, Mws, w, mu).max() < _excess(sc, Mws, w, mu).max() else sc
+
+
+def _allpass(a: np.ndarray) -> ct.StateSpace:
+    """``prod (a_j - s) / (a_j + s)``: sections ``-1 + 2 a / (s + a)`` in cascade."""
+    k = a.size
+    if not k:
+        return ct.ss([], [], [], [[1.0]])
+    A = np.zeros((k, k))
+    B = np.zeros((k, 1))
+    C = np.zeros((1, k))
+    # v_0 = input; x_j' = -a_j x_j + v_{j-1}; v_j = -v_{j-1} + 2 a_j x_j
+    # v_{j-1} = sum_{l<j} c_l x_l + sign * input
+    coef = np.zeros(k)  # v_{j-1} in terms of x
+    sign = 1.0
+    for j in range(k):
+        A[j, :] += coef
+        A[j, j] += -a[j]
+        B[j, 0] = sign
+        coef = -coef
+        coef[j] += 2 * a[j]
+        sign = -sign
+    C[0, :] = coef
+    return ct.ss(A, B, C, [[sign]])
+
+
+# -- the K-step --------------------------------------------------------------------------------
+def _scaled_plant(plant: _Plant, sc: _Scalings, beta: float) -> ct.StateSpace:
+    """The plant whose lower LFT with ``K`` is ``X_beta`` (module notes), by signal names."""
+    gp = plant.gp
+    R, s = plant.R, plant.s
+    blocks = [gp.sys]
+    et = [f"et[{i}]" for i in range(R)] + [f"ep[{j}]" for j in range(s)]
+    zt = [f"zt[{i}]" for i in range(R)] + [f"zq[{j}]" for j in range(s)]
+    for i in range(R):
+        d, g = sc.d[i], sc.g[i]
+        out = _allpass(g.a) * d.system() * (1.0 / beta)
+        if g.a.size:
+            Ab, Bb, Cb = g.stable_part()
+            Cs = Cb / beta
+            X = sla.solve_continuous_are(Ab, Bb, Cs.T @ Cs, np.eye(1))
+            F = Bb.T @ X
+            # E^-1 and (A Y / beta) E^-1 from one realisation: (Ab - Bb F, Bb, [-F; Cs], [1; 0])
+            einv = ct.ss(
+                Ab - Bb @ F,
+                Bb,
+                np.vstack([-F, Cs]),
+                [[1.0], [0.0]],
+                inputs=et[i],
+                outputs=[f"v[{i}]", f"f[{i}]"],
+            )
+            blocks.append(einv)
+            blocks.append(ct.ss(d.system(inverse=True), inputs=f"v[{i}]", outputs=f"dw[{i}]"))
+            blocks.append(ct.ss(out, inputs=f"dz[{i}]", outputs=f"zn[{i}]"))
+            blocks.append(ct.summing_junction(inputs=[f"zn[{i}]", f"f[{i}]"], output=zt[i]))
+        else:
+            blocks.append(ct.ss(d.system(inverse=True), inputs=et[i], outputs=f"dw[{i}]"))
+            blocks.append(ct.ss(out, inputs=f"dz[{i}]", outputs=zt[i]))
+    for j in range(s):
+        blocks.append(ct.ss([], [], [], [[1.0]], inputs=et[R + j], outputs=f"pw[{j}]"))
+        blocks.append(ct.ss([], [], [], [[1.0 / beta]], inputs=f"pz[{j}]", outputs=zt[R + j]))
+    return ct.interconnect(
+        blocks,
+        inplist=et + list(gp.u),
+        outlist=zt + list(gp.y),
+        inputs=et + list(gp.u),
+        outputs=zt + list(gp.y),
+    )
+
+
+def _suboptimal(Pt: ct.StateSpace, nmeas: int, ncon: int):
+    """A controller with ``||F_l(Pt, K)||_inf < 1`` (SLICOT ``sb10ad``, ``job=4``: the
+    central controller at ``gamma = 1``, Glover & Doyle 1988), or None if there is none."""
+    A, B, C, D = _abcd(Pt)
+    n, m, p = A.shape[0], B.shape[1], C.shape[0]
+    if n:  # a diagonal state similarity (SLICOT tb01id): K does not depend on it
+        _, A, B, C, _ = slycot.tb01id(n, m, p, 0.0, A.copy(), B.copy(), C.copy(), job="A")
+    try:
+        out = slycot.sb10ad(A.shape[0], B.shape[1], C.shape[0], ncon, nmeas, 1.0, A, B, C, D, job=4)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError):  # slycot's errors
+        return None
+    Ak, Bk, Ck, Dk = out[1:5]
+    return ct.ss(Ak, Bk, Ck, Dk)
+
+
+def _verified(plant: _Plant, Pt: ct.StateSpace, K: ct.StateSpace) -> float:
+    """The exact H-infinity norm of ``F_l(Pt, K)`` (inf when it or ``F_l(M, K)`` is unstable)."""
+    gp = plant.gp
+    if not is_stable(gp.closed_loop(K)):
+        return math.inf
+    scaled = GeneralizedPlant.from_counts(Pt, nmeas=gp.ny, ncon=gp.nu).closed_loop(K)
+    return float(hinf_norm(scaled))
+
+
+def _k_step(plant: _Plant, sc: _Scalings, beta0: float, where: str):
+    """``(K, beta)``: the least ``beta`` (to :data:`BETA_RTOL`) at which SLICOT finds a
+    controller with ``||X_beta||_inf < 1`` (module notes), that controller's exact norm
+    confirmed (else ``beta`` is raised, by that tolerance doubling each time)."""
+    gp = plant.gp
+    found: dict = {}
+
+    def feasible(beta) -> bool:
+        K = _suboptimal(_scaled_plant(plant, sc, beta), gp.ny, gp.nu)
+        if K is not None:
+            found[beta] = K
+        return K is not None
+
+    hi = beta0
+    for _ in range(40):
+        if feasible(hi):
+            break
+        hi *= 2.0
+    else:
+        raise InfeasibleError(
+            f"musyn: {where}: SLICOT sb10ad finds no controller with a scaled closed-loop "
+            f"norm below 1 for any beta up to {hi:.6g}; check that (A, B2) is "
+            "stabilisable, (C2, A) detectable, D12 of full column rank and D21 of full row "
+            "rank, with no imaginary-axis zeros"
+        )
+    lo = 0.7 * hi
+    for _ in range(60):
+        if not feasible(lo):
+            break
+        hi, lo = lo, 0.7 * lo
+    while hi / lo - 1 > BETA_RTOL:
+        mid = math.sqrt(lo * hi)
+        if feasible(mid):
+            hi = mid
+        else:
+            lo = mid
+    # the exact norm decides, not the synthesis' claim
+    # near the optimum the central controller is ill-conditioned: step away from it
+    for k in range(10):
+        if hi in found and _verified(plant, _scaled_plant(plant, sc, hi), found[hi]) < 1.0:
+            return found[hi], hi
+        hi *= 1 + BETA_RTOL * 2**k
+        feasible(hi)
+    raise VerificationError(
+        f"musyn: {where}: the controllers SLICOT sb10ad returns near beta = {hi:.6g} do "
+        "not give the scaled closed loop an exact H-infinity norm below 1 (or do not "
+        "stabilise the loop)"
+    )
+
+
+# -- the iteration -----------------------------------------------------------------------------
+def _fit_all(freqs, Ds, Gs, mu, plant: _Plant, cl, orders, with_g: bool):
+    """The scalings' fits for the next K-step, and their peak bound on the grid.
+
+    Every channel is fitted at every order (weighted least squares, the weight
+    ``(mu / peak)^2``, floored at 1e-2); each pair of ``D`` and ``G`` orders is scored by its
+    *excess*, the largest amount by which the bound the fitted scalings give the current
+    closed loop exceeds the grid's mu, relative to mu's peak; the two best are refined
+    (:func:`_refine`), and the lowest total order whose excess is within
+    :data:`FIT_TOL` (or within :data:`ORDER_SLACK` of the least excess) is kept."""
+    R = plant.R
+    weight = np.maximum((mu / mu.max()) ** 2, 1e-2)
+    dpf = np.array([D[-1, -1].real for D in Ds])
+    dd = np.clip(np.array([[D[i, i].real for D in Ds] for i in range(R)]) / dpf, 1e-8, 1e8)
+    g1 = np.array([[G[i, i].real for G in Gs] for i in range(R)]) / (dd * dpf)
+    fd = {k: tuple(_fit_d(freqs, dd[i], weight, k) for i in range(R)) for k in orders}
+    gorders = orders if with_g else (0,)
+    fg = {k: tuple(_fit_g(freqs, g1[i], weight, k) for i in range(R)) for k in gorders}
+    A, B, C, D = _abcd(cl)
+    Mws = np.array([_response(A, B, C, D, float(w)) for w in freqs])
+    scored = sorted(
+        (float(_excess(sc, Mws, freqs, mu).max()), kd + kg, kd, kg, sc)
+        for kd in orders
+        for kg in gorders
+        for sc in [_Scalings(fd[kd], fg[kg])]
+    )[:2]
+    refined = [(x[1], _refine(x[4], Mws, freqs, mu)) for x in scored]
+    refined = [(float(_excess(s, Mws, freqs, mu).max()), k, s) for k, s in refined]
+    least = min(e for e, _, _ in refined)
+    _, _, sc = min(
+        (x for x in refined if x[0] <= max(FIT_TOL, least + ORDER_SLACK)),
+        key=lambda x: (x[1], x[0]),
+    )
+    return sc, float(np.max(sc.bounds(Mws, freqs)))
+
+
+def _identity(R: int) -> _Scalings:
+    return _Scalings(
+        tuple(_DFit.constant(1.0) for _ in range(R)),
+        tuple(_GFit(np.zeros(0), np.zeros(0)) for _ in range(R)),
+    )
+
+
+def _certify(cl, blocks, start: float, deadline: float):
+    """The least ``b`` of the ladder (module notes) at which the cover certifies ``M / b``."""
+    A, B, C, D = _abcd(cl)
+    b = start * (1 + CERT_RTOL)
+    tried = []
+    for _ in range(60):
+        res = mu_cover(
+            A, B, C / b, D / b, list(blocks), max_frequencies=MAX_FREQUENCIES, deadline=deadline
+        )
+        tried.append({"bound": b, "certified": res["certified"], "reason": res.get("reason", "")})
+        if res["certified"]:
+            return b, dict(res, tried=tried)
+        if time.perf_counter() > deadline:
+            break
+        b *= max(res.get("mu_upper", 1.0), 1.0) * (1 + CERT_RTOL)
+    return math.inf, dict(res, tried=tried)
+
+
+def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iterates):
+    """Iterations of one kind (``"D-K"``: complex channels, ``G = 0``; ``"D-G-K"``) appended
+    to ``history`` and ``iterates``, from the last iterate (none: an unscaled synthesis),
+    until the grid peak improves by less than :data:`IMPROVE_RTOL` twice in a row."""
+    real = step == "D-G-K"
+    kind = "real" if real else "complex"
+    blocks = tuple((1, kind) for _ in range(plant.R)) + ((plant.s, "complex"),)
+    g_max = G_DESIGN_MAX if real else None
+    sc, beta0, stale, best = _identity(plant.R), 1.0, 0, math.inf
+    if iterates:
+        cl = iterates[-1][1]
+        mu_d, Ds, Gs = _mu_grid(cl, freqs, blocks, g_max)
+    for _ in range(max_iter + (0 if iterates else 1)):
+        t0 = time.perf_counter()
+        it = len(history)
+        where = f"K-step of iteration {it} ({step})"
+        if iterates:
+            sc, beta0 = _fit_all(freqs, Ds, Gs, mu_d, plant, cl, orders, real)
+        K, gamma = _k_step(plant, sc, beta0, where)
+        cl = plant.gp.closed_loop(K)
+        if not is_stable(cl):  # pragma: no cover - _k_step checks it
+            raise VerificationError(f"musyn: {where}: the closed loop is not stable")
+        mu_d, Ds, Gs = _mu_grid(cl, freqs, blocks, g_max)
+        history.append(
+            {
+                "iteration": it,
+                "step": step,
+                "gamma": float(gamma),
+                "mu_peak_design": float(mu_d.max()),
+                "mu_peak_grid": _true_peak(cl, freqs, plant.true_blocks, mu_d),
+                "orders": sc.orders(),
+                "fit_peak": float(beta0) if iterates else math.nan,
+                "controller_order": int(K.nstates),
+                "seconds": time.perf_counter() - t0,
+            }
+        )
+        iterates.append((K, cl))
+        stale = stale + 1 if mu_d.max() > best * (1 - IMPROVE_RTOL) else 0
+        best = min(best, float(mu_d.max()))
+        if stale >= 2:
+            break
+
+
+def musyn(
+    P: USS,
+    nmeas: int,
+    ncon: int,
+    *,
+    method: str = "dgk",
+    max_iter: int = 8,
+    orders: Sequence[int] = DEFAULT_ORDERS,
+    frequencies=None,
+    time_limit_s: float = 300.0,
+) -> MusynResult:
+    """Mu-synthesis of an uncertain generalized plant by D-K or D-G-K iteration.
+
+    Parameters
+    ----------
+    P : USS
+        Generalized plant: inputs ``[w; u]`` (performance inputs, then the ``ncon``
+        controls), outputs ``[z; y]`` (performance outputs, then the ``nmeas``
+        measurements); its uncertain reals (:func:`uncertainty.ureal`) range over their
+        own ``[low, high]``.
+    nmeas, ncon : int
+        Numbers of measurements and controls (the last outputs and inputs).
+    method : {"dgk", "dk"}
+        ``"dgk"``: D and G scalings, the real parameters as real; ``"dk"``: every
+        uncertainty channel as a complex scalar, D scalings only.
+    max_iter : int
+        Largest number of scaled syntheses after the first, unscaled one.
+    orders : sequence of int
+        Orders the scalings' fits may take (0 to 8; each iteration chooses among them).
+    frequencies : array_like, optional
+        The grid of the mu-step, rad/s (default: 10 points a decade over the LFT plant's
+        natural frequencies and a decade beyond each end).
+    time_limit_s : float
+        Wall-clock limit of the final certificate, s (``mu_peak_certified`` is ``inf``
+        when it runs out).
+
+    Returns
+    -------
+    MusynResult
+
+    Raises
+    ------
+    robust.errors.ModelStructureError
+        If ``P`` is not a :class:`USS` or ``nmeas``/``ncon`` do not partition it.
+    robust.errors.ParameterError
+        If ``P`` has no uncertain real, or an option is out of range.
+    robust.errors.AssumptionError
+        If the LFT plant fails an assumption of H-infinity synthesis (stabilisability,
+        detectability, the ranks of D12 and D21), naming it.
+    robust.errors.InfeasibleError
+        If a K-step finds no controller.
+    robust.errors.VerificationError
+        If the first controller does not stabilise the nominal closed loop, or a
+        synthesis' closed-loop norm is not confirmed by the exact norm.
+
+    Examples
+    --------
+    A lightly damped mode whose stiffness is known to +-30 %, its position measured,
+    a sensitivity weight on the error and a small control penalty:
+
+    >>> import numpy as np
+    >>> from uncertainty import musyn, ureal, uss
+    >>> k = ureal("k", 1.0, 0.7, 1.3, unit="N/m")
+    >>> P = uss(  # states: position, velocity, weight state
+    ...     [[0, 1, 0], [-k, -0.2, 0], [-1, 0, -0.01]],
+    ...     [[0, 0], [0, 1], [1, 0]],
+    ...     [[0, 0, 0.5], [0, 0, 0], [-1, 0, 0]],
+    ...     [[0.5, 0], [0, 0.1], [1, 0]],
+    ... )
+    >>> res = musyn(P, 1, 1, method="dk", max_iter=1, orders=(0, 1, 2),
+    ...             frequencies=np.logspace(-2, 2, 17))
+    >>> res.method, res.mu_peak_grid <= res.mu_peak_certified
+    ('D-K', True)
+    """
+    orders, frequencies = _check_inputs(P, nmeas, ncon, method, max_iter, orders, frequencies)
+    if not (isinstance(time_limit_s, (int, float)) and time_limit_s > 0):
+        raise ParameterError(f"musyn: time_limit_s must be > 0 s; got {time_limit_s!r}")
+    plant = _lft_plant(P, int(nmeas), int(ncon))
+    try:
+        check_hinf_assumptions(plant.gp)
+    except AssumptionError as exc:
+        raise AssumptionError(
+            f"musyn: the LFT plant (P with its uncertainty channels) fails an assumption of "
+            f"H-infinity synthesis: {exc}"
+        ) from exc
+    freqs = _default_frequencies(plant) if frequencies is None else frequencies
+    history: list = []
+    iterates: list = []
+    _phase(plant, freqs, orders, max_iter, "D-G-K" if method == "dgk" else "D-K", history, iterates)
+    ibest = int(np.argmin([h["mu_peak_design"] for h in history]))
+    K, cl = iterates[ibest][:2]
+    t0 = time.perf_counter()
+    cert, certificate = _certify(
+        cl, plant.true_blocks, history[ibest]["mu_peak_grid"], t0 + float(time_limit_s)
+    )
+    certificate["seconds"] = time.perf_counter() - t0
+    return MusynResult(
+        controller=K,
+        mu_peak_grid=history[ibest]["mu_peak_grid"],
+        mu_peak_certified=float(cert),
+        history=tuple(history),
+        method="D-G-K" if method == "dgk" else "D-K",
+        best_iteration=ibest,
+        frequencies=freqs,
+        blocks=plant.true_blocks,
+        certificate=certificate,
+    )
