@@ -26,8 +26,8 @@ import pytest
 from robust.analysis.norms import hinf_norm, is_stable
 from robust.errors import AssumptionError, ModelStructureError, ParameterError
 from robust.synthesis.genplant import GeneralizedPlant
+from uncertainty import augw, lft_form, mussv, musyn, sample, tf, ureal, uss
 from uncertainty import dgk as dgk_module
-from uncertainty import lft_form, mussv, musyn, ureal, uss
 from uncertainty.mucover import _response, mu_cover
 
 LD_GRID = np.logspace(-3, 2, 31)
@@ -277,3 +277,26 @@ def test_singular_plant_names_the_assumption():
     P = uss([[0, 1], [-k, -0.2]], [[0, 0], [1, 1]], [[1, 0], [1, 0]], [[0, 0], [1, 0]])
     with pytest.raises(AssumptionError, match=r"musyn: the LFT plant .* D12"):
         musyn(P, 1, 1, frequencies=np.logspace(-1, 1, 5))
+
+
+def test_an_uncertain_plant_from_augw_brings_its_partition():
+    # the mixed-sensitivity plant of 2 / (s + a) (uncertainty.augw): musyn reads nmeas and
+    # ncon from its partition, and the controller closes the plant's own lower LFT
+    # (P.closed_loop, positive feedback): with the certified peak b < 1, every member of the
+    # whole box is stable with its weighted norm below b (robust performance), checked on
+    # the box's ends and seeded members by exact norms
+    a = ureal("a", 1.0, 0.5, 1.5)
+    P = augw(2.0 / (tf("s") + a), w1=ct.tf([0.5, 1.0], [1.0, 0.01]), w2=0.1)
+    Pw = P.ordered()
+    assert Pw.inputs == ["w", "u"] and Pw.outputs == ["z1", "z2", "v"]
+    with pytest.raises(ModelStructureError, match="differ from the plant's partition"):
+        musyn(P, 2, 1)
+    res = musyn(P, method="dgk", max_iter=1, frequencies=np.logspace(-3, 2, 26))
+    b = res.mu_peak_certified
+    assert res.mu_peak_grid <= b < 1.0
+    cl = P.closed_loop(res.controller)
+    values = [{"a": 0.5}, {"a": 1.5}] + [{"a": x} for x in sample(P, 6, seed=4).values[:, 0]]
+    for v in values:
+        member = cl.at(v)
+        assert np.linalg.eigvals(member.A).real.max() < 0
+        assert hinf_norm(member) < b

@@ -109,6 +109,7 @@ from robust.synthesis.genplant import GeneralizedPlant
 from uncertainty.lft import lft_form
 from uncertainty.mu import _upper
 from uncertainty.mucover import G_MAX, MAX_FREQUENCIES, _response, _start_bound, mu_cover
+from uncertainty.synthesis import UncertainPlant
 from uncertainty.uss import USS
 
 __all__ = ["MusynResult", "musyn", "METHODS", "DEFAULT_ORDERS"]
@@ -868,9 +869,9 @@ def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iter
 
 
 def musyn(
-    P: USS,
-    nmeas: int,
-    ncon: int,
+    P: USS | UncertainPlant,
+    nmeas: int | None = None,
+    ncon: int | None = None,
     *,
     method: str = "dgk",
     max_iter: int = 8,
@@ -882,13 +883,15 @@ def musyn(
 
     Parameters
     ----------
-    P : USS
+    P : USS or UncertainPlant
         Generalized plant: inputs ``[w; u]`` (performance inputs, then the ``ncon``
         controls), outputs ``[z; y]`` (performance outputs, then the ``nmeas``
         measurements); its uncertain reals (:func:`uncertainty.ureal`) range over their
-        own ``[low, high]``.
+        own ``[low, high]``. An :class:`uncertainty.UncertainPlant` (from
+        :func:`uncertainty.augw`) brings its own partition.
     nmeas, ncon : int
-        Numbers of measurements and controls (the last outputs and inputs).
+        Numbers of measurements and controls (the last outputs and inputs); taken from
+        the partition of an ``UncertainPlant`` when not given.
     method : {"dgk", "dk"}
         ``"dgk"``: D and G scalings, the real parameters as real; ``"dk"``: every
         uncertainty channel as a complex scalar, D scalings only.
@@ -941,6 +944,15 @@ def musyn(
     >>> res.method, res.mu_peak_grid <= res.mu_peak_certified
     ('D-K', True)
     """
+    if isinstance(P, UncertainPlant):
+        given = (nmeas, ncon)
+        nmeas, ncon = len(P.y), len(P.u)
+        if any(g is not None and g != want for g, want in zip(given, (nmeas, ncon))):
+            raise ModelStructureError(
+                f"musyn: nmeas, ncon {given} differ from the plant's partition ({nmeas} "
+                f"measurements {list(P.y)}, {ncon} controls {list(P.u)})"
+            )
+        P = P.ordered()
     orders, frequencies = _check_inputs(P, nmeas, ncon, method, max_iter, orders, frequencies)
     if not (isinstance(time_limit_s, (int, float)) and time_limit_s > 0):
         raise ParameterError(f"musyn: time_limit_s must be > 0 s; got {time_limit_s!r}")

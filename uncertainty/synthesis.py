@@ -126,6 +126,21 @@ class UncertainPlant:
             )
         return [self.at(samples.row(i)) for i in range(len(samples))]
 
+    def ordered(self) -> USS:
+        """The plant's system with its inputs ordered ``[w; u]`` and outputs ``[z; y]``
+        (control.hinfsyn's partition, what :func:`uncertainty.musyn` takes)."""
+        cols = [self.sys.inputs.index(n) for n in (*self.w, *self.u)]
+        rows = [self.sys.outputs.index(n) for n in (*self.z, *self.y)]
+        A, B, C, D = self.sys.A, self.sys.B, self.sys.C, self.sys.D
+        return USS(
+            A,
+            B[:, cols],
+            C[rows, :],
+            D[np.ix_(rows, cols)],
+            inputs=[*self.w, *self.u],
+            outputs=[*self.z, *self.y],
+        )
+
     def closed_loop(self, K) -> USS:
         """The uncertain closed loop from w to z with ``u = K y`` (the lower LFT).
 
