@@ -12,8 +12,8 @@ from robust.errors import ParameterError
 from uncertainty import default_family, family_uss, lft_form, ureal, uss
 
 
-def _members_agree(system, n=5, seed=0, rtol=1e-12):
-    F = lft_form(system)
+def _members_agree(system, n=5, seed=0, rtol=1e-12, reduce=True):
+    F = lft_form(system, reduce=reduce)
     rng = np.random.default_rng(seed)
     for _ in range(n):
         d = {name: rng.uniform(-1, 1) for name in system.parameters}
@@ -35,10 +35,16 @@ def test_rational_entries_with_a_controller():
     c = 0.05
     A = [[0, 0, 1, 0], [0, 0, 0, 1], [-k, k, -c, c], [k / m2, -k / m2, c / m2, -c / m2]]
     G = uss(A, [[0], [0], [1], [0]], [[1, 0, 0, 0]], [[0]])
-    F = _members_agree(G.feedback(ct.ss(ct.tf([4.0, 2.0], [0.05, 1.0]))))
-    # k appears in four entries, m2 in four divisions
+    loop = G.feedback(ct.ss(ct.tf([4.0, 2.0], [0.05, 1.0])))
+    # one channel per occurrence: k appears in four entries, m2 in four divisions
+    F = _members_agree(loop, reduce=False)
     assert F.blocks == [("k", 4), ("m2", 4)] and F.mu_blocks == [(4, "real"), (4, "real")]
     assert F.M.ninputs == 8 + 1 and F.M.noutputs == 8 + 1 and F.M.nstates == 5
+    # reduced: k and m2 act on the spring's stretch and the second row only (x1 - x2 feeds
+    # k in rows 3 and 4; 1 / m2 scales row 4's stiffness and damping terms), two each
+    F = _members_agree(loop)
+    assert F.blocks == [("k", 2), ("m2", 2)] and F.mu_blocks == [(2, "real"), (2, "real")]
+    assert F.M.ninputs == 4 + 1 and F.M.noutputs == 4 + 1 and F.M.nstates == 5
     # the centre of the box is delta = 0
     assert F.centre == {"k": 1.25, "m2": 1.15} and F.half_width["k"] == pytest.approx(0.75)
 
@@ -53,13 +59,18 @@ def test_powers_products_and_uncertain_input_output_matrices():
 
 
 def test_the_bdft_family_in_lft_form():
-    # no reduction is attempted: the repetitions are the parameters' occurrences in the
-    # blocks' one definition (with the valve's spread 51 and 162; without it the
-    # structure's scaled sections took 38 and 152, where the sections in w^2 took 47 and 182)
-    for human, repeats in (("literal", 51), ("physical", 162)):
-        F = _members_agree(family_uss(default_family(human)), n=3, rtol=1e-12)
+    # unreduced, the repetitions are the parameters' occurrences in the blocks' one
+    # definition (with the valve's spread 51 and 162; without it the structure's scaled
+    # sections took 38 and 152, where the sections in w^2 took 47 and 182); the n-D Kalman
+    # reduction leaves 18 and 30, every parameter kept, and closes to the same members
+    for human, repeats, reduced in (("literal", 51, 18), ("physical", 162, 30)):
+        loop = family_uss(default_family(human))
+        F = _members_agree(loop, n=3, rtol=1e-12, reduce=False)
         assert len(F.blocks) == len(default_family(human).names)
         assert sum(r for _, r in F.blocks) == repeats
+        F = _members_agree(loop, n=3, rtol=1e-9)
+        assert [b[0] for b in F.blocks] == list(default_family(human).names)
+        assert sum(r for _, r in F.blocks) == reduced
 
 
 def test_a_divisor_at_the_centre_is_refused():

@@ -14,7 +14,9 @@ from uncertainty import (
     augw,
     hinfsyn_members,
     hinfsyn_nominal,
+    lft_form,
     robust_margin,
+    robust_performance,
     sample,
     tf,
     ureal,
@@ -105,6 +107,14 @@ def test_multi_model_synthesis_on_sampled_members_and_its_robust_margin():
     margin = robust_margin(uss(G), controller=K, region=Region(), samples=200, seed=1, max_boxes=50)
     assert 0.0 < margin.lower <= margin.upper
     assert margin.upper > 1.0  # the search finds no unstable member in the box itself
+    # robust performance of the weighted closed loop (||[W1 S; W2 K S]|| < 1), certified by
+    # mu on its reduced LFT (m, k and c once or twice each, not 9 and 8 times): a tight
+    # bracket, the worst member's exact norm at the upper end
+    cl = P.closed_loop(K)
+    assert lft_form(cl).blocks == [("c", 1), ("m", 2), ("k", 1)]
+    perf = robust_performance(cl, gamma=1.0)
+    assert perf.lower is not None and 0.5 < perf.lower <= perf.upper <= 1.01 * perf.lower
+    assert hinf_norm(cl.at(perf.worst["parameters"])) >= 1.0 - 1e-6
 
 
 def test_bad_input_names_the_parameter():
