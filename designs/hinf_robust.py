@@ -31,7 +31,7 @@ import control as ct
 import numpy as np
 
 from designs.evaluate import TRACKING_BAND_HZ
-from designs.hinf_nominal import NominalHinf, design_hinf_nominal
+from designs.hinf_nominal import NominalHinf, design_hinf_nominal, synthesis_json
 from designs.multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
 from designs.result import Design, DesignFacts, DesignResult
 from robust.analysis.loops import frequency_response, reduce_controller
@@ -261,16 +261,14 @@ class RobustHinfFacts(DesignFacts):
     def to_json(self) -> dict:
         """The facts under ``bdft design --json``'s keys (no controller)."""
         d = self.design
-        return {
-            "gamma_worst_design_member": d.gamma,
-            "gamma_nominal": d.solver["gamma_nominal"],
-            "gamma_nominal_design": self.nominal.gamma,
-            "design_members": d.design_members,
-            "solver": d.solver,
-            "weights": dataclasses.asdict(d.weights),
-            "order_synthesised": self.nominal.controller.nstates,
-            "reduction_error_bound": self.reduction_error_bound,
-        }
+        order, bound = self.nominal.controller.nstates, self.reduction_error_bound
+        return dict(
+            gamma_worst_design_member=d.gamma,
+            gamma_nominal=d.solver["gamma_nominal"],
+            gamma_nominal_design=self.nominal.gamma,
+            design_members=d.design_members,
+            **synthesis_json(d.solver, d.weights, order, bound),
+        )
 
 
 def build_robust(family, samples, limits, **options) -> DesignResult:
