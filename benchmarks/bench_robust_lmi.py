@@ -40,9 +40,9 @@ from threadpoolctl import threadpool_info
 
 from designs.hinf_nominal import design_hinf_nominal
 from designs.robust_lmi import START_METHODS, RobustOptions, maximise_margin
+from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty import default_family
 from uncertainty.search import scaled_bounds
@@ -68,7 +68,7 @@ def main() -> None:
     if args.ladder is not None:
         ladder(fam, args.ladder or ["minimax", "minimax-bfgs"])
         return
-    region = PoleRegion(0.1, 0.1)
+    region = Region(0.1, 0.1, EVERY_FREQUENCY_HZ)
     K = design_hinf_nominal(fam).controller
     Kr = ct.balred(K, args.order, method="truncate")
     start = ct.ss(Kr.A, Kr.B, Kr.C, Kr.D)

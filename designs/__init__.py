@@ -22,6 +22,7 @@ __all__ = [
     "DESIGNS",
     "Design",
     "DesignEvaluation",
+    "DesignFacts",
     "DesignResult",
     "design_names",
     "evaluate_design",
@@ -47,6 +48,7 @@ __getattr__, __dir__ = lazy_exports(
         ),
         "designs.result": (
             "Design",
+            "DesignFacts",
             "DesignResult",
         ),
     },

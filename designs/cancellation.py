@@ -13,15 +13,30 @@ Run it alone with ``python -m designs cancellation [--samples N] [--seed S] [--o
 
 from __future__ import annotations
 
+import dataclasses
+
 import control as ct
 
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from robust.model.loop import BDFTLoop
 
-__all__ = ["cancellation_controller", "build", "DESIGN"]
+__all__ = ["CancellationFacts", "cancellation_controller", "build", "DESIGN"]
 
 DESIGN_NAME = "cancellation"
 DESCRIPTION = "model-based cancellation of the hand's motion from the measured cab acceleration"
+
+
+@dataclasses.dataclass(frozen=True)
+class CancellationFacts(DesignFacts):
+    """What the cancellation design reports of itself.
+
+    Parameters
+    ----------
+    model : str
+        The model the cancellation is built on.
+    """
+
+    model: str
 
 
 def cancellation_controller(loop: BDFTLoop) -> ct.StateSpace:
@@ -81,7 +96,7 @@ def build(family, samples, limits) -> DesignResult:
         controller=K,
         order_full=K.nstates,
         reduction_error_bound=0.0,
-        details={"model": "nominal physical human, c -> h"},
+        facts=CancellationFacts(model="nominal physical human, c -> h"),
     )
 
 

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from robust.analysis.bounds import siso_response
+from robust.analysis.norms import h2_norm
 from robust.analysis.realization import minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, validate_fields
 from robust.errors import ModelStructureError
@@ -39,7 +40,6 @@ from robust.model.components import REALISATIONS_KEPT
 from robust.model.loop import BDFTLoop
 from robust.model.wiring import Junction, connect, renamed
 from robust.synthesis.forcefb import intent_filter
-from robust.synthesis.pk import h2_norm
 
 __all__ = [
     "Noise",

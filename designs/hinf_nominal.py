@@ -18,13 +18,20 @@ from __future__ import annotations
 
 import dataclasses
 
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from robust.analysis.loops import reduce_controller
 from robust.model.device import DeviceLimits
 from robust.synthesis import hinfsyn_lmi
 from robust.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
 
-__all__ = ["NominalHinf", "design_hinf_nominal", "build", "DESIGN"]
+__all__ = [
+    "NominalHinf",
+    "NominalHinfFacts",
+    "synthesis_json",
+    "design_hinf_nominal",
+    "build",
+    "DESIGN",
+]
 
 DESIGN_NAME = "hinf-nominal"
 DESCRIPTION = "H-infinity handle-force feedback, LMI synthesis on the nominal member"
@@ -88,6 +95,53 @@ def design_hinf_nominal(
     return NominalHinf(K, res.gamma, res.gamma_bound, solver, w)
 
 
+def synthesis_json(solver: dict, weights, order_synthesised: int, bound: float) -> dict:
+    """The synthesis facts both H-infinity designs report, under their JSON keys.
+
+    Parameters
+    ----------
+    solver : dict
+        The solver's statistics.
+    weights : ForceFeedbackWeights
+        The weights used.
+    order_synthesised : int
+        Controller order as synthesised.
+    bound : float
+        Balanced-truncation error bound of the reduction.
+    """
+    return {
+        "solver": solver,
+        "weights": dataclasses.asdict(weights),
+        "order_synthesised": order_synthesised,
+        "reduction_error_bound": bound,
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class NominalHinfFacts(DesignFacts):
+    """What the nominal H-infinity design reports of itself.
+
+    Parameters
+    ----------
+    design : NominalHinf
+        The synthesis (its full-order controller, norms, solver and weights).
+    reduction_error_bound : float
+        Balanced-truncation error bound of the controller's reduction.
+    """
+
+    design: NominalHinf
+    reduction_error_bound: float
+
+    def to_json(self) -> dict:
+        """The facts under ``bdft design --json``'s keys (no controller)."""
+        d = self.design
+        return dict(
+            gamma=d.gamma,
+            gamma_bound=d.gamma_bound,
+            **synthesis_json(d.solver, d.weights, d.controller.nstates, self.reduction_error_bound),
+        )
+
+
 def build(family, samples, limits) -> DesignResult:
     """The nominal H-infinity design on ``family``, reduced.
 
@@ -108,14 +162,6 @@ def build(family, samples, limits) -> DesignResult:
     d = design_hinf_nominal(family, limits=limits)
     nominal = family.member(family.nominal_values())
     K, bound = reduce_controller(d.controller, [nominal])
-    details = {
-        "gamma": d.gamma,
-        "gamma_bound": d.gamma_bound,
-        "solver": d.solver,
-        "weights": dataclasses.asdict(d.weights),
-        "order_synthesised": d.controller.nstates,
-        "reduction_error_bound": bound,
-    }
     return DesignResult(
         name=DESIGN_NAME,
         description=DESCRIPTION,
@@ -123,7 +169,7 @@ def build(family, samples, limits) -> DesignResult:
         controller=K,
         order_full=d.controller.nstates,
         reduction_error_bound=bound,
-        details=details,
+        facts=NominalHinfFacts(d, bound),
     )
 
 

@@ -31,9 +31,9 @@ import control as ct
 import numpy as np
 
 from designs.evaluate import TRACKING_BAND_HZ
-from designs.hinf_nominal import design_hinf_nominal
+from designs.hinf_nominal import NominalHinf, design_hinf_nominal, synthesis_json
 from designs.multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from robust.analysis.loops import frequency_response, reduce_controller
 from robust.analysis.norms import hinf_norm
 from robust.model.device import DeviceLimits
@@ -46,7 +46,14 @@ from robust.synthesis.forcefb import (
 from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.solve import deterministic_solvers
 
-__all__ = ["RobustHinf", "design_hinf_robust", "build_robust", "build", "DESIGN"]
+__all__ = [
+    "RobustHinf",
+    "RobustHinfFacts",
+    "design_hinf_robust",
+    "build_robust",
+    "build",
+    "DESIGN",
+]
 
 DESIGN_NAME = "hinf-robust"
 DESCRIPTION = (
@@ -233,6 +240,37 @@ def design_hinf_robust(
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class RobustHinfFacts(DesignFacts):
+    """What the robust H-infinity design reports of itself.
+
+    Parameters
+    ----------
+    design : RobustHinf
+        The tuned design (its norms, solver statistics, weights and design members).
+    nominal : designs.hinf_nominal.NominalHinf
+        The nominal LMI design it starts from (before reduction and tuning).
+    reduction_error_bound : float
+        Balanced-truncation error bound of the nominal design's reduction.
+    """
+
+    design: RobustHinf
+    nominal: NominalHinf
+    reduction_error_bound: float
+
+    def to_json(self) -> dict:
+        """The facts under ``bdft design --json``'s keys (no controller)."""
+        d = self.design
+        order, bound = self.nominal.controller.nstates, self.reduction_error_bound
+        return dict(
+            gamma_worst_design_member=d.gamma,
+            gamma_nominal=d.solver["gamma_nominal"],
+            gamma_nominal_design=self.nominal.gamma,
+            design_members=d.design_members,
+            **synthesis_json(d.solver, d.weights, order, bound),
+        )
+
+
 def build_robust(family, samples, limits, **options) -> DesignResult:
     """The robust design on ``family``: nominal LMI design, reduced, tuned over members.
 
@@ -257,16 +295,6 @@ def build_robust(family, samples, limits, **options) -> DesignResult:
         nominal_design = design_hinf_nominal(family, limits=limits)
         K0, bound = reduce_controller(nominal_design.controller, [nominal])
         d = design_hinf_robust(family, samples, K0=K0, limits=limits, **options)
-    details = {
-        "gamma_worst_design_member": d.gamma,
-        "gamma_nominal": d.solver["gamma_nominal"],
-        "gamma_nominal_design": nominal_design.gamma,
-        "design_members": d.design_members,
-        "solver": d.solver,
-        "weights": dataclasses.asdict(d.weights),
-        "order_synthesised": nominal_design.controller.nstates,
-        "reduction_error_bound": bound,
-    }
     notes = []
     if not d.solver["converged"]:
         notes.append(
@@ -288,7 +316,7 @@ def build_robust(family, samples, limits, **options) -> DesignResult:
         controller=d.controller,
         order_full=nominal_design.controller.nstates,
         reduction_error_bound=bound,
-        details=details,
+        facts=RobustHinfFacts(d, nominal_design, bound),
         notes=tuple(notes),
     )
 

@@ -85,7 +85,6 @@ from robust.checks import check_int
 from robust.engine import map_tasks
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.model.wiring import connect
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.youla import (
     LimitProblem,
@@ -581,11 +580,11 @@ def _member_limit_body(
         var, noise = sensor_intensities(loop, sens, nz)
     plant, meas, (s_u, s_m) = _member_plant(loop, acts, sens, noise, scales=True)
     region = spec.region()
-    pole_region = PoleRegion(spec.decay_rate, spec.min_damping)
     nan = math.nan
     try:
-        K0 = _gain(loop, acts, pole_region)
-        L = None if meas is None else _observer(loop, sens, pole_region)
+        # the gains place the poles with the damping at every frequency (conservatively)
+        K0 = _gain(loop, acts, region)
+        L = None if meas is None else _observer(loop, sens, region)
     except BDFTError:
         bad = uncontrollable_modes(plant.A, plant.Bu)
         if meas is not None:

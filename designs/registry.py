@@ -317,7 +317,7 @@ def _build_design(
             continuous=K,
             discrete=Kd,
             prewarp_hz=prewarp,
-            weights={k: v for k, v in details.items() if k not in res.artifact_exclude},
+            weights={k: v for k, v in details.items() if k not in res.facts.artifact_exclude},
             family={
                 "name": fam.name,
                 "seed": members.seed,

@@ -6,13 +6,16 @@ function ``build(family, samples, limits) -> DesignResult``. The pipeline of
 reduces and discretises the controller and writes the artifact, filling in the
 ``evaluation``, ``checks`` (:class:`DesignChecks`: held-out validation, specification,
 robust margin, 1 kHz and saturated runs), ``coverage`` and ``artifact`` fields of the same
-:class:`DesignResult`.
+:class:`DesignResult`. What a design reports of itself (gains, weights, solver statistics,
+scans) is typed too: a :class:`DesignFacts` subclass defined beside the design, whose
+:meth:`~DesignFacts.to_json` gives ``bdft design --json``'s ``details``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from typing import ClassVar
 
 from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck, Specification
@@ -20,7 +23,32 @@ from robust.analysis.sampled import SampledDataCheck
 from robust.analysis.saturation import SaturationCheck
 from uncertainty.region import MarginResult
 
-__all__ = ["Design", "DesignResult", "DesignChecks", "HeldOutCheck", "SaturatedRun"]
+__all__ = [
+    "Design",
+    "DesignFacts",
+    "DesignResult",
+    "DesignChecks",
+    "HeldOutCheck",
+    "SaturatedRun",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignFacts:
+    """What one design reports of itself, typed: the base of each design's facts.
+
+    Each design defines its subclass beside it (e.g.
+    :class:`designs.robust_lmi.RobustLMIFacts`), with its fields, the JSON of ``bdft
+    design --json``'s ``details`` (:meth:`to_json`) and the keys of that JSON left out of
+    the controller artifact (:attr:`artifact_exclude`).
+    """
+
+    #: Keys of :meth:`to_json` left out of the controller artifact (bulky tables).
+    artifact_exclude: ClassVar[tuple[str, ...]] = ()
+
+    def to_json(self) -> dict:
+        """The fields as a JSON-able dict (a subclass with nested types writes its own)."""
+        return dataclasses.asdict(self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,16 +182,15 @@ class DesignResult:
         Controller order as synthesised, before reduction.
     reduction_error_bound : float
         Balanced-truncation error bound of the reduction (0 if none).
-    details : dict
-        Design-specific facts (JSON-able): gains, weights, solver statistics, scans. What
-        every design is checked on is typed, in ``checks``.
+    facts : DesignFacts
+        What the design reports of itself (gains, weights, solver statistics, scans), as
+        the design's own :class:`DesignFacts` subclass. What every design is checked on is
+        in ``checks``.
     notes : tuple of str
         Caveats the design itself states (a search that did not converge...).
     cost_note : str
         What the design costs besides force and tracking (e.g. the workspace factor),
         used in the comparison report's verdict; empty if nothing.
-    artifact_exclude : tuple of str
-        Keys of ``details`` left out of the controller artifact (bulky tables).
     evaluation : DesignEvaluation or None
         Validation on the family (set by :func:`designs.registry.run_design`).
     artifact : str or None
@@ -182,10 +209,9 @@ class DesignResult:
     controller: object
     order_full: int
     reduction_error_bound: float
-    details: dict
+    facts: DesignFacts
     notes: tuple[str, ...] = ()
     cost_note: str = ""
-    artifact_exclude: tuple[str, ...] = ()
     evaluation: DesignEvaluation | None = None
     artifact: str | None = None
     coverage: object = None
@@ -242,9 +268,10 @@ class DesignResult:
         }
 
     def details_json(self) -> dict:
-        """``details`` followed by the JSON of ``checks`` (as ``bdft design --json`` and the
-        artifact's weights carry them)."""
-        return dict(self.details, **({} if self.checks is None else self.checks.to_json()))
+        """The JSON of ``facts`` followed by that of ``checks``: ``bdft design --json``'s
+        ``details``, as the artifact's weights carry them too."""
+        checks = {} if self.checks is None else self.checks.to_json()
+        return dict(self.facts.to_json(), **checks)
 
 
 @dataclasses.dataclass(frozen=True)

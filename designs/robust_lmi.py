@@ -57,7 +57,7 @@ import numpy as np
 from joblib.externals.loky import ProcessPoolExecutor
 
 from designs.hinf_nominal import design_hinf_nominal
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from designs.spec import Specification, check_specification
 from robust.analysis.reduction import balanced_truncation
 from robust.cache import caching, caching_enabled, lookup, store
@@ -66,7 +66,6 @@ from robust.engine import jobs_available, map_tasks
 from robust.errors import BDFTError, InfeasibleError, ParameterError
 from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import certify_regions, pksyn_multi
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.solve import deterministic_solvers
 from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty.margins import margin_lower_bound
@@ -76,6 +75,7 @@ __all__ = [
     "RobustOptions",
     "ScaleLevel",
     "RobustLMIDesign",
+    "RobustLMIFacts",
     "maximise_margin",
     "TradeoffPoint",
     "force_tradeoff",
@@ -395,8 +395,9 @@ def _spec_rows(family, k: float, n: int, seed: int) -> np.ndarray:
 
 def _try_scale(family, k, K, rows, spec, options, limits, progress):
     """Rounds of design members and synthesis at scale ``k``; returns the outcome."""
-    region = PoleRegion(spec.decay_rate, spec.min_damping)
-    mregion = spec.region()
+    # one region: the synthesis enforces its damping at every frequency (conservatively),
+    # the checks of the scaled box in its band
+    region = spec.region()
     budget = options.force_budget(spec)
     h2 = budget if "f" in options.controls else None
     rows = [np.asarray(r, float) for r in rows]
@@ -455,7 +456,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
             family,
             k,
             controller=KL,
-            region=mregion,
+            region=region,
             samples=options.worst_samples,
             seed=options.seed + rnd,
         )
@@ -1014,6 +1015,41 @@ def force_tradeoff(
     return out
 
 
+@dataclasses.dataclass(frozen=True)
+class RobustLMIFacts(DesignFacts):
+    """What a robust LMI design reports of itself.
+
+    Parameters
+    ----------
+    design : RobustLMIDesign
+        The ladder's result (scales, levels, synthesis, design members, options).
+    specification : Specification
+        The specification designed for.
+    """
+
+    design: RobustLMIDesign
+    specification: Specification
+
+    artifact_exclude = ("levels",)
+
+    def to_json(self) -> dict:
+        """The facts under ``bdft design --json``'s keys (no controller or member rows)."""
+        d = self.design
+        return {
+            "scale": d.scale,
+            "certified_scale": d.certified_scale,
+            "force_budget_rms_n": d.force_budget,
+            "levels": [dataclasses.asdict(x) for x in d.levels],
+            "binding_at_failure": None if d.failed is None else dataclasses.asdict(d.failed),
+            "synthesis": d.synthesis,
+            "spec_at_scale": d.spec,
+            "design_members": len(d.design_rows),
+            "options": dataclasses.asdict(d.options),
+            "specification": self.specification.to_json(),
+            "seed": d.options.seed,
+        }
+
+
 def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult:
     notes = []
     if d.controller is None:
@@ -1028,19 +1064,6 @@ def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult
             f"at scale {d.failed.scale:.3g} it fails: {d.failed.reason} (binding constraint: "
             f"{d.failed.binding}, utilisation {d.failed.utilisation:.3g})"
         )
-    details = {
-        "scale": d.scale,
-        "certified_scale": d.certified_scale,
-        "force_budget_rms_n": d.force_budget,
-        "levels": [dataclasses.asdict(x) for x in d.levels],
-        "binding_at_failure": None if d.failed is None else dataclasses.asdict(d.failed),
-        "synthesis": d.synthesis,
-        "spec_at_scale": d.spec,
-        "design_members": len(d.design_rows),
-        "options": dataclasses.asdict(d.options),
-        "specification": spec.to_json(),
-        "seed": d.options.seed,
-    }
     return DesignResult(
         name=name,
         description=description,
@@ -1048,9 +1071,8 @@ def _result(name, description, family, d: RobustLMIDesign, spec) -> DesignResult
         controller=d.controller,
         order_full=d.controller.nstates,
         reduction_error_bound=0.0,
-        details=details,
+        facts=RobustLMIFacts(d, spec),
         notes=tuple(notes),
-        artifact_exclude=("levels",),
     )
 
 

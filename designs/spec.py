@@ -111,6 +111,7 @@ from designs.response import (
     weight_system,
 )
 from robust.analysis.loops import closed_loop_poles
+from robust.analysis.norms import h2_norm
 from robust.analysis.realization import minimal_realization
 from robust.analysis.simulation import simulate
 from robust.analysis.stability import (
@@ -134,7 +135,6 @@ from robust.jsonio import to_jsonable
 from robust.model.components import K_PSF_NOMINAL
 from robust.model.device import DeviceLimits
 from robust.model.loop import BDFTLoop
-from robust.synthesis.pk import h2_norm
 from uncertainty.region import Region
 
 __all__ = [

@@ -21,7 +21,7 @@ import control as ct
 import numpy as np
 
 from designs.evaluate import INTENT_FRACTION, force_histories
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from robust.analysis.loops import loop_poles
 from robust.checks import POSITIVE, Spec, check_scalar
 from robust.model.device import DeviceLimits, check_force
@@ -44,8 +44,8 @@ STIFFNESSES = (0, 25, 50, 100, 200, 400)
 
 
 @dataclasses.dataclass(frozen=True)
-class VirtualDampingResult:
-    """Outcome of the virtual damping/stiffness grid search.
+class VirtualDampingResult(DesignFacts):
+    """Outcome of the virtual damping/stiffness grid search: the design's facts.
 
     Parameters
     ----------
@@ -56,7 +56,8 @@ class VirtualDampingResult:
     controller : control.StateSpace
         The rendered force law, ``x -> f``.
     table : tuple of tuple
-        ``(damping, stiffness, fraction_stable, max_real_pole)`` for every pair.
+        ``(damping, stiffness, fraction_stable, max_real_pole)`` for every pair (``grid``
+        in the JSON, left out of the artifact).
     within_limits : bool
         Whether the chosen pair keeps the nominal member's force within the limits.
     """
@@ -66,6 +67,20 @@ class VirtualDampingResult:
     controller: ct.StateSpace
     table: tuple
     within_limits: bool
+
+    artifact_exclude = ("grid",)
+
+    def to_json(self) -> dict:
+        """The facts under ``bdft design --json``'s keys (units in the names; no controller)."""
+        return {
+            "damping_N_s_per_m": self.damping,
+            "stiffness_N_per_m": self.stiffness,
+            "force_limited_choice": self.within_limits,
+            "grid": [
+                dict(zip(("damping", "stiffness", "fraction_stable", "max_real_pole"), r))
+                for r in self.table
+            ],
+        }
 
 
 def virtual_damping_controller(
@@ -188,15 +203,6 @@ def build(family, samples, limits) -> DesignResult:
             "no damping/stiffness pair in the grid keeps the nominal member's force within the "
             "device limits; the most stabilising pair is shown"
         )
-    details = {
-        "damping_N_s_per_m": res.damping,
-        "stiffness_N_per_m": res.stiffness,
-        "force_limited_choice": res.within_limits,
-        "grid": [
-            dict(zip(("damping", "stiffness", "fraction_stable", "max_real_pole"), r))
-            for r in res.table
-        ],
-    }
     return DesignResult(
         name=DESIGN_NAME,
         description=DESCRIPTION,
@@ -204,9 +210,8 @@ def build(family, samples, limits) -> DesignResult:
         controller=res.controller,
         order_full=res.controller.nstates,
         reduction_error_bound=0.0,
-        details=details,
+        facts=res,
         notes=tuple(notes),
-        artifact_exclude=("grid",),
     )
 
 

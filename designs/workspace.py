@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 
-from designs.result import Design, DesignResult
+from designs.result import Design, DesignFacts, DesignResult
 from uncertainty import validate_family
 
 __all__ = ["WorkspaceResult", "design_workspace", "build", "DESIGN"]
@@ -40,8 +40,8 @@ DEFAULT_FACTORS = tuple(np.arange(1.0, 10.01, 0.5)) + (
 
 
 @dataclasses.dataclass(frozen=True)
-class WorkspaceResult:
-    """Outcome of the workspace-scaling search.
+class WorkspaceResult(DesignFacts):
+    """Outcome of the workspace-scaling search: the design's facts.
 
     Parameters
     ----------
@@ -62,6 +62,18 @@ class WorkspaceResult:
     factors: tuple[float, ...]
     fraction_stable: tuple[float, ...]
     max_real_pole: tuple[float, ...]
+
+    def to_json(self) -> dict:
+        """The facts under ``bdft design --json``'s keys (the scan in ``scan``)."""
+        return {
+            "factor": self.factor,
+            "stabilises_family": self.stabilises_family,
+            "scan": {
+                "factor": list(self.factors),
+                "fraction_stable": list(self.fraction_stable),
+                "max_real_pole": list(self.max_real_pole),
+            },
+        }
 
 
 def design_workspace(
@@ -150,15 +162,6 @@ def build(family, samples, limits) -> DesignResult:
             f"no workspace factor up to {max(res.factors):g} stabilises every sampled member; "
             f"best x{res.factor:g} with {max(res.fraction_stable):.4f} stable"
         )
-    details = {
-        "factor": res.factor,
-        "stabilises_family": res.stabilises_family,
-        "scan": {
-            "factor": list(res.factors),
-            "fraction_stable": list(res.fraction_stable),
-            "max_real_pole": list(res.max_real_pole),
-        },
-    }
     cost = (
         f"workspace factor x{res.factor:.3g} (the handle's travel covers 1/{res.factor:.3g} "
         "of the stick's)"
@@ -170,7 +173,7 @@ def build(family, samples, limits) -> DesignResult:
         controller=None,
         order_full=0,
         reduction_error_bound=0.0,
-        details=details,
+        facts=res,
         notes=tuple(notes),
         cost_note=cost,
     )

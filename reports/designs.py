@@ -13,6 +13,7 @@ from designs import design_names, run_design
 from designs.calibration import REGION_RADIUS
 from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
 from designs.limit import design_set, limit_coverage_of
+from designs.robust_lmi import RobustLMIFacts
 from designs.spec import Specification
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
 from reports.html import HtmlPage, write_report_dir
@@ -837,17 +838,17 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
             + "."
         )
     for n, r in ok.items():
-        d = r.details
-        if "certified_scale" not in d:
+        if not isinstance(r.facts, RobustLMIFacts):
             continue
-        syn = d.get("synthesis", {})
+        d = r.facts.design
+        syn = d.synthesis
         rm = None if r.checks is None else r.checks.margin
-        fail = d.get("binding_at_failure")
+        fail = d.failed
         text = (
             f"{n} (LMI synthesis, {syn.get('members', 0)} design members, certificates "
             f"re-checked; worst certified H-infinity level {syn.get('gamma_bound', math.nan):.3g}) "
             f"meets the specification on the checked members of the family's box scaled to "
-            f"{d['scale']:.3g}"
+            f"{d.scale:.3g}"
         )
         if rm:
             text += (
@@ -856,8 +857,8 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
             )
         if fail:
             text += (
-                f". Beyond, at scale {fail['scale']:.3g}, the binding constraint is "
-                f"{fail['binding']} (utilisation {fail['utilisation']:.3g})"
+                f". Beyond, at scale {fail.scale:.3g}, the binding constraint is "
+                f"{fail.binding} (utilisation {fail.utilisation:.3g})"
             )
         out.append(text + ".")
     if tradeoff:

@@ -56,10 +56,10 @@ def test_hinf_robust_stabilises_the_sampled_members_and_says_when_not_all(runs):
     ev = r.evaluation
     assert ev.fraction_stable >= 0.97
     # the round kept is the one with the most sampled members stable
-    rounds = r.details["solver"]["rounds"]
-    kept = rounds[r.details["solver"]["chosen_round"]]["fraction_stable"]
+    rounds = r.facts.design.solver["rounds"]
+    kept = rounds[r.facts.design.solver["chosen_round"]]["fraction_stable"]
     assert kept == max(x["fraction_stable"] for x in rounds)
-    converged = r.details["solver"]["converged"]
+    converged = r.facts.design.solver["converged"]
     assert converged == (ev.max_real_pole < -0.3)
     notes = " ".join(r.notes)
     assert converged or "did not reach the required decay rate" in notes
@@ -103,11 +103,11 @@ def test_hinf_robust_reports_the_force_it_costs(runs):
 def test_workspace_factor_stabilises_the_sample(runs):
     r = _run(runs, "workspace")
     ev = r.evaluation
-    assert r.details["stabilises_family"]
+    assert r.facts.stabilises_family
     assert ev.fraction_stable == 1.0
     assert ev.min_damping > 0.0
     assert ev.max_real_pole < -0.01  # the search margin
-    assert 10.0 < r.details["factor"] < 200.0
+    assert 10.0 < r.facts.factor < 200.0
     assert ev.peak_force_n == 0.0 and ev.force_within_limits
 
 
@@ -128,7 +128,7 @@ def test_virtual_damping_margins(runs):
     ev = r.evaluation
     # the chosen pair keeps the force within the device limits and stabilises more of the
     # sample than no compensation does, but not all of it
-    assert r.details["force_limited_choice"] and ev.force_within_limits
+    assert r.facts.within_limits and ev.force_within_limits
     fam = default_family()
     bare = validate_family(fam, sample(fam.parameters, SAMPLES, method="lhs", seed=SEED))
     assert bare.fraction_stable < ev.fraction_stable < 1.0
@@ -182,12 +182,12 @@ def test_certified_robust_margin_of_shipped_designs(runs, name, floor, method):
 def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     """The shipped handle-force LMI design: its scale, its certified margin, its spec, 1 kHz."""
     r = _run(runs, "hinf-robust-lmi")
-    d = r.details
+    d = r.facts.design
     spec = Specification()
     # the ladder reached at least the scale measured when the design shipped (0.075; one
     # rung below it is 0.05), and failed beyond on a named constraint
-    assert d["scale"] >= 0.05
-    assert d["binding_at_failure"] and d["binding_at_failure"]["binding"] in (
+    assert d.scale >= 0.05
+    assert d.failed and d.failed.binding in (
         "decay rate",
         "damping",
         "tracking",
@@ -195,7 +195,7 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
         "peak force",
     )
     # every design member's certificate re-checked
-    for c in d["synthesis"]["certificates"]:
+    for c in d.synthesis["certificates"]:
         assert max(c["lmi_max_eig"].values()) < 0 and c["region_violation"] < 0
     # certified robust margin for the specification's region: the box scaled to 0.0025 (half
     # the 0.0051 the report's 400-box search certifies) is certified for the shipped
@@ -209,7 +209,7 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     )
     # the specification on fresh members of the box at the scale reached
     fam = default_family()
-    lo, hi = scaled_bounds(fam, d["scale"])
+    lo, hi = scaled_bounds(fam, d.scale)
     U = np.random.default_rng(99).random((6, lo.size))
     res = check_specification([fam.member(x) for x in lo + U * (hi - lo)], r.controller, spec)
     c = {x.name: x for x in res.constraints}

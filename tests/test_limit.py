@@ -13,10 +13,10 @@ import designs.limit as limit
 from bdft import main
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
+from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
 from robust.errors import InfeasibleError, ParameterError
 from robust.jsonio import round_significant
 from robust.synthesis.forcefb import intent_filter
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.youla import (
     LimitProblem,
     affine_maps,
@@ -84,7 +84,7 @@ def test_pole_basis_is_orthonormal_and_spans_its_poles():
 @pytest.fixture(scope="module")
 def force_problem(nominal):
     plant, _ = limit._member_plant(nominal, ("f", "r_corr"))
-    K0 = stabilising_gain(plant.A, plant.Bu, PoleRegion(0.1, 0.1))
+    K0 = stabilising_gain(plant.A, plant.Bu, Region(0.1, 0.1, EVERY_FREQUENCY_HZ))
     basis = lag_basis([0.5, 3.0, 20.0, 150.0])
     rng = np.random.default_rng(5)
     Theta = rng.normal(size=(plant.m, 4))
@@ -113,7 +113,7 @@ def test_stabilising_gain_skips_inaccurate_riccati_solutions(family):
     row = _member_with_nominal_valve(family, 64, 11)
     plant, _ = limit._member_plant(family.member(row), ("f",))
     spec = Specification()
-    region = PoleRegion(spec.decay_rate, spec.min_damping)
+    region = spec.region()
     K0 = stabilising_gain(plant.A, plant.Bu, region)
     n = plant.A.shape[0]
     target_decay = spec.decay_rate * 1.05 + 0.05
@@ -200,15 +200,15 @@ def test_output_feedback_maps_and_force_variance(nominal):
     plant, _ = limit._member_plant(nominal, ("f", "r_corr"))
     noise = limit.sensor_noise(nominal, ("x", "c"), encoder_mm=0.055, accel_rms=0.05)
     plant, meas = limit._member_plant(nominal, ("f", "r_corr"), ("x", "c"), noise)
-    region = PoleRegion(0.1, 0.1)
+    region = Region(0.1, 0.1, EVERY_FREQUENCY_HZ)
     K0 = stabilising_gain(plant.A, plant.Bu, region)
     L = observer_gain(plant, meas, region)
-    assert region.violation(np.linalg.eigvals(plant.A - L @ meas.Cm)) < 0
+    assert region.worst_violation(np.linalg.eigvals(plant.A - L @ meas.Cm)) < 0
     basis = lag_basis([0.5, 3.0, 20.0])
     Theta = np.random.default_rng(2).normal(size=(2, 2, 3)) * 1e-3
     w = np.array([0.3, 2.0, 12.0, 40.0])
     A, B, C = of_closed_loop(plant, meas, K0, L, basis, Theta)
-    assert region.violation(np.linalg.eigvals(A)) < 0
+    assert region.worst_violation(np.linalg.eigvals(A)) < 0
     sys = ct.ss(A, B, C, np.zeros((2, 3)))
     maps = of_affine_maps(plant, meas, K0, L, basis, w)
     np.testing.assert_allclose(

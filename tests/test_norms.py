@@ -6,7 +6,7 @@ import pytest
 import scipy.linalg as sla
 
 from robust.analysis.lyapunov import lyapunov, lyapunov_solver
-from robust.analysis.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
+from robust.analysis.norms import h2_norm, hinf_norm, is_stable, sigma_max, spectral_abscissa
 from robust.errors import ModelStructureError, ParameterError
 
 
@@ -24,11 +24,15 @@ def _stable_rss(n, p, m, seed):
     )
 
 
-@pytest.mark.parametrize(
+#: seeded random stable systems: states, outputs, inputs, seed
+RANDOM_SYSTEMS = pytest.mark.parametrize(
     "n,p,m,seed",
     [(1, 1, 1, 0), (3, 2, 2, 1), (8, 3, 1, 2), (20, 2, 4, 3), (40, 4, 4, 4)],
     ids=["n1", "n3", "n8", "n20", "n40"],
 )
+
+
+@RANDOM_SYSTEMS
 def test_bb_matches_grid_and_slicot(n, p, m, seed):
     sys = _stable_rss(n, p, m, seed)
     bb = hinf_norm(sys)
@@ -67,6 +71,37 @@ def test_unstable_is_inf_and_stability_check():
     assert spectral_abscissa(sys) == pytest.approx(0.5)
     for method in ("bb", "grid", "slicot"):
         assert hinf_norm(sys, method=method) == np.inf
+
+
+@RANDOM_SYSTEMS
+def test_h2_norm_matches_slicot_and_the_observability_gramian(n, p, m, seed):
+    rss = _stable_rss(n, p, m, seed)
+    sys = control.ss(rss.A, rss.B, rss.C, np.zeros((p, m)))
+    h2 = h2_norm(sys)
+    # python-control's norm(p=2) calls SLICOT ab13bd (slycot)
+    assert h2 == pytest.approx(control.norm(sys, p=2), rel=1e-9)
+    # the dual Gramian: trace(B' Wo B), A' Wo + Wo A + C' C = 0
+    Wo = sla.solve_continuous_lyapunov(rss.A.T, -rss.C.T @ rss.C)
+    assert h2 == pytest.approx(np.sqrt(np.trace(rss.B.T @ Wo @ rss.B)), rel=1e-9)
+    # the matrices' form gives the same bits as the system's
+    assert h2_norm(sys.A, sys.B, sys.C) == h2
+    assert h2_norm(sys.A, sys.B, sys.C, np.zeros((p, m))) == h2
+
+
+def test_h2_norm_of_a_first_order_lag_feedthrough_and_unstable():
+    # 1/(s + a): ||G||_2^2 = 1/(2 a)
+    a = 3.0
+    assert h2_norm(control.ss([[-a]], [[1.0]], [[1.0]], [[0.0]])) == pytest.approx(
+        np.sqrt(1 / (2 * a)), rel=1e-14
+    )
+    # white noise straight through has infinite power; so has an unstable system
+    assert h2_norm(control.ss([[-a]], [[1.0]], [[1.0]], [[0.5]])) == np.inf
+    assert h2_norm(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]])) == np.inf
+    assert h2_norm(control.ss([], [], [], [[0.0]])) == 0.0
+    with pytest.raises(ModelStructureError, match="continuous-time"):
+        h2_norm(control.c2d(control.ss([[-a]], [[1.0]], [[1.0]], [[0.0]]), 0.01))
+    with pytest.raises(ModelStructureError, match="matrices A, B and C"):
+        h2_norm(np.eye(2), np.ones((2, 1)))
 
 
 def test_static_gain():

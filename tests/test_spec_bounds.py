@@ -19,7 +19,6 @@ from designs.evaluate import output_ratio
 from designs.spec import Specification, check_specification
 from robust.analysis.bounds import bound_ratio, crossing_frequencies, siso_response
 from robust.analysis.loops import loop_poles
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.youla import (
     LimitProblem,
     of_affine_maps,
@@ -52,7 +51,7 @@ def _old_grid_controller(loop, sensors):
     sens = limit.SENSOR_SETS[sensors]
     noise = limit.sensor_noise(loop, sens, encoder_mm=0.055, accel_rms=0.05)
     plant, meas, (s_u, s_m) = limit._member_plant(loop, ("r_corr",), sens, noise, scales=True)
-    region = PoleRegion(spec.decay_rate, spec.min_damping)
+    region = spec.region()
     K0 = limit._gain(loop, ("r_corr",), region)
     L = limit._observer(loop, sens, region)
     extra = [np.linalg.eigvals(plant.A + plant.Bu @ K0), np.linalg.eigvals(plant.A - L @ meas.Cm)]

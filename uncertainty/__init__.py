@@ -113,6 +113,7 @@ __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         "robust.constants": ("DAMPING_BAND_HZ",),
+        "robust.analysis.region": ("Region",),
         "uncertainty.constants": (
             "DEFAULT_CHUNK",
             "RANGES",
@@ -169,10 +170,7 @@ __getattr__, __dir__ = lazy_exports(
             "DISTRIBUTIONS",
             "UncertainParameter",
         ),
-        "uncertainty.region": (
-            "MarginResult",
-            "Region",
-        ),
+        "uncertainty.region": ("MarginResult",),
         "uncertainty.sampling": (
             "MAX_SAMPLE_BYTES",
             "METHODS",

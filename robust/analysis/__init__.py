@@ -1,6 +1,6 @@
-"""Analysis of LTI loops: poles and stability, frequency responses, claims C1-C5,
-calibration, H-infinity norms, minimal realisation, reduction, simulation and the
-continuous-versus-sampled-data check.
+"""Analysis of LTI loops: poles and stability, the pole region, frequency responses, claims
+C1-C5, calibration, H-infinity and H2 norms, minimal realisation, reduction, simulation and
+the continuous-versus-sampled-data check.
 """
 
 from robust.analysis.calibration import (
@@ -19,9 +19,10 @@ from robust.analysis.loops import (
     frequency_response,
     loop_poles,
 )
-from robust.analysis.norms import hinf_norm, is_stable, sigma_max, spectral_abscissa
+from robust.analysis.norms import h2_norm, hinf_norm, is_stable, sigma_max, spectral_abscissa
 from robust.analysis.realization import MinimalRealization, minimal_realization
 from robust.analysis.reduction import ReducedModel, balanced_truncation, hankel_singular_values
+from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
 from robust.analysis.sampled import SampledDataCheck, open_plant, sampled_data_check
 from robust.analysis.simulation import SweptSine, TimeResponse, simulate, simulate_swept_sine
 from robust.analysis.stability import STABILITY_TOL, poles_stable, stable_mask, unstable_mask
@@ -42,10 +43,13 @@ __all__ = [
     "critical_k_psf",
     "frequency_response",
     "loop_poles",
+    "h2_norm",
     "hinf_norm",
     "is_stable",
     "sigma_max",
     "spectral_abscissa",
+    "EVERY_FREQUENCY_HZ",
+    "Region",
     "MinimalRealization",
     "minimal_realization",
     "ReducedModel",

@@ -6,10 +6,11 @@ Modules: :mod:`.genplant` (the plant), :mod:`.forcefb` (the force-feedback plant
 :mod:`.assumptions` (checks before any solve), :mod:`.scaling` (apply/invert pairs),
 :mod:`.lmi` (LMI builders), :mod:`.solve` (the solver wrapper), :mod:`.nominal`
 (:func:`hinfsyn_lmi`), :mod:`.multi` (:func:`hinfsyn_multi`: generalized plants, through
-:func:`pksyn_multi`), :mod:`.region` (LMI pole
-regions, :func:`certify_region`), :mod:`.pk` (:func:`pksyn_multi`, the P-K iteration on a
-family with per-member certificates), :mod:`.tuning` (its starts: :func:`minimax_start` by linear
-programs, :func:`tune_members` by nonsmooth BFGS), :mod:`.testing` (seeded test plants).
+:func:`pksyn_multi`), :mod:`.region` (LMI pole regions of
+:class:`robust.analysis.region.Region`, :func:`certify_region`), :mod:`.pk`
+(:func:`pksyn_multi`, the P-K iteration on a family with per-member certificates),
+:mod:`.tuning` (its starts: :func:`minimax_start` by linear programs, :func:`tune_members`
+by nonsmooth BFGS), :mod:`.testing` (seeded test plants).
 """
 
 from robust.synthesis.assumptions import (
@@ -28,7 +29,7 @@ from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
 from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
 from robust.synthesis.pk import MultiObjectiveResult, SynthesisMember, pksyn_multi
-from robust.synthesis.region import PoleRegion, certify_region
+from robust.synthesis.region import certify_region
 from robust.synthesis.scaling import D22Removal, PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem
 from robust.synthesis.tuning import minimax_start, region_start, slp_minimise, tune_members
@@ -56,7 +57,6 @@ __all__ = [
     "SynthesisMember",
     "MultiObjectiveResult",
     "pksyn_multi",
-    "PoleRegion",
     "certify_region",
     "tune_members",
     "minimax_start",

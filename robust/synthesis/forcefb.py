@@ -35,6 +35,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
+from robust.analysis.norms import h2_norm
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import ModelStructureError
 from robust.model.device import DeviceLimits
@@ -404,8 +405,7 @@ def synthesis_member(
     if "f" in controls:
         amp = loop.intended_amplitude(lim, intent_fraction)
         unit = intent_filter(intent_bandwidth_hz, 1.0)
-        h2n = float(np.sqrt(np.trace(unit.C @ ct.lyap(unit.A, unit.B @ unit.B.T) @ unit.C.T)))
-        gain = amp / (math.sqrt(2.0) * h2n)
+        gain = amp / (math.sqrt(2.0) * h2_norm(unit))
         h2 = plant(
             [intent_filter(intent_bandwidth_hz, gain), _static(1.0, "f", "z_f", "force_out")],
             ["w_u"],

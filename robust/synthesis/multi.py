@@ -20,6 +20,7 @@ import control
 import numpy as np
 
 from robust.analysis.norms import hinf_norm, spectral_abscissa
+from robust.analysis.region import Region
 from robust.analysis.stability import stability_bound
 from robust.checks import POSITIVE, Spec, check_scalar
 from robust.errors import (
@@ -35,7 +36,6 @@ from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.lmi import PlantBlocks
 from robust.synthesis.nominal import hinfsyn_lmi
 from robust.synthesis.pk import SynthesisMember, pksyn_multi
-from robust.synthesis.region import PoleRegion
 from robust.synthesis.scaling import PlantScaling
 from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers
 
@@ -343,7 +343,7 @@ def hinfsyn_multi(
         res = pksyn_multi(
             members,
             K,
-            PoleRegion(),
+            Region(),
             w0=w0,
             max_iter=max_iter,
             trust=trust,

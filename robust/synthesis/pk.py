@@ -3,9 +3,10 @@
 One fixed-order controller ``u = K y`` for a set of members. Each member has three
 plants that share the controls ``u`` and measurements ``y`` (:class:`SynthesisMember`):
 the *region* plant (the loop whose closed-loop poles must lie in a
-:class:`~robust.synthesis.region.PoleRegion`), the *H-infinity* plant (a performance
-channel ``w -> z``) and, optionally, the *H2* plant (a white-noise channel whose output
-power is bounded, e.g. the handle force under the realistic intended motion).
+:class:`~robust.analysis.region.Region`, its damping enforced at every frequency), the
+*H-infinity* plant (a performance channel ``w -> z``) and, optionally, the *H2* plant (a
+white-noise channel whose output power is bounded, e.g. the handle force under the
+realistic intended motion).
 
 Problem::
 
@@ -47,7 +48,8 @@ cone-and-decay certificate per member from the region LMI
 
 Every answer is verified before it is returned: each certificate's LMI matrices
 rebuilt in numpy, each member's closed-loop eigenvalues, its H-infinity norm
-(:func:`robust.analysis.norms.hinf_norm`) and its H2 norm (controllability Gramian).
+(:func:`robust.analysis.norms.hinf_norm`) and its H2 norm
+(:func:`robust.analysis.norms.h2_norm`, controllability Gramian).
 """
 
 from __future__ import annotations
@@ -64,8 +66,8 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from robust.analysis.lyapunov import lyapunov
-from robust.analysis.norms import hinf_norm
+from robust.analysis.norms import h2_norm, hinf_norm
+from robust.analysis.region import Region
 from robust.analysis.resolvent import siso_responses
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.engine import jobs_available, map_tasks
@@ -78,11 +80,11 @@ from robust.errors import (
 )
 from robust.synthesis.lmi import PlantBlocks
 from robust.synthesis.region import (
-    PoleRegion,
     RegionCertificate,
     certify_region,
     recentring,
     sym,
+    synthesis_region,
 )
 from robust.synthesis.scaling import (
     ChannelScaling,
@@ -105,7 +107,6 @@ __all__ = [
     "MultiObjectiveResult",
     "pksyn_multi",
     "certify_regions",
-    "h2_norm",
     "eigen_derivatives",
     "eigen_derivatives_many",
     "eigen_region_rows",
@@ -361,29 +362,6 @@ def _max_eig(M) -> float:
     return float(np.linalg.eigvalsh(sym(np.asarray(M, float))).max())
 
 
-def h2_norm(A, B, C) -> float:
-    """H2 norm of a stable, strictly proper ``(A, B, C)`` from the controllability Gramian.
-
-    Parameters
-    ----------
-    A, B, C : numpy.ndarray
-        State-space matrices (``A`` Hurwitz).
-
-    Returns
-    -------
-    float
-        ``sqrt(trace(C W C'))`` with ``A W + W A' + B B' = 0``; ``inf`` if ``A`` is not
-        Hurwitz.
-    """
-    A, B, C = (np.asarray(M, float) for M in (A, B, C))
-    if A.shape[0] == 0:
-        return 0.0
-    if np.linalg.eigvals(A).real.max() >= 0:
-        return math.inf
-    W = lyapunov(A, -B @ B.T)
-    return math.sqrt(max(float(np.trace(C @ W @ C.T)), 0.0))
-
-
 # --------------------------------------------------------------------- results
 @dataclasses.dataclass(frozen=True)
 class MemberCertificates:
@@ -460,8 +438,8 @@ class MultiObjectiveResult:
         Whether every member's certified H2 bound is within ``h2_bound``.
     certificates : tuple of MemberCertificates
         One per member, in order.
-    region : PoleRegion
-        The region certified for every member.
+    region : robust.analysis.region.Region
+        The region certified for every member, its damping at every frequency.
     history : tuple of dict
         Per accepted step: ``gamma`` (certified), ``h2_excess`` (relative slack),
         ``trust`` radius.
@@ -487,7 +465,7 @@ class MultiObjectiveResult:
     h2_bound: float | None
     h2_met: bool
     certificates: tuple
-    region: PoleRegion
+    region: Region
     history: tuple
     iterations: int
     solve_times: tuple
@@ -689,7 +667,7 @@ def eigen_derivatives_many(cls, Om) -> list:
     return [_eigen_products(cl, lam[i], R[i], R_inv[i]) for i, cl in enumerate(cls)]
 
 
-def eigen_region_rows(cl: _Affine, Om, region: PoleRegion) -> list:
+def eigen_region_rows(cl: _Affine, Om, region: Region) -> list:
     """Violations of the region plant's poles and their gradients w.r.t. ``Om``.
 
     Parameters
@@ -698,7 +676,7 @@ def eigen_region_rows(cl: _Affine, Om, region: PoleRegion) -> list:
         The region plant's closed loop.
     Om : numpy.ndarray
         Controller data.
-    region : PoleRegion
+    region : robust.analysis.region.Region
         The region (in the loop's time unit).
 
     Returns
@@ -990,23 +968,21 @@ def _response_excess(members, Om) -> float:
     return max(worst, 0.0)
 
 
-def _check_options(region, h2_bound, w0, max_iter, trust, rtol):
-    if not isinstance(region, PoleRegion):
-        raise ModelStructureError(
-            f"pksyn_multi: region must be a PoleRegion; got {type(region).__name__}"
-        )
+def _check_options(region, h2_bound, w0, max_iter, trust, rtol) -> Region:
+    region = synthesis_region(region, "pksyn_multi")
     if h2_bound is not None:
         check_scalar("h2_bound", h2_bound, POSITIVE, owner="pksyn_multi")
     check_scalar("w0", w0, POSITIVE, owner="pksyn_multi")
     check_int("max_iter", max_iter, low=0, owner="pksyn_multi")
     check_scalar("trust", trust, Spec(low=0.0, low_open=True), owner="pksyn_multi")
     check_scalar("rtol", rtol, Spec(0.0, 1.0, False, True), owner="pksyn_multi")
+    return region
 
 
 def pksyn_multi(
     members: Sequence[SynthesisMember],
     K0,
-    region: PoleRegion,
+    region: Region,
     *,
     h2_bound: float | None = None,
     w0: float = 20.0,
@@ -1036,8 +1012,10 @@ def pksyn_multi(
         The design members (same controls and measurements).
     K0 : control.StateSpace or ControllerMatrices
         Initial controller ``y -> u``.
-    region : PoleRegion
-        The pole region (decay rate and damping cone).
+    region : robust.analysis.region.Region
+        The pole region (decay rate and damping cone). Its damping is enforced at every
+        frequency, whatever its band (conservative for a band-limited region, which the
+        analyses check exactly in its band).
     h2_bound : float, optional
         Bound on every member's H2 norm, original units (required when members have
         H2 plants; ignored otherwise).
@@ -1076,7 +1054,7 @@ def pksyn_multi(
         A final certificate fails its numpy re-check or an independent check.
     """
     t_start = time.perf_counter()
-    _check_options(region, h2_bound, w0, max_iter, trust, rtol)
+    region = _check_options(region, h2_bound, w0, max_iter, trust, rtol)
     solvers = check_solvers(solvers, name="pksyn_multi: solvers", sdp=True)
     members = list(members)
     if not members or not all(isinstance(m, SynthesisMember) for m in members):
@@ -1099,7 +1077,7 @@ def pksyn_multi(
         )
     bad = []
     for i, m in enumerate(members):
-        v = region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
+        v = region.worst_violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
         if v >= 0:
             bad.append(f"{m.label or i} (violation {v:.3g} rad/s)")
     if bad:
@@ -1282,7 +1260,9 @@ def _entry(pt: _Point, h2cap: float, radius: float, response_excess: float) -> d
 def _reject_reason(scaled, pt: _Point, Om_new, region_s) -> str | None:
     """Why a K-step's controller is not kept (poles leave the region, bounds worsen)."""
     for i, m in enumerate(scaled):
-        v = region_s.violation(np.linalg.eigvals(m.region.A0 + m.region.Bb @ Om_new @ m.region.Cb))
+        v = region_s.worst_violation(
+            np.linalg.eigvals(m.region.A0 + m.region.Bb @ Om_new @ m.region.Cb)
+        )
         if v >= 0:
             return f"member {i} leaves the region (violation {v:.3g}, scaled time)"
     before = _response_excess(scaled, pt.Om)
@@ -1330,7 +1310,7 @@ def _final_certificates(
             h2b = math.sqrt(pt.z_member[i] * w0)
             h2 = h2_norm(*_Affine(m.h2, nk).matrices(Om)[:3])
         rc = None
-        violation = region.violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
+        violation = region.worst_violation(np.linalg.eigvals(_Affine(m.region, nk).matrices(Om)[0]))
         if with_regions:
             rc = _region_certificate(
                 m, s, pt.Om, nk, w0, region, solvers, solve_times, i, violation

@@ -1,5 +1,10 @@
 """LMI pole regions (Chilali & Gahinet 1996): a decay rate and a damping cone, one certificate.
 
+The region is the workbench's one :class:`robust.analysis.region.Region`. Its cone is an
+LMI region only at every frequency (a cone over one band is not convex): synthesis and
+these certificates enforce the damping of every pole (:func:`synthesis_region`), which for
+a band-limited region is conservative; the analyses check it exactly in its band.
+
 A real matrix ``A`` has every eigenvalue in the region
 
     D = { s : Re s <= -alpha }  intersected with  { s : Re s <= -zeta |s| }
@@ -36,18 +41,17 @@ References
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from robust.checks import Spec, check_scalar
+from robust.analysis.region import Region
 from robust.errors import InfeasibleError, ModelStructureError, SolverError, VerificationError
 from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers, solve_problem
 
 __all__ = [
-    "PoleRegion",
+    "synthesis_region",
     "RegionCertificate",
     "region_lmis",
     "certify_region",
@@ -81,78 +85,34 @@ def _kron(a, B):
     return cp.kron(a, B) if isinstance(B, cp.Expression) else np.kron(a, B)
 
 
-@dataclasses.dataclass(frozen=True)
-class PoleRegion:
-    """Decay rate and damping cone, the LMI region of [CG96].
+def synthesis_region(region, owner: str) -> Region:
+    """``region`` as synthesis enforces it: its damping at every frequency.
+
+    The LMI cone of [CG96] holds for every pole; a region whose damping band is limited
+    (or left to the default of what is analysed) is enforced at every frequency,
+    conservatively (:meth:`robust.analysis.region.Region.everywhere`), and the analyses
+    check it exactly in its band.
 
     Parameters
     ----------
-    decay_rate : float
-        Every eigenvalue has real part ``<= -decay_rate``, rad/s (``>= 0``).
-    min_damping : float
-        Every eigenvalue has damping ratio ``-Re s / |s| >= min_damping`` (in ``[0, 1)``;
-        0: no cone).
+    region : Region
+        The region asked for.
+    owner : str
+        The function asking, for the error message.
+
+    Raises
+    ------
+    ModelStructureError
+        If ``region`` is not a :class:`~robust.analysis.region.Region`.
     """
-
-    decay_rate: float = 0.0
-    min_damping: float = 0.0
-
-    def __post_init__(self):
-        check_scalar("decay_rate", self.decay_rate, Spec(low=0.0), owner="PoleRegion")
-        check_scalar(
-            "min_damping", self.min_damping, Spec(0.0, 1.0, False, True), owner="PoleRegion"
+    if not isinstance(region, Region):
+        raise ModelStructureError(
+            f"{owner}: region must be a robust.analysis.region.Region; got {type(region).__name__}"
         )
-
-    @property
-    def cone(self) -> tuple[float, float]:
-        """``(sin theta, cos theta)`` of the cone's half-angle ``theta = arccos(zeta)``."""
-        th = math.acos(self.min_damping)
-        return math.sin(th), math.cos(th)
-
-    def violations(self, poles) -> np.ndarray:
-        """Per eigenvalue, ``max(Re s + alpha, Re s + zeta |s|)`` (``<= 0``: inside), rad/s.
-
-        Parameters
-        ----------
-        poles : array_like of complex
-            Eigenvalues, rad/s.
-        """
-        p = np.asarray(poles, complex).ravel()
-        v = p.real + self.decay_rate
-        if self.min_damping > 0:
-            v = np.maximum(v, p.real + self.min_damping * np.abs(p))
-        return v
-
-    def violation(self, poles) -> float:
-        """Largest of :meth:`violations` (``-inf`` without eigenvalues), rad/s.
-
-        Parameters
-        ----------
-        poles : array_like of complex
-            Eigenvalues, rad/s.
-        """
-        v = self.violations(poles)
-        return float(v.max()) if v.size else -math.inf
-
-    def scaled(self, w0: float) -> PoleRegion:
-        """The same region in time ``tau = w0 t`` (the decay rate divided by ``w0``).
-
-        Parameters
-        ----------
-        w0 : float
-            Time scale, rad/s.
-        """
-        return PoleRegion(self.decay_rate / w0, self.min_damping)
-
-    def describe(self) -> str:
-        """One line: the region in words."""
-        text = f"every pole with real part <= -{self.decay_rate:g} rad/s"
-        if self.min_damping > 0:
-            text += f" and damping ratio >= {self.min_damping:g}"
-        return text
+    return region.everywhere()
 
 
-def region_lmis(A, X, region: PoleRegion) -> dict:
+def region_lmis(A, X, region: Region) -> dict:
     """The region's LMI matrices for ``A`` and ``X`` (each must be negative definite).
 
     Parameters
@@ -161,8 +121,8 @@ def region_lmis(A, X, region: PoleRegion) -> dict:
         The matrix (numpy when ``X`` is a cvxpy variable, and vice versa).
     X : numpy.ndarray or cvxpy expression, shape (n, n)
         Symmetric Lyapunov matrix.
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
 
     Returns
     -------
@@ -212,7 +172,7 @@ class RegionCertificate:
         ``||X||``; all negative), and ``"X_min"``, the smallest eigenvalue of ``X``
         relative to its largest (positive).
     violation : float
-        :meth:`PoleRegion.violation` of the matrix's eigenvalues (negative).
+        :meth:`Region.worst_violation` of the matrix's eigenvalues (negative).
     method : str
         How ``X`` was found: ``"modal"`` (from the eigenvectors) or ``"sdp"``.
     """
@@ -231,15 +191,15 @@ class RegionCertificate:
         }
 
 
-def check_region_certificate(A, X, region: PoleRegion) -> dict:
+def check_region_certificate(A, X, region: Region) -> dict:
     """Largest eigenvalue of each LMI matrix, relative to ``||X||``, and ``X``'s smallest.
 
     Parameters
     ----------
     A, X : numpy.ndarray
         The matrix and the candidate certificate.
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
     """
     X = sym(np.asarray(X, float))
     scale = float(np.linalg.norm(X, 2))
@@ -251,7 +211,7 @@ def check_region_certificate(A, X, region: PoleRegion) -> dict:
     return out
 
 
-def _modal_certificate(A, region: PoleRegion):
+def _modal_certificate(A, region: Region):
     """``X = (V V^H)^-1`` from the eigenvectors of ``A`` and its numpy checks, if every check
     clears rounding by a wide factor (else ``None``)."""
     try:
@@ -272,7 +232,7 @@ def _modal_certificate(A, region: PoleRegion):
     return X, checks
 
 
-def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionCertificate:
+def certify_region(A, region: Region, *, solvers=DEFAULT_SOLVERS) -> RegionCertificate:
     """One Lyapunov matrix proving every eigenvalue of ``A`` lies in ``region`` ([CG96]).
 
     First the modal certificate ``X = (V V^H)^-1`` (module notes), kept when each rebuilt
@@ -287,8 +247,8 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
     ----------
     A : numpy.ndarray, shape (n, n)
         A real square matrix.
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
     solvers : sequence of str
         cvxpy SDP solvers, in order.
 
@@ -299,17 +259,14 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
     Raises
     ------
     ModelStructureError
-        If ``A`` is not a finite real square matrix or ``region`` not a PoleRegion.
+        If ``A`` is not a finite real square matrix or ``region`` not a Region.
     InfeasibleError
         If an eigenvalue of ``A`` lies outside the region (no certificate can exist),
         or the SDP finds no positive margin.
     VerificationError
         If the returned certificate fails its numpy check.
     """
-    if not isinstance(region, PoleRegion):
-        raise ModelStructureError(
-            f"certify_region: region must be a PoleRegion; got {type(region).__name__}"
-        )
+    region = synthesis_region(region, "certify_region")
     A = np.asarray(A, dtype=float)
     if A.ndim != 2 or A.shape[0] != A.shape[1] or not np.all(np.isfinite(A)):
         raise ModelStructureError(
@@ -317,7 +274,7 @@ def certify_region(A, region: PoleRegion, *, solvers=DEFAULT_SOLVERS) -> RegionC
         )
     solvers = check_solvers(solvers, name="certify_region: solvers", sdp=True)
     n = A.shape[0]
-    v = region.violation(np.linalg.eigvals(A))
+    v = region.worst_violation(np.linalg.eigvals(A))
     if v >= 0:
         raise InfeasibleError(
             f"certify_region: an eigenvalue lies outside the region ({region.describe()}): "

@@ -13,7 +13,7 @@ such nonsmooth objectives well (Lewis & Overton, Math. Programming 141, 2013), o
              + prox * ||(Omega - Omega_0) / unit||^2 / size,
 
 ``v_j`` the region violations (decay and damping cone,
-:meth:`robust.synthesis.region.PoleRegion.violations`) of every pole of every
+:meth:`robust.analysis.region.Region.violations`) of every pole of every
 member's region plant, ``m`` the margin, ``T`` the member's H-infinity channel and
 ``h2_i`` its H2 norm. Gradients are exact: eigenvalues ``d lambda = l^H Bb dOmega Cb r /
 l^H r``; frequency responses ``dT = (D12b + C R Bb) dOmega (Cb R B + D21b)`` with
@@ -37,6 +37,7 @@ import control
 import numpy as np
 
 from robust.analysis.lyapunov import lyapunov, lyapunov_solver
+from robust.analysis.region import Region
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.lp import solve_lp
@@ -49,7 +50,7 @@ from robust.synthesis.pk import (
     scale_members,
     to_scaled,
 )
-from robust.synthesis.region import PoleRegion
+from robust.synthesis.region import synthesis_region
 from robust.synthesis.scaling import ControllerMatrices
 
 __all__ = [
@@ -334,11 +335,10 @@ class _Terms:
 
 
 def _checked_start(owner: str, members, K0, region) -> tuple:
-    """The members as a list and ``K0``'s matrices, checked: ``(members, K, nk)``."""
-    if not isinstance(region, PoleRegion):
-        raise ModelStructureError(
-            f"{owner}: region must be a PoleRegion; got {type(region).__name__}"
-        )
+    """The members as a list, ``K0``'s matrices and the region as synthesis enforces it
+    (:func:`robust.synthesis.region.synthesis_region`), checked: ``(members, K, nk,
+    region)``."""
+    region = synthesis_region(region, owner)
     members = list(members)
     if not members or not all(isinstance(m, SynthesisMember) for m in members):
         raise ModelStructureError(f"{owner}: members must be SynthesisMember objects")
@@ -352,7 +352,7 @@ def _checked_start(owner: str, members, K0, region) -> tuple:
         raise ModelStructureError(
             f"{owner}: K0 must map {members[0].ny} measurements to {members[0].nu} controls"
         )
-    return members, K, nk
+    return members, K, nk, region
 
 
 def _controller(Om_s, nk: int, w0: float, channels) -> control.StateSpace:
@@ -374,7 +374,7 @@ def _tuning_result(terms, Om, nk: int, w0: float, channels, objective: float, it
 def tune_members(
     members,
     K0,
-    region: PoleRegion,
+    region: Region,
     *,
     tracking_bound: float = 1.0,
     h2_bound: float | None = None,
@@ -397,7 +397,7 @@ def tune_members(
         Design members.
     K0 : control.StateSpace
         Starting controller ``y -> u`` (fixes the order).
-    region : PoleRegion
+    region : robust.analysis.region.Region
         The region; the objective stops pushing once every violation is below
         ``-margin``.
     tracking_bound : float
@@ -427,7 +427,7 @@ def tune_members(
     -------
     TuningResult
     """
-    members, K, nk = _checked_start("tune_members", members, K0, region)
+    members, K, nk, region = _checked_start("tune_members", members, K0, region)
     for name, val in (("tracking_bound", tracking_bound), ("margin", margin), ("tau", tau)):
         check_scalar(name, val, POSITIVE, owner="tune_members")
     if h2_bound is not None:
@@ -672,7 +672,7 @@ def _region_rows(scaled, region_s):
 def region_start(
     members,
     K0,
-    region: PoleRegion,
+    region: Region,
     *,
     margin: float = 0.05,
     max_iter: int = 60,
@@ -695,8 +695,8 @@ def region_start(
         Design members.
     K0 : control.StateSpace
         Starting controller ``y -> u`` (fixes the order).
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
     margin : float
         Required distance inside the region, rad/s.
     max_iter : int
@@ -715,7 +715,7 @@ def region_start(
         ``objective`` are the final largest violation in rad/s; ``iterations`` the linear
         programs solved.
     """
-    members, K, nk = _checked_start("region_start", members, K0, region)
+    members, K, nk, region = _checked_start("region_start", members, K0, region)
     for name, val in (("margin", margin), ("trust", trust), ("w0", w0)):
         check_scalar(name, val, POSITIVE, owner="region_start")
     check_scalar("prox", prox, Spec(low=0.0), owner="region_start")
@@ -749,7 +749,7 @@ def region_start(
 def minimax_start(
     members,
     K0,
-    region: PoleRegion,
+    region: Region,
     *,
     tracking_bound: float = 1.0,
     h2_bound: float | None = None,
@@ -783,8 +783,8 @@ def minimax_start(
         Design members.
     K0 : control.StateSpace
         Starting controller ``y -> u``.
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
     tracking_bound : float
         Scale of ``|T(jw)|`` (1 at the specification's edge).
     h2_bound : float, optional
@@ -814,6 +814,7 @@ def minimax_start(
     first = region_start(members, K0, region, margin=margin, max_iter=max_iter, w0=w0)
     if first.violation >= 0:
         return first
+    region = region.everywhere()
     check_scalar("tracking_bound", tracking_bound, POSITIVE, owner="minimax_start")
     if h2_bound is not None:
         check_scalar("h2_bound", h2_bound, POSITIVE, owner="minimax_start")

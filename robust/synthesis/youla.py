@@ -50,8 +50,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from robust.analysis.loops import resolvent_times
+from robust.analysis.region import Region
 from robust.errors import InfeasibleError, ModelStructureError, ParameterError, SolverError
-from robust.synthesis.region import PoleRegion
+from robust.synthesis.region import synthesis_region
 from robust.synthesis.solve import solve_problem
 
 __all__ = [
@@ -269,13 +270,14 @@ def _riccati_residual(A, Bu, X, r: float) -> float:
     return float(np.linalg.norm(res, 1) / scale)
 
 
-def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.ndarray:
+def stabilising_gain(A, Bu, region: Region, *, margin: float = 0.05) -> np.ndarray:
     """A state feedback ``K0`` with every eigenvalue of ``A + Bu K0`` inside ``region``.
 
     Linear-quadratic regulators on ``A + alpha I`` (decay rate ``alpha`` above the
     region's) with identity state weight and input weights from large (least effort) to
     small, tried in turn; the first whose closed-loop eigenvalues lie at least ``margin``
-    (relative) inside the region (:meth:`PoleRegion.violations`) is returned. A Riccati
+    (relative) inside the region (:meth:`~robust.analysis.region.Region.violations`, its
+    damping at every frequency) is returned. A Riccati
     solution whose relative residual exceeds :data:`RICCATI_RTOL` is skipped: with a large
     input weight and a mode the actuators barely move, the solution grows to 1e15 and its
     residual to 1e-3, and the gain it gives is set by rounding (on one CPU's kernels it
@@ -289,8 +291,8 @@ def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.n
         State matrix.
     Bu : ndarray (n, m)
         Actuator input matrix.
-    region : PoleRegion
-        The region (decay rate, damping cone).
+    region : robust.analysis.region.Region
+        The region (decay rate, damping cone; the damping enforced at every frequency).
     margin : float
         Relative margin inside the region the gain must reach.
 
@@ -303,8 +305,11 @@ def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.n
     A = np.asarray(A, float)
     Bu = np.asarray(Bu, float)
     n = A.shape[0]
-    target = PoleRegion(
-        region.decay_rate * (1 + margin) + margin, min(0.99, region.min_damping * (1 + margin))
+    region = synthesis_region(region, "stabilising_gain")
+    target = Region(
+        region.decay_rate * (1 + margin) + margin,
+        min(0.99, region.min_damping * (1 + margin)),
+        region.band_hz,
     )
     # the least control effort first: a large input weight mirrors the poles outside the
     # shifted half-plane and leaves the others; smaller weights move more of them
@@ -321,7 +326,7 @@ def stabilising_gain(A, Bu, region: PoleRegion, *, margin: float = 0.05) -> np.n
             if not np.all(np.isfinite(K)) or _riccati_residual(As, Bu, X, r) > RICCATI_RTOL:
                 inaccurate += 1
                 continue
-            if target.violation(np.linalg.eigvals(A + Bu @ K)) < 0:
+            if target.worst_violation(np.linalg.eigvals(A + Bu @ K)) < 0:
                 return K
     raise InfeasibleError(
         f"stabilising_gain: no LQR gain places every pole in {target.describe()} "
@@ -786,7 +791,7 @@ class Measurements:
         return self.Cm.shape[0]
 
 
-def observer_gain(plant: YoulaPlant, meas: Measurements, region: PoleRegion) -> np.ndarray:
+def observer_gain(plant: YoulaPlant, meas: Measurements, region: Region) -> np.ndarray:
     """An observer gain ``L`` with every eigenvalue of ``A - L Cm`` inside ``region``.
 
     The dual of :func:`stabilising_gain` on the measurements scaled to unit row norm (so
@@ -799,8 +804,8 @@ def observer_gain(plant: YoulaPlant, meas: Measurements, region: PoleRegion) -> 
         The plant.
     meas : Measurements
         The measurements.
-    region : PoleRegion
-        The region.
+    region : robust.analysis.region.Region
+        The region (its damping enforced at every frequency).
     """
     s = np.linalg.norm(meas.Cm, axis=1)
     s = np.where(s > 0, s, 1.0)
