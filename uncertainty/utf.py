@@ -154,6 +154,9 @@ class UTF(Arithmetic):
         Coefficients of the numerator and the denominator, highest power of ``s`` first.
     inputs, outputs : str
         Signal names.
+    gain : bool
+        A static gain (a number or an expression lifted to a transfer function): in a
+        product or sum, the other operand's signal names are kept.
 
     Attributes
     ----------
