@@ -418,7 +418,12 @@ class ValueSetLoop:
             mag_lo = mag_lo + lk[0] + 2 * np.log(w_lo)
         mag_hi = mag_hi + lk[1] + 2 * np.log(w_hi)
         arg_lo, arg_hi = arg_lo + math.pi, arg_hi + math.pi
-        score[:, d] += 2 * np.log(w_hi / np.maximum(w_lo, 1e-300)).clip(max=10.0)
+        # the s^2's share of the frequency's width: 2 log(w_hi / w_lo), and on a cell from
+        # w = 0 (where |L| -> 0 and only the upper end counts) what halving it gains,
+        # 2 log 2; none on a cell no factor decides (a divisor's range reaches 0 there, which
+        # only splitting its own variables can mend)
+        s2 = np.where(w_lo > 0, 2 * np.log(w_hi / np.maximum(w_lo, 1e-300)), 2 * math.log(2.0))
+        score[:, d] += np.where(invalid, 0.0, s2.clip(max=10.0))
         # the gain k_s (log|k_s| is the coordinate itself for a log-uniform k_s) and s^2
         if ks is None:
             zc[:, 0] += lk[0]
