@@ -200,9 +200,12 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
 
 def _resolve_method(loop, region, method: str) -> str:
     """``auto``: the value-set route for a family's open loop and the open left half-plane
-    (where it applies), else the eigenvalue enclosures."""
+    (where it applies); mu for an uncertain system's loop and a decay rate (no damping
+    cone); else the eigenvalue enclosures."""
     if method != "auto":
         return method
+    if isinstance(loop, _SystemLoop) and region.min_damping == 0:
+        return "mu"
     if (
         isinstance(loop, _FamilyLoop)
         and loop.controller is None
@@ -346,7 +349,8 @@ def margin_lower_bound(
         tried). The result is set by the box budget and is the same on every machine
         unless this limit is hit, which the history records.
     method : str
-        ``"auto"`` (default: ``"valueset"`` where it applies, else ``"eigenvalues"``),
+        ``"auto"`` (default: ``"valueset"`` where it applies, ``"mu"`` for an uncertain
+        system and a region without a damping requirement, else ``"eigenvalues"``),
         ``"eigenvalues"`` (verified eigenvalue enclosures over sub-boxes, see
         :func:`certify_box`), ``"lyapunov"`` (a quadratic Lyapunov certificate of the
         interval matrix, :func:`certify_interval_matrix`; decay rate only) or
@@ -533,8 +537,8 @@ def robust_margin(
     time_limit_s : float
         Lower bound: wall-clock safety limit, s.
     method : str
-        Lower bound: ``"auto"``, ``"eigenvalues"``, ``"lyapunov"`` or ``"valueset"`` (see
-        :func:`margin_lower_bound`).
+        Lower bound: ``"auto"``, ``"eigenvalues"``, ``"lyapunov"``, ``"valueset"`` or
+        ``"mu"`` (see :func:`margin_lower_bound`).
     progress : callable, optional
         Called with a short message at each step.
     jobs, scheduler
