@@ -88,7 +88,7 @@ import scipy.signal as sig
 from scipy.stats import chi2
 
 from designs.limit import ACCEL_NOISE_RMS, ENCODER_MM
-from designs.spec import Specification
+from designs.specification import Specification
 from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError

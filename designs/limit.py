@@ -77,7 +77,8 @@ from designs.effort import (
 from designs.evaluate import intended_motion
 from designs.relaxation import effort_lower_bound
 from designs.response import deviation_bound_checks, deviation_maps
-from designs.spec import N_TRACKING_FREQS, Specification, peak_time_grid
+from designs.spec_forces import peak_time_grid
+from designs.specification import N_TRACKING_FREQS, Specification
 from robust.analysis.bounds import siso_response
 from robust.analysis.loops import resolvent_times
 from robust.analysis.simulation import lifted_response

@@ -91,7 +91,7 @@ from designs.cancellation import cancellation_controller
 from designs.constants import CELLS_PER_AXIS
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts
 from designs.limit import limit_map
-from designs.spec import N_TRACKING_FREQS, Specification
+from designs.specification import N_TRACKING_FREQS, Specification
 from robust.analysis.loops import resolvent_times
 from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
