@@ -86,12 +86,8 @@ from robust.synthesis.region import (
     sym,
     synthesis_region,
 )
-from robust.synthesis.scaling import (
-    ChannelScaling,
-    ControllerMatrices,
-    StateScaling,
-    TimeScaling,
-)
+from robust.synthesis.scaling import ChannelScaling, TimeScaling
+from robust.synthesis.scaling_base import ControllerMatrices
 from robust.synthesis.solve import (
     DEFAULT_SOLVERS,
     check_solvers,
@@ -99,6 +95,7 @@ from robust.synthesis.solve import (
     solve_problem,
     solver_threads,
 )
+from robust.synthesis.state_scaling import StateScaling
 
 __all__ = [
     "ResponseBound",

@@ -48,7 +48,7 @@ from robust.synthesis.pk import (
     to_scaled,
 )
 from robust.synthesis.region import synthesis_region
-from robust.synthesis.scaling import ControllerMatrices
+from robust.synthesis.scaling_base import ControllerMatrices
 from robust.synthesis.tuning_objective import _Terms
 
 __all__ = [
