@@ -86,25 +86,21 @@ from robust.checks import check_int
 from robust.engine import map_tasks
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.model.wiring import connect
+from robust.synthesis.limit_problem import LimitProblem, gram_factor
 from robust.synthesis.solve import deterministic_solvers
+from robust.synthesis.stabilising import stabilising_gain, uncontrollable_modes
 from robust.synthesis.youla import (
-    LimitProblem,
     Measurements,
     YoulaPlant,
     affine_maps,
     closed_loop,
     force_responses,
-    gram_factor,
     observer_gain,
     of_affine_maps,
     of_closed_loop,
     of_controller,
-    pole_basis,
-    quadrature_gram,
-    quadrature_grid,
-    stabilising_gain,
-    uncontrollable_modes,
 )
+from robust.synthesis.youla_basis import pole_basis, quadrature_gram, quadrature_grid
 from uncertainty import sample
 from uncertainty.search import worst_member
 
