@@ -29,7 +29,8 @@ from robust.synthesis.forcefb import (
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
 from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
-from robust.synthesis.pk import MultiObjectiveResult, SynthesisMember, pksyn_multi
+from robust.synthesis.pk import MultiObjectiveResult, pksyn_multi
+from robust.synthesis.pk_members import SynthesisMember
 from robust.synthesis.region import certify_region
 from robust.synthesis.scaling import PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem

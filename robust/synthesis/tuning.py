@@ -40,13 +40,8 @@ from robust.analysis.region import Region
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
 from robust.synthesis.minimise import SLPResult, _bfgs, slp_minimise
-from robust.synthesis.pk import (
-    SynthesisMember,
-    eigen_region_rows,
-    from_scaled,
-    scale_members,
-    to_scaled,
-)
+from robust.synthesis.pk_members import SynthesisMember, from_scaled, scale_members, to_scaled
+from robust.synthesis.pole_derivatives import eigen_region_rows
 from robust.synthesis.region import synthesis_region
 from robust.synthesis.scaling_base import ControllerMatrices
 from robust.synthesis.tuning_objective import _Terms

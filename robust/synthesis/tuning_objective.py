@@ -13,10 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from robust.analysis.lyapunov import lyapunov, lyapunov_solver
-from robust.synthesis.pk import (
-    eigen_derivatives_many,
-    responses,
-)
+from robust.synthesis.pk_members import responses
+from robust.synthesis.pole_derivatives import eigen_derivatives_many
 
 #: Nothing public: the objective is :mod:`robust.synthesis.tuning`'s own.
 __all__: list[str] = []
