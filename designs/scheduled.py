@@ -67,26 +67,23 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
+from designs.cab_calibration import CAB_IDENTIFIED, CAB_LOG_AXES, cab_truth, identify_cab
 from designs.calibration import (
-    CAB_IDENTIFIED,
-    CAB_LOG_AXES,
     IDENTIFIED,
-    LOG_AXES,
     OPERATOR_NAMES,
-    REGION_RADIUS,
-    CalibrationProtocol,
-    cab_truth,
-    excitation_responses,
     identified_ranges,
-    identify_cab,
     identify_operator,
     noise_free_estimate,
     operator_row,
     operator_truth,
-    region_points,
-    response_distance,
+)
+from designs.calibration_fit import LOG_AXES
+from designs.calibration_record import (
+    CalibrationProtocol,
+    excitation_responses,
     simulate_calibration,
 )
+from designs.calibration_region import REGION_RADIUS, region_points, response_distance
 from designs.cancellation import cancellation_controller
 from designs.constants import CELLS_PER_AXIS
 from designs.coverage import COVERAGE_SEED_OFFSET, member_verdicts

@@ -13,7 +13,7 @@ import math
 
 import matplotlib.pyplot as plt
 
-from designs.calibration import REGION_RADIUS
+from designs.calibration_region import REGION_RADIUS
 from designs.limit import design_set, limit_coverage_of
 from reports.html import HtmlPage
 from robust.model.device import DeviceLimits
