@@ -18,7 +18,7 @@ import math
 import numpy as np
 import scipy.signal as sig
 
-from designs.limit import ACCEL_NOISE_RMS, ENCODER_MM
+from designs.limit_plant import ACCEL_NOISE_RMS, ENCODER_MM
 from designs.specification import Specification
 from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields

@@ -14,7 +14,7 @@ import math
 import matplotlib.pyplot as plt
 
 from designs.calibration_region import REGION_RADIUS
-from designs.limit import design_set, limit_coverage_of
+from designs.limit_sets import design_set, limit_coverage_of
 from reports.html import HtmlPage
 from robust.model.device import DeviceLimits
 from uncertainty import default_family
