@@ -40,7 +40,7 @@ def verdict(runs: dict, tradeoff=None) -> list[str]:
     ----------
     runs : dict
         Design name -> :class:`designs.DesignResult` (evaluated) or the exception it raised.
-    tradeoff : list of designs.robust_lmi.TradeoffPoint, optional
+    tradeoff : list of designs.robust_lmi_tradeoff.TradeoffPoint, optional
         The force-budget sweep.
 
     Returns
@@ -223,8 +223,8 @@ def write_design_report(
     coverage : reports.coverage.FamilyCoverage, optional
         Who the family covers (default: computed for the default family on the same
         sample size and seed).
-    tradeoff : list of designs.robust_lmi.TradeoffPoint, optional
-        The force-budget sweep (:func:`designs.robust_lmi.force_tradeoff`), drawn as a
+    tradeoff : list of designs.robust_lmi_tradeoff.TradeoffPoint, optional
+        The force-budget sweep (:func:`designs.robust_lmi_tradeoff.force_tradeoff`), drawn as a
         Pareto curve.
     limit : dict, optional
         The achievable-limit map (``bdft limit --json``'s object, with ``conclusions``):
