@@ -141,7 +141,7 @@ def _run_scheduled(args) -> int:
             f"its result); got {args.coverage_samples}"
         )
     out = check_artifact_targets("--out", args.out, [SCHEDULED])
-    from designs.calibration import REGION_RADIUS
+    from designs.calibration_region import REGION_RADIUS
     from designs.scheduled import scheduled_design
     from robust.jsonio import atomic_write_json
     from uncertainty import default_family

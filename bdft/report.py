@@ -148,7 +148,7 @@ def run(args) -> int:
         standard error.
     """
     from designs.registry import design_names
-    from designs.robust_lmi import tradeoff_point, tradeoff_tasks
+    from designs.robust_lmi_tradeoff import tradeoff_point, tradeoff_tasks
     from reports.coverage import family_coverage
     from reports.designs import run_designs_with, write_design_report
     from robust.cache import lookup, store

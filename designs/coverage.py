@@ -28,14 +28,9 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from designs.spec import (
-    CONSTRAINTS,
-    Specification,
-    check_specification,
-    peak_force,
-    peak_time_grid,
-    unstable_member_check,
-)
+from designs.spec import check_specification, unstable_member_check
+from designs.spec_forces import peak_force, peak_time_grid
+from designs.specification import CONSTRAINTS, Specification
 from robust.analysis.loops import closed_loop_poles
 from robust.analysis.stability import damping_in_band
 from robust.checks import check_int

@@ -28,7 +28,8 @@ from designs import (
 from designs.coverage import COVERAGE_SAMPLES, COVERAGE_SEED_OFFSET, design_coverage
 from designs.evaluate import INTENT_FRACTION, evaluate_design, intended_motion
 from designs.result import Design, DesignChecks, DesignResult, HeldOutCheck, SaturatedRun
-from designs.spec import SpecCheck, Specification, check_specification
+from designs.spec import SpecCheck, check_specification
+from designs.specification import Specification
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
 from robust.cache import cached, caching

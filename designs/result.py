@@ -18,7 +18,8 @@ from collections.abc import Callable
 from typing import ClassVar
 
 from designs.evaluate import DesignEvaluation
-from designs.spec import SpecCheck, Specification
+from designs.spec import SpecCheck
+from designs.specification import Specification
 from robust.analysis.sampled import SampledDataCheck
 from robust.analysis.saturation import SaturationCheck
 from uncertainty.region import MarginResult

@@ -37,8 +37,8 @@ __getattr__, __dir__ = lazy_exports(
             "add_coverage_section",
             "family_coverage",
         ),
+        "reports.design_runs": ("run_all_designs",),
         "reports.designs": (
-            "run_all_designs",
             "verdict",
             "write_design_report",
         ),

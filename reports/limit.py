@@ -15,7 +15,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import stats
 
-from designs.limit import ACTUATOR_SETS, LimitMap, split_set
+from designs.limit import ACTUATOR_SETS, LimitMap
+from designs.limit_sets import split_set
 from reports.html import HtmlPage, write_report_dir
 from robust.jsonio import to_jsonable
 

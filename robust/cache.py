@@ -67,7 +67,7 @@ def caching(enabled: bool = True):
 
     A command run with its cache (``bdft design``, ``bdft report``) sets it around its work,
     so that a long computation that repeats another's steps (the robust LMI ladders' rungs,
-    :mod:`designs.robust_lmi`) reads them back; ``--no-cache`` leaves it off. It holds in
+    :mod:`designs.robust_lmi_ahead`) reads them back; ``--no-cache`` leaves it off. It holds in
     this thread and its context only: a task sent to another process sets it there.
 
     Parameters

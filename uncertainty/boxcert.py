@@ -34,7 +34,8 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
-from robust.analysis.eigen_enclosure import enclose_eigenvalues, split_coordinate
+from robust.analysis.box_subdivision import split_coordinate
+from robust.analysis.eigen_enclosure import enclose_eigenvalues
 from robust.analysis.intervals import Interval, norm2_bound
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError

@@ -84,7 +84,7 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
-from robust.analysis.eigen_enclosure import subdivide
+from robust.analysis.box_subdivision import subdivide
 from robust.analysis.stability import STABILITY_TOL
 from robust.checks import check_int
 from robust.engine import map_tasks, scheduler_address

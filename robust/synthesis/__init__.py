@@ -19,6 +19,7 @@ from robust.synthesis.assumptions import (
     check_regularity,
     check_stabilisable,
 )
+from robust.synthesis.d22 import D22Removal
 from robust.synthesis.forcefb import (
     ForceFeedbackWeights,
     as_loop_controller,
@@ -28,9 +29,10 @@ from robust.synthesis.forcefb import (
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
 from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
-from robust.synthesis.pk import MultiObjectiveResult, SynthesisMember, pksyn_multi
+from robust.synthesis.pk import MultiObjectiveResult, pksyn_multi
+from robust.synthesis.pk_members import SynthesisMember
 from robust.synthesis.region import certify_region
-from robust.synthesis.scaling import D22Removal, PlantScaling
+from robust.synthesis.scaling import PlantScaling
 from robust.synthesis.solve import SolveResult, solve_problem
 from robust.synthesis.tuning import minimax_start, region_start, slp_minimise, tune_members
 

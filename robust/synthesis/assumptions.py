@@ -23,7 +23,8 @@ from robust.analysis.stability import stable_mask
 from robust.errors import AssumptionError, ModelStructureError, ParameterError
 from robust.synthesis.genplant import GeneralizedPlant
 from robust.synthesis.lmi import PlantBlocks
-from robust.synthesis.scaling import PlantScaling, diagonal_balance
+from robust.synthesis.scaling import PlantScaling
+from robust.synthesis.state_scaling import diagonal_balance
 
 __all__ = [
     "check_detectable",

@@ -43,7 +43,7 @@ from robust.model.loop import BDFTLoop
 from robust.model.wiring import connect, renamed
 from robust.synthesis.genplant import GeneralizedPlant
 from robust.synthesis.lmi import PlantBlocks
-from robust.synthesis.pk import ResponseBound, SynthesisMember
+from robust.synthesis.pk_members import ResponseBound, SynthesisMember
 
 __all__ = [
     "ForceFeedbackWeights",

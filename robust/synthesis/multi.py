@@ -35,7 +35,8 @@ from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.lmi import PlantBlocks
 from robust.synthesis.nominal import hinfsyn_lmi
-from robust.synthesis.pk import SynthesisMember, pksyn_multi
+from robust.synthesis.pk import pksyn_multi
+from robust.synthesis.pk_members import SynthesisMember
 from robust.synthesis.scaling import PlantScaling
 from robust.synthesis.solve import DEFAULT_SOLVERS, check_solvers
 

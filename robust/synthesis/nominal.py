@@ -39,6 +39,7 @@ from robust.errors import (
     VerificationError,
 )
 from robust.synthesis.assumptions import check_hinf_assumptions
+from robust.synthesis.d22 import D22Removal
 from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.lmi import (
     PlantBlocks,
@@ -46,7 +47,8 @@ from robust.synthesis.lmi import (
     projection_lmis,
     reconstruct_controller,
 )
-from robust.synthesis.scaling import ControllerMatrices, D22Removal, PlantScaling
+from robust.synthesis.scaling import PlantScaling
+from robust.synthesis.scaling_base import ControllerMatrices
 from robust.synthesis.solve import DEFAULT_SOLVERS, SOLVER_TOL, check_solvers, solve_problem
 
 __all__ = [
