@@ -80,11 +80,12 @@ def register(sub) -> None:
         choices=LOWER_METHODS,
         default="auto",
         help="lower-bound certificate: 'auto' (default: zero exclusion on value sets for the "
-        "family's open loop and the region 'lhp', mu for a --system without a damping "
-        "requirement, else the eigenvalue enclosures), "
+        "family's open loop and the region 'lhp', mu for a --system unless damping is asked in a "
+        "band only, else the eigenvalue enclosures), "
         "'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic Lyapunov LMI "
         "per sub-box), 'valueset', or 'mu' (a --system's state matrix as an LFT, mixed mu "
-        "below 1 at every frequency; decay-rate regions; --max-boxes caps its frequencies)",
+        "below 1 at every frequency; a decay rate and damping of every pole; --max-boxes caps its "
+        "frequencies)",
     )
     p.add_argument(
         "--search-seed",

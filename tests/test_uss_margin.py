@@ -187,8 +187,8 @@ def test_the_mu_route_certifies_a_decay_rate_margin():
 def test_the_mu_route_says_where_it_does_not_apply():
     c = ureal("c", 1.0, 0.2, 3.0)
     G = uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]])
-    with pytest.raises(ParameterError, match="method 'mu' certifies a decay rate only"):
-        robust_margin(G, region=Region(min_damping=0.2), method="mu")
+    with pytest.raises(ParameterError, match="method 'mu' maps the damping cone at every"):
+        robust_margin(G, region=Region(min_damping=0.2, band_hz=(0.5, 10.0)), method="mu")
     from uncertainty import default_family
 
     with pytest.raises(ParameterError, match="method 'mu' needs an uncertain system"):
@@ -234,3 +234,31 @@ def test_a_margin_prints_as_one_readable_line():
     assert "\n" not in text and len(text) < 200
     assert text.startswith(f"robust margin in [{res.lower:.4g}, {res.upper:.4g}] for the real")
     assert "critical member c=0.5996" in text and "rightmost pole -0.2998" in text
+
+
+def test_the_mu_route_certifies_a_damping_ratio_of_every_pole():
+    # the damping cone by mu: s^2 + 2 z w s + w^2 as in test_damping_region, the damping
+    # asked of every pole (the default band of an uncertain system): k_m = 2 / 3 again
+    w = ureal("w", 2 * math.pi, math.pi, 4 * math.pi)
+    z = ureal("z", 0.5, 0.2, 0.8)
+    res = robust_margin(_second_order(2 * z * w, w**2), region=Region(min_damping=0.3))
+    _check(res, 2 / 3)
+    assert res.certificate["method"] == "mu" and "rotated by the cone" in res.method["lower"]
+
+
+@pytest.mark.parametrize("zeta, binding", [(0.2, "damping"), (0.1, "decay")])
+def test_the_mu_route_certifies_a_decay_rate_and_a_damping_ratio_together(zeta, binding):
+    # m x'' + c x' + 4 x = 0, m log-uniform in [0.5, 2], c in [0.5, 1.5]: complex poles with
+    # real part -c / (2 m) and damping ratio c / (4 sqrt(m)); at scale k the worst member
+    # has m = 2^k, c = 1 - 0.5 k. A decay rate of 0.2 needs c > 0.4 m (k = 0.70); a damping
+    # ratio zeta needs c > 4 zeta sqrt(m): k = 0.25 for 0.2, 0.93 for 0.1. The margin is
+    # the smaller of the two, each map binding once.
+    m = ureal("m", 1.0, 0.5, 2.0, distribution="loguniform")
+    c = ureal("c", 1.0, 0.5, 1.5)
+    decay = brentq(lambda k: 1 - 0.5 * k - 0.4 * 2.0**k, 0.0, 2.0)
+    damping = brentq(lambda k: 1 - 0.5 * k - 4 * zeta * 2.0 ** (k / 2), 0.0, 2.0)
+    assert (damping < decay) == (binding == "damping")
+    region = Region(decay_rate=0.2, min_damping=zeta)
+    res = robust_margin(_second_order(c / m, 4.0 / m), region=region)
+    _check(res, min(decay, damping))
+    assert res.certificate["method"] == "mu"

@@ -174,19 +174,24 @@ def _start_bound(M, blocks) -> float:
     return _verified_lower(M, blocks, _structured(blocks, parts))[0]
 
 
-def mu_cover(A, B, C, D, blocks, *, max_frequencies: int, deadline: float) -> dict:
+def mu_cover(
+    A, B, C, D, blocks, *, max_frequencies: int, deadline: float, g_max: float = G_MAX
+) -> dict:
     """Certificate that ``mu(M(jw)) < 1`` at every ``w`` in ``[0, inf]`` (module notes).
 
     Parameters
     ----------
     A, B, C, D : numpy.ndarray
-        A stable realisation of ``M`` (square: ``C`` has as many rows as ``B`` columns).
+        A stable realisation of ``M``, real or complex (square: ``C`` has as many rows as
+        ``B`` columns); a complex one is covered on ``w >= 0`` only.
     blocks : list of (int, str)
         The structure, as :func:`uncertainty.mussv` takes it.
     max_frequencies : int
         Frequencies the cover may use before it gives up.
     deadline : float
         :func:`time.perf_counter` value at which it gives up.
+    g_max : float
+        Bound of each real block's G scaling relative to its D (:data:`G_MAX`).
 
     Returns
     -------
@@ -215,10 +220,10 @@ def mu_cover(A, B, C, D, blocks, *, max_frequencies: int, deadline: float) -> di
         Mw = _response(A, B, C, D, w)
         # one LMI at the bound itself first (its scalings as negative as it can make F);
         # the bisection for the least bound only where that fails
-        found = _scalings_feasible(Mw, blocks, 1.0 - 10 * MU_MARGIN, G_MAX)
+        found = _scalings_feasible(Mw, blocks, 1.0 - 10 * MU_MARGIN, g_max)
         if found is None:
             _, Dsc, Gsc = _upper(
-                Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL, g_max=G_MAX
+                Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL, g_max=g_max
             )
         else:
             Dsc, Gsc = found
