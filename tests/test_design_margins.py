@@ -7,26 +7,20 @@ the force accounting makes these fail.
 """
 
 import pytest
+from shipped_runs import SAMPLES, SEED
+from shipped_runs import shipped_run as _run
 
-from designs.registry import run_design
 from robust.model.device import DeviceLimits
 from uncertainty import default_family, sample, validate_family
 from uncertainty.search import margin_upper_bound
 from uncertainty.testing import assert_robust_margin
 
-SAMPLES, SEED = 500, 0
 LIM = DeviceLimits()
 
 
 @pytest.fixture(scope="module")
 def runs():
     return {}
-
-
-def _run(runs, name):
-    if name not in runs:
-        runs[name] = run_design(name, samples=SAMPLES, seed=SEED, coverage_samples=0)
-    return runs[name]
 
 
 def _force_flag_consistent(ev):

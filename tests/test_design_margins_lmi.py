@@ -8,25 +8,17 @@ runner deals whole files to its workers.
 
 import numpy as np
 import pytest
+from shipped_runs import shipped_run as _run
 
-from designs.registry import run_design
 from designs.spec import Specification, check_specification
 from uncertainty import default_family
 from uncertainty.search import scaled_bounds
 from uncertainty.testing import assert_robust_margin
 
-SAMPLES, SEED = 500, 0
-
 
 @pytest.fixture(scope="module")
 def runs():
     return {}
-
-
-def _run(runs, name):
-    if name not in runs:
-        runs[name] = run_design(name, samples=SAMPLES, seed=SEED, coverage_samples=0)
-    return runs[name]
 
 
 @pytest.mark.slow
