@@ -1,9 +1,26 @@
 import atexit
 import os
 import shutil
+import sys
 import tempfile
 
-import matplotlib
+# under pytest-xdist each worker gets its share of the cores for its BLAS threads (one each
+# for two workers on two cores), set before numpy loads OpenBLAS and passed on to the
+# commands the tests start; a count the user set is kept. Without it two workers ran four
+# BLAS threads on two cores, and small-matrix work spun against itself. Every thread count
+# gives the same verdicts (the suite is also run with OPENBLAS_NUM_THREADS=1, and
+# test_same_bytes runs commands under 1, 2 and 4 threads).
+_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+if _WORKERS > 1:
+    _SHARE = str(max(1, (os.cpu_count() or 1) // _WORKERS))
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, _SHARE)
+    if "numpy" in sys.modules:  # loaded before this file: limit the running pools too
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(int(os.environ["OPENBLAS_NUM_THREADS"]), user_api="blas")
+
+import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 os.environ.setdefault("MPLBACKEND", "Agg")
