@@ -9,9 +9,10 @@ from scipy.optimize import linear_sum_assignment
 
 from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import ModelStructureError, ParameterError
-from uncertainty.batched import batched_poles, closed_loop_matrices, validate_family
-from uncertainty.family import default_family
+from uncertainty.batched import batched_poles, closed_loop_matrices
+from uncertainty.family_ranges import default_family
 from uncertainty.sampling import sample
+from uncertainty.validation import validate_family
 
 N_MEMBERS = 6
 

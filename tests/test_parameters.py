@@ -8,7 +8,8 @@ from scipy import stats
 
 from robust.errors import ParameterError
 from robust.model.literature import published_box
-from uncertainty.family import MODEL_PARAMETERS, Family, default_family
+from uncertainty.family import MODEL_PARAMETERS, Family
+from uncertainty.family_ranges import default_family
 from uncertainty.parameters import UncertainParameter
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from robust.errors import ParameterError
-from uncertainty.family import default_family
+from uncertainty.family_ranges import default_family
 from uncertainty.sampling import METHODS, sample
 
 PARAMS = default_family("physical").parameters

@@ -11,7 +11,7 @@ from scipy.optimize import linear_sum_assignment
 from robust.analysis import small_eig
 from robust.analysis.small_eig import LANES, eigvals_stack
 from uncertainty.batched import closed_loop_matrices
-from uncertainty.family import default_family
+from uncertainty.family_ranges import default_family
 from uncertainty.sampling import sample
 
 

@@ -119,11 +119,13 @@ __getattr__, __dir__ = lazy_exports(
             "RANGES",
         ),
         "uncertainty.batched": (
+            "batched_poles",
+            "closed_loop_matrices",
+        ),
+        "uncertainty.validation": (
             "MAX_CHUNK_BYTES",
             "STABILITY_THRESHOLD",
             "ValidationResult",
-            "batched_poles",
-            "closed_loop_matrices",
             "member_metrics",
             "validate_family",
         ),
@@ -133,8 +135,8 @@ __getattr__, __dir__ = lazy_exports(
             "MODEL_PARAMETERS",
             "PHYSICAL_LIMITS",
             "Family",
-            "default_family",
         ),
+        "uncertainty.family_ranges": ("default_family",),
         "uncertainty.dgk": (
             "MusynResult",
             "musyn",

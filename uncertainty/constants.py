@@ -4,7 +4,7 @@ The command line builds its options from these (choices, defaults, help texts) b
 imports any numerical module, so that ``bdft --help`` answers without NumPy. Each is
 defined here once and re-exported by the module it belongs to: :data:`RANGES` by
 :mod:`uncertainty.family`, :data:`LOWER_METHODS` and :data:`DEFAULT_BOXES` by
-:mod:`uncertainty.margins`, :data:`DEFAULT_CHUNK` by :mod:`uncertainty.batched` (and
+:mod:`uncertainty.margins`, :data:`DEFAULT_CHUNK` by :mod:`uncertainty.validation` (and
 :data:`RANGES` and :data:`DEFAULT_CHUNK` by :mod:`uncertainty`).
 
 This module imports nothing.

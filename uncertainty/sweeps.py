@@ -26,9 +26,10 @@ from robust.checks import check_callable, check_int
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ParameterError
 from robust.model.blocks import parameter_name
-from uncertainty.batched import DEFAULT_CHUNK, STABILITY_THRESHOLD, TASK_MEMBERS, member_metrics
+from uncertainty.batched import TASK_MEMBERS
 from uncertainty.family import Family
 from uncertainty.sampling import sample
+from uncertainty.validation import DEFAULT_CHUNK, STABILITY_THRESHOLD, member_metrics
 
 __all__ = [
     "SWEEPS",
