@@ -65,15 +65,23 @@ def _riccati_achieved(P, gp):
     return hinf_norm(gp.closed_loop(K))
 
 
+@pytest.fixture(scope="module")
+def riccati_reference():
+    """What the Riccati controller achieves on the seed-14 near-integrator plant, computed
+    once for the module (python-control's gamma iteration takes seconds on this plant)."""
+    P = near_integrator_plant(14)
+    return _riccati_achieved(P, as_generalized_plant(P, 1, 1))
+
+
 # ------------------------------------------------------------------ near-integrator regression
-def test_near_integrator_plant_returns_verified_controller_near_riccati():
+def test_near_integrator_plant_returns_verified_controller_near_riccati(riccati_reference):
     P = near_integrator_plant(14)
     gp = as_generalized_plant(P, 1, 1)
     eig = np.sort(np.abs(np.linalg.eigvals(gp.A)))
     assert eig[0] < 2e-7 and 1e-6 < eig[2] < 2e-5  # the near-integrators are there
     res = hinfsyn_lmi(P, 1, 1)
     achieved = hinf_norm(gp.closed_loop(res.K))
-    reference = _riccati_achieved(P, gp)
+    reference = riccati_reference
     assert np.isfinite(reference)
     assert achieved == pytest.approx(res.gamma, rel=1e-6)
     assert abs(achieved / reference - 1.0) <= 0.01
@@ -91,7 +99,7 @@ def test_near_integrator_plant_returns_verified_controller_near_riccati():
         assert res.gamma_opt <= achieved * (1 + CERT_GAP_RTOL)
 
 
-def test_near_integrator_plant_full_scaling_optimum_is_not_certified():
+def test_near_integrator_plant_full_scaling_optimum_is_not_certified(riccati_reference):
     # the reported failure, one level down: the full scaling's SDP optimum is far below what
     # any controller achieves, and the independent check says so (whatever the solver status)
     P = near_integrator_plant(14)
@@ -109,7 +117,7 @@ def test_near_integrator_plant_full_scaling_optimum_is_not_certified():
     cert = projection_certificate(
         bs, lmis.R.value, lmis.S.value, g, duals=(lmis.lmi_r.dual_value, lmis.lmi_s.dual_value)
     )
-    reference = _riccati_achieved(P, gp)
+    reference = riccati_reference
     if sc.invert_gamma(g) < reference * (1 - 0.05):
         primal_ok = (
             cert["lmi_r_max_eig"] <= CERT_PRIMAL_TOL
@@ -120,14 +128,14 @@ def test_near_integrator_plant_full_scaling_optimum_is_not_certified():
         assert not (primal_ok and dual_ok), cert
 
 
-def test_near_integrator_plant_unscaled_fallback_alone(monkeypatch):
+def test_near_integrator_plant_unscaled_fallback_alone(monkeypatch, riccati_reference):
     # without the state-only attempt the unscaled problem must do (within 1 % of Riccati)
     monkeypatch.setattr(nominal, "SCALING_ATTEMPTS", ("full", "none"))
     P = near_integrator_plant(14)
     gp = as_generalized_plant(P, 1, 1)
     res = hinfsyn_lmi(P, 1, 1)
     assert res.scaling in ("full", "none")
-    assert abs(hinf_norm(gp.closed_loop(res.K)) / _riccati_achieved(P, gp) - 1.0) <= 0.01
+    assert abs(hinf_norm(gp.closed_loop(res.K)) / riccati_reference - 1.0) <= 0.01
 
 
 def test_unscaled_request_is_a_single_attempt():
@@ -256,13 +264,15 @@ def test_certificate_dual_bound_is_a_lower_bound_for_any_multipliers():
     assert bounds[0] > 0.9 * g  # close to the solver's multipliers: close to the optimum
 
 
-@pytest.mark.parametrize("n,seed", [(36, 0)], ids=["n36-seed0"])
+@pytest.mark.parametrize("n,seed", [(24, 0)], ids=["n24-seed0"])
 def test_large_plant_gamma_opt_certified_or_flagged(n, seed):
     # reported: on an order-40 plant gamma_opt (2.14) was far below what the controller
     # achieved (100) because the SDP point violated R > 0.  Now gamma_opt is either
     # certified -- and then not above the norm the rebuilt controller achieves, and next to a
-    # weak-duality lower bound below it -- or NaN with a note.  (SLICOT's controller leaves
-    # this loop unstable, so it gives no reference here.)
+    # weak-duality lower bound below it -- or NaN with a note.  The checks do not depend on
+    # the order: order 24 (certified, gamma_opt 14.755, 6 s of CPU) instead of 36 (certified,
+    # 142.77, 36 s of CPU, the SDP's solves growing with the order).  (No Riccati reference:
+    # SLICOT's controller left the order-36 loop unstable.)
     P = random_generalized_plant(n, seed=seed)
     gp = as_generalized_plant(P, 2, 2)
     res = hinfsyn_lmi(P, 2, 2)
