@@ -1,9 +1,38 @@
 import json
 
+import pytest
+
 from bdft import main
 
 
-def test_reproduce_json_end_to_end(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def computed_once():
+    """The reproduction computed once per set of variants for the module's command runs.
+
+    Both runs below ask for the literal human: the first computes it through the real
+    :func:`reports.reproduce.reproduce`, the other gets that result (the report writing,
+    where the failure test breaks in, runs in each).
+    """
+    import importlib
+
+    rr = importlib.import_module("reports.reproduce")  # (reports.reproduce is also a function)
+
+    real, done = rr.reproduce, {}
+
+    def once(*, variants, progress=None, **kw):
+        if kw:  # (the command passes nothing else)
+            return real(variants=variants, progress=progress, **kw)
+        key = tuple(variants)
+        if key not in done:
+            done[key] = real(variants=variants, progress=progress)
+        return done[key]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rr, "reproduce", once)
+        yield done
+
+
+def test_reproduce_json_end_to_end(tmp_path, capsys, computed_once):
     out = tmp_path / "reproduce"
     code = main(["reproduce", "--out", str(out), "--human", "literal", "--json"])
     assert code == 0
@@ -28,7 +57,7 @@ def test_reproduce_json_end_to_end(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["reproduce"]
 
 
-def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch, capsys):
+def test_reproduce_failure_leaves_nothing(tmp_path, monkeypatch, capsys, computed_once):
     import reports.figures as plots
 
     def boom(*a, **k):

@@ -478,7 +478,7 @@ def test_limit_json_is_the_same_bytes_in_one_or_two_processes(tmp_path, capsys):
     # solved which member before does not reach the numbers
     outs = []
     for jobs in ("1", "2"):
-        argv = ["limit", "--samples", "3", "--sets", "force/handle", "--basis-check", "0"]
+        argv = ["limit", "--samples", "2", "--sets", "force/handle", "--basis-check", "0"]
         argv += ["--jobs", jobs, "--out", str(tmp_path / f"l{jobs}"), "--json"]
         assert main(argv) == 0
         obj = json.loads(capsys.readouterr().out)

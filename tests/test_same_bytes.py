@@ -1,20 +1,21 @@
 """The same run prints the same bytes under any BLAS thread count and x86-64 kernel.
 
-Each command runs in a fresh process with ``OPENBLAS_NUM_THREADS`` at 1 and 4, with
-``OPENBLAS_CORETYPE`` asking for an older kernel (Sandybridge: no FMA) or Haswell, and
-with NumPy's AVX-512 loops disabled as on a CPU without them; the ``--json`` outputs must
-hash alike (the artifact path aside). What makes them so: ``bdft`` runs OpenBLAS's
-Haswell kernels and NumPy's x86-64-v3 loops whatever the CPU or the environment asks
-(:mod:`bdft.kernels`; without that the LMI designs, whose start is a non-unique SDP
+The commands run in a fresh process for each environment (one process runs the four in
+turn, as ``python -m bdft`` would one by one): ``OPENBLAS_NUM_THREADS`` at 1, 4 and 2, with
+``OPENBLAS_CORETYPE`` asking for an older kernel (Sandybridge: no FMA) or Haswell, and with
+NumPy's AVX-512 loops disabled as on a CPU without them; each command's ``--json`` output
+must hash alike in the three (the artifact path aside). What makes them so: ``bdft`` runs
+OpenBLAS's Haswell kernels and NumPy's x86-64-v3 loops whatever the CPU or the environment
+asks (:mod:`bdft.kernels`; without that the LMI designs, whose start is a non-unique SDP
 solution, differ between kernels: ``hinf-nominal`` below gave three hashes under these
 three environments with ``BDFT_NATIVE_KERNELS=1``), every robust design runs its BLAS and
-solvers on one thread
-(:func:`robust.synthesis.solve.deterministic_solvers`), ties are decided with a relative
-margin, the sampled-data deviation is rounded to 0.001 dB and an exact cancellation's
-residual suppression and tracking error (rounding, 1e-14 to 1e-12) to 0, and JSON numbers
-are printed to six significant digits (:func:`robust.jsonio.round_significant`). (The
-virtual-damping design, with a nearly double closed-loop pole whose real part moves by
-6e-10 between kernels, was checked the same way by hand.)
+solvers on one thread (:func:`robust.synthesis.solve.deterministic_solvers`), ties are
+decided with a relative margin, the sampled-data deviation is rounded to 0.001 dB and an
+exact cancellation's residual suppression and tracking error (rounding, 1e-14 to 1e-12) to
+0, and JSON numbers are printed to six significant digits
+(:func:`robust.jsonio.round_significant`). (The virtual-damping design, with a nearly
+double closed-loop pole whose real part moves by 6e-10 between kernels, was checked the
+same way by hand.)
 """
 
 from __future__ import annotations
@@ -38,55 +39,96 @@ ENVS = (
 )
 
 
-def _hash(args, extra_env, tmp_path):
+#: The commands, by test id. Their sizes do not matter to the property: the same code runs
+#: on fewer members (the scheduled design on 3 coverage members and 1 border member calls
+#: the same functions of the workbench as on 20 and 3, measured with cProfile)
+COMMANDS = {
+    "validate": ["validate", "--samples", "20000", "--jobs", "1", "--json"],
+    "design": ["design", "cancellation", "--samples", "40", "--coverage-samples", "50"]
+    + ["--margin-boxes", "0", "--no-cache", "--json"],
+    # an LMI design: its SDP's solution is not unique, so the kernels' rounding shows
+    "lmi-design": ["design", "hinf-nominal", "--samples", "100", "--coverage-samples", "0"]
+    + ["--margin-boxes", "0", "--jobs", "1", "--no-cache", "--json"],
+    # the per-operator design: simulated records, fits, the joint error regions (an
+    # eigendecomposition and a search along each axis) and the border checks
+    "scheduled": ["design", "scheduled", "--coverage-samples", "3", "--border-samples", "1"]
+    + ["--certify-samples", "0", "--limit-samples", "0", "--cells", "1", "--jobs", "1"]
+    + ["--json"],
+}
+
+# one fresh process per environment runs every command in turn through bdft.main, as
+# ``python -m bdft`` does (bdft imported first, so it fixes the kernels before NumPy
+# loads), and prints each command's standard output: the environment takes effect at
+# load time, so one process per environment sees what a process per command would, and
+# the libraries are imported three times instead of twelve
+_RUNNER = """
+import contextlib, io, json, sys
+
+import bdft
+
+outs = []
+for argv in json.loads(sys.argv[1]):
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = bdft.main(argv)
+    if code != 0:
+        sys.exit(f"bdft {' '.join(argv)}: exit code {code}")
+    outs.append(buf.getvalue())
+sys.stdout.write(json.dumps(outs))
+"""
+
+
+def _outputs(argvs, extra_env, folder):
     env = {
         k: v for k, v in os.environ.items() if not k.startswith(("OPENBLAS", "NPY_", "BDFT_NATIVE"))
     }
-    env.update(extra_env, BDFT_CACHE_DIR=str(tmp_path / "cache"))
-    out = subprocess.run(
-        [sys.executable, "-m", "bdft", *args],
+    env.update(extra_env, BDFT_CACHE_DIR=str(folder / "cache"))
+    done = subprocess.run(
+        [sys.executable, "-c", _RUNNER, json.dumps(argvs)],
         capture_output=True,
         text=True,
         env=env,
-        check=True,
-        timeout=300,
-    ).stdout
+        timeout=600,
+    )
+    if done.returncode != 0:
+        raise AssertionError(f"the commands failed under {extra_env}:\n{done.stderr[-4000:]}")
+    return json.loads(done.stdout)
+
+
+def _hash(out, folder):
     obj = json.loads(out)
     obj.pop("artifact", None)
     text = json.dumps(obj, sort_keys=True, indent=1)
-    (tmp_path / f"out-{hashlib.sha256(text.encode()).hexdigest()[:8]}.json").write_text(text)
+    (folder / f"out-{hashlib.sha256(text.encode()).hexdigest()[:8]}.json").write_text(text)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-@pytest.mark.parametrize(
-    "args",
-    [
-        ["validate", "--samples", "20000", "--jobs", "1", "--json"],
-        ["design", "cancellation", "--samples", "40", "--coverage-samples", "50"]
-        + ["--margin-boxes", "0", "--no-cache", "--json"],
-        # an LMI design: its SDP's solution is not unique, so the kernels' rounding shows
-        ["design", "hinf-nominal", "--samples", "100", "--coverage-samples", "0"]
-        + ["--margin-boxes", "0", "--jobs", "1", "--no-cache", "--json"],
-        # the per-operator design: simulated records, fits, the joint error regions (an
-        # eigendecomposition and a search along each axis) and the border checks
-        ["design", "scheduled", "--coverage-samples", "20", "--border-samples", "3"]
-        + ["--certify-samples", "0", "--limit-samples", "0", "--cells", "1", "--jobs", "1"]
-        + ["--json"],
-    ],
-    ids=["validate", "design", "lmi-design", "scheduled"],
-)
-def test_the_json_hashes_alike_across_threads_and_kernels(args, tmp_path):
-    if args[0] == "design":
-        args = [*args, "--out", str(tmp_path / "art")]
-    if args[1] == "scheduled":  # its artifact holds no timings: the same bytes too
-        hashes = set()
-        for i, env in enumerate(ENVS):
-            out = [*args[:-1], str(tmp_path / f"art{i}")]
-            hashes.add(_hash(out, env, tmp_path))
-        arts = {(tmp_path / f"art{i}" / "scheduled.json").read_bytes() for i in range(len(ENVS))}
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    """Each command's standard output under each environment, and the artifacts' folder."""
+    folder = tmp_path_factory.mktemp("same-bytes")
+    runs = []
+    for i, extra_env in enumerate(ENVS):
+        (folder / f"env{i}").mkdir()
+        argvs = []
+        for name, args in COMMANDS.items():
+            if args[0] == "design":
+                args = [*args, "--out", str(folder / f"{name}-art{i}")]
+            argvs.append(args)
+        runs.append(dict(zip(COMMANDS, _outputs(argvs, extra_env, folder / f"env{i}"))))
+    return folder, runs
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_the_json_hashes_alike_across_threads_and_kernels(name, outputs):
+    folder, runs = outputs
+    hashes = {_hash(run[name], folder) for run in runs}
+    if name == "scheduled":  # its artifact holds no timings: the same bytes too
+        arts = {
+            (folder / f"{name}-art{i}" / "scheduled.json").read_bytes() for i in range(len(ENVS))
+        }
         assert len(hashes) == 1 and len(arts) == 1
         return
-    hashes = {_hash(args, env, tmp_path) for env in ENVS}
     assert len(hashes) == 1
 
 

@@ -255,7 +255,7 @@ def test_the_calibration_bounds_the_operator_for_95_percent_of_seeded_operators(
     # its own record; the true modes inside the bound for 196 of them (measured), the
     # issue's floor 95 % (190)
     rows = rows_with_valves(FAM, 200, method="mc", seed=2)
-    cal = calibrate_members(FAM, rows, seed=1002, n_jobs=2, regions=0)
+    cal = calibrate_members(FAM, rows, seed=1002, regions=0)
     assert cal.operator_inside.sum() >= 190
     assert np.isnan(cal.region_distance).all() and cal.within_confidence_region.size == 0
 

@@ -27,11 +27,21 @@ TOLERANCES = {
 }
 
 
-def _data(tmp_path, form, suffix=".csv", seed=31):
+@pytest.fixture(scope="module")
+def chirps(tmp_path_factory):
+    """A folder of the simulated records, each written once for the module's tests."""
+    return tmp_path_factory.mktemp("chirps")
+
+
+def _data(chirps, form, suffix=".csv", seed=31):
+    path = chirps / f"seed{seed}" / f"chirp_{form}{suffix}"
+    if path.exists():  # the same form, noise and seed: the same records
+        return path
+    path.parent.mkdir(exist_ok=True)
     exp = paper_experiment(
         form, ChirpProtocol(n_records=6), noise=0.02, engine_tone=0.02, seed=seed
     )
-    return save_experiment(exp, tmp_path / f"chirp_{form}{suffix}")
+    return save_experiment(exp, path)
 
 
 def _identify(path, form, out, *extra, fit_form=None):
@@ -58,8 +68,8 @@ def _identify(path, form, out, *extra, fit_form=None):
 
 
 @pytest.mark.parametrize("form", list(TRUTH), ids=list(TRUTH))
-def test_identify_recovers_component_and_model_drops_into_loop(tmp_path, capsys, form):
-    data = _data(tmp_path, form)
+def test_identify_recovers_component_and_model_drops_into_loop(tmp_path, capsys, form, chirps):
+    data = _data(chirps, form)
     out = tmp_path / "out"
     model = tmp_path / f"{form}_model.json"
     assert _identify(data, form, out, "--json", "--save-model", str(model)) == 0
@@ -81,15 +91,15 @@ def test_identify_recovers_component_and_model_drops_into_loop(tmp_path, capsys,
     assert loop.system().nstates > 0
 
 
-def test_identify_text_output_and_mat_input(tmp_path, capsys):
-    data = _data(tmp_path, "structure", suffix=".mat")
+def test_identify_text_output_and_mat_input(tmp_path, capsys, chirps):
+    data = _data(chirps, "structure", suffix=".mat")
     assert _identify(data, "structure", tmp_path / "out") == 0
     text = capsys.readouterr().out
     assert "form structure (StructureParams)" in text and "f1_hz" in text and "seed: 31" in text
 
 
-def test_identify_rational_form(tmp_path, capsys):
-    data = _data(tmp_path, "structure")
+def test_identify_rational_form(tmp_path, capsys, chirps):
+    data = _data(chirps, "structure")
     assert _identify(data, "structure", tmp_path / "out", "--json", fit_form="4/4") == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["form"] == "4/4" and summary["params_class"] == "RationalParams"
@@ -153,9 +163,9 @@ def test_identify_failure_writes_nothing(tmp_path, capsys, case, match):
     assert _listing(tmp_path) == before
 
 
-def test_measured_csv_to_model_that_validate_accepts(tmp_path, capsys):
+def test_measured_csv_to_model_that_validate_accepts(tmp_path, capsys, chirps):
     # a CSV of 'measured' chirps (here simulated, with its seed in the file) -> identify -> validate
-    data = _data(tmp_path, "structure", seed=77)
+    data = _data(chirps, "structure", seed=77)
     model = tmp_path / "structure_model.json"
     assert _identify(data, "structure", tmp_path / "out", "--save-model", str(model)) == 0
     capsys.readouterr()
@@ -166,8 +176,8 @@ def test_measured_csv_to_model_that_validate_accepts(tmp_path, capsys):
     assert report["nominals"]["struct"] == round_significant(params)
 
 
-def test_identify_spectral_and_fit_options_reach_the_estimate(tmp_path, capsys):
-    data = _data(tmp_path, "structure")
+def test_identify_spectral_and_fit_options_reach_the_estimate(tmp_path, capsys, chirps):
+    data = _data(chirps, "structure")
     extra = ["--json", "--nperseg", "5000", "--window", "hann", "--detrend", "linear",
              "--significance", "1", "--min-coherence", "0.5"]  # fmt: skip
     assert _identify(data, "structure", tmp_path / "out", *extra) == 0
