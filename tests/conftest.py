@@ -30,3 +30,11 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 _CACHE = tempfile.mkdtemp(prefix="bdft-test-cache-")
 os.environ["BDFT_CACHE_DIR"] = _CACHE
 atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The files holding a test marked ``slow`` first, in their collected order: pytest-xdist
+    (``--dist loadfile``) deals whole files to its workers in this order, and the longest
+    started last would run alone at the end."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)
