@@ -31,7 +31,7 @@ from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.batched import closed_loop_matrices
 from uncertainty.family import Family
-from uncertainty.loop import INTERVALS, LoopAssembly, fixed_parameters
+from uncertainty.loop import INTERVALS, LoopAssembly, family_uss, fixed_parameters
 from uncertainty.region import EVERY_FREQUENCY_HZ, Region
 from uncertainty.uss import USS
 
@@ -129,6 +129,15 @@ class _FamilyLoop:
         self.parameters = tuple(family.parameters)
         self.names = tuple(family.names)
         self._asm = None
+        self._system = None
+
+    @property
+    def system(self) -> USS:
+        """The loop as an uncertain system (:func:`uncertainty.loop.family_uss`: the same
+        blocks over uncertain reals), built on first use; the mu route takes its LFT."""
+        if self._system is None:
+            self._system = family_uss(self.family, self.controller)
+        return self._system
 
     def matrices(self, rows) -> np.ndarray:
         """Closed-loop state matrices of members (rows of values), batched."""

@@ -397,11 +397,12 @@ def margin_lower_bound(
         interval matrix, :func:`certify_interval_matrix`; decay rate only) or
         ``"valueset"`` (zero exclusion on value sets, :mod:`uncertainty.valueset`: a family
         of the physical human without a compensator, the open left half-plane; its budget
-        is :data:`VALUESET_CELLS_PER_BOX` cells per box of ``max_boxes``) or ``"mu"`` (an
-        uncertain system's state matrix as an LFT over the scaled box, the mixed-mu upper
-        bound below 1 at every frequency, :mod:`uncertainty.mucover`; a decay rate, and a
-        damping ratio of every pole by the cone's rotation; ``max_boxes`` caps the
-        frequencies of one scale). The method used is the
+        is :data:`VALUESET_CELLS_PER_BOX` cells per box of ``max_boxes``) or ``"mu"`` (the
+        state matrix as an LFT over the scaled box, an uncertain system's or the family's
+        loop built from the same blocks over uncertain reals
+        (:func:`uncertainty.loop.family_uss`), the mixed-mu upper bound below 1 at every
+        frequency, :mod:`uncertainty.mucover`; a decay rate, and a damping ratio of every
+        pole by the cone's rotation; ``max_boxes`` caps the frequencies of one scale). The method used is the
         certificate's ``"method"``.
     progress : callable, optional
         Called with a short message at each scale.
@@ -443,9 +444,7 @@ def margin_lower_bound(
             raise ParameterError(f"margin_lower_bound: method 'valueset' {why}")
     if method == "mu":
         why = (
-            "needs an uncertain system (uncertainty.uss), not a family's loop"
-            if not isinstance(loop, _SystemLoop)
-            else "maps the damping cone at every frequency only (a band_hz other than "
+            "maps the damping cone at every frequency only (a band_hz other than "
             "EVERY_FREQUENCY_HZ is not an LMI region)"
             if region.min_damping > 0 and tuple(region.band_hz) != EVERY_FREQUENCY_HZ
             else ""
