@@ -83,9 +83,9 @@ def register(sub) -> None:
         "family's open loop and the region 'lhp', mu for a --system unless damping is asked in a "
         "band only, else the eigenvalue enclosures), "
         "'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic Lyapunov LMI "
-        "per sub-box), 'valueset', or 'mu' (the loop's state matrix as an LFT, the family's or a --system's, "
-        "mixed mu below 1 at every frequency; a decay rate and damping of every pole; --max-boxes caps its "
-        "frequencies)",
+        "per sub-box), 'valueset', or 'mu' (the loop's state matrix as an LFT, the family's or "
+        "a --system's, mixed mu below 1 at every frequency; a decay rate and damping of every "
+        "pole; --max-boxes caps its frequencies)",
     )
     p.add_argument(
         "--search-seed",

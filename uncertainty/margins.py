@@ -402,8 +402,8 @@ def margin_lower_bound(
         loop built from the same blocks over uncertain reals
         (:func:`uncertainty.loop.family_uss`), the mixed-mu upper bound below 1 at every
         frequency, :mod:`uncertainty.mucover`; a decay rate, and a damping ratio of every
-        pole by the cone's rotation; ``max_boxes`` caps the frequencies of one scale). The method used is the
-        certificate's ``"method"``.
+        pole by the cone's rotation; ``max_boxes`` caps the frequencies of one scale). The
+        method used is the certificate's ``"method"``.
     progress : callable, optional
         Called with a short message at each scale.
     jobs : int
