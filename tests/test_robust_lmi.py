@@ -30,6 +30,7 @@ from designs.robust_lmi import (
 )
 from designs.spec import Specification, check_specification
 from robust.analysis.loops import loop_poles
+from robust.analysis.reduction import balanced_truncation
 from robust.cache import CACHE_ENV, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
@@ -48,6 +49,59 @@ def family():
 @pytest.fixture(scope="module")
 def design(family):
     return maximise_margin(family, options=OPTIONS)
+
+
+@pytest.fixture(scope="module")
+def hinf_nominal(family):
+    """The nominal H-infinity design the handle-force start reduces (full order)."""
+    return design_hinf_nominal(family).controller
+
+
+@pytest.fixture(scope="module")
+def start(family):
+    """The module's handle-force start (``_start``: the nominal H-infinity design reduced to
+    four states), computed once: the cache and bisection tests pass it to their ladders
+    (``maximise_margin(start=...)``, the same matrices, so the same rungs) instead of
+    solving the nominal design again in every run; the default path is the fixture's."""
+    return _start(family, OPTIONS, None)
+
+
+def _loop_start(K):
+    """``K`` (plant convention) as the ``start`` argument of the handle-force ladder."""
+    return ct.ss(K.A, K.B, K.C, K.D, inputs=["x", "c"], outputs=["f"], name="start")
+
+
+#: The trade-off point's settings (one rung, the region certified on few boxes).
+POINT_OPTIONS = RobustOptions(
+    ladder=(0.005,), rounds=2, bisection=0, margin_boxes=10, spec_samples=2
+)
+
+
+@pytest.fixture(scope="module")
+def serial_point(family):
+    """The trade-off point at the device's limits, run in this process: its own test reads
+    it, and the two-process run is compared with it."""
+    (pt,) = force_tradeoff(family, (1.0,), options=POINT_OPTIONS, margin_boxes=10)
+    return pt
+
+
+#: The bisection ladder of the cache and bisection tests: scale 0 reached, 0.2 not, 0.1 tried.
+BISECTION_OPTIONS = RobustOptions(
+    ladder=(0.2,), rounds=1, bisection=1, margin_boxes=5, spec_samples=2, tune_iterations=30
+)
+
+
+@pytest.fixture(scope="module")
+def bisected(family, start):
+    """The bisection ladder run serially, without the cache (one process, nothing tried
+    beside the ladder): the reference both the cache test and the bisection test compare
+    with (they each ran this same run before), with its progress messages."""
+    said = []
+    with nested_jobs(1):
+        d = maximise_margin(
+            family, options=BISECTION_OPTIONS, start=_loop_start(start), progress=said.append
+        )
+    return d, said
 
 
 def test_short_ladder_reaches_its_scale(design):
@@ -210,9 +264,8 @@ def test_cylinder_reference_design_on_a_short_ladder(family):
     assert forces["peak force"]["value"] == 0.0 and forces["continuous force"]["value"] == 0.0
 
 
-def test_tradeoff_point_reports_scale_and_certified_margin(family):
-    o = RobustOptions(ladder=(0.005,), rounds=2, bisection=0, margin_boxes=10, spec_samples=2)
-    (pt,) = force_tradeoff(family, (1.0,), options=o, margin_boxes=10)
+def test_tradeoff_point_reports_scale_and_certified_margin(serial_point):
+    pt = serial_point
     assert pt.continuous_force_n == 0.88 and pt.peak_force_n == 3.3
     assert pt.force_budget_n == pytest.approx(3.3 / 4.2)
     assert pt.scale == 0.005 and pt.binding == ""
@@ -222,13 +275,13 @@ def test_tradeoff_point_reports_scale_and_certified_margin(family):
     assert 0.0 < pt.certified_scale < pt.scale
 
 
-def test_tradeoff_points_in_two_processes_equal_the_serial_ones(family):
-    o = RobustOptions(ladder=(0.005,), rounds=1, bisection=0, margin_boxes=5, spec_samples=2)
-    # the second point run serially too (each point is its own task: the first in the
-    # other process equals its serial run as this one does)
-    serial = force_tradeoff(family, (2.0,), options=o, margin_boxes=5)
-    parallel = force_tradeoff(family, (1.0, 2.0), options=o, margin_boxes=5, jobs=2)
-    for a, b in zip(serial, parallel[1:]):
+def test_tradeoff_points_in_two_processes_equal_the_serial_ones(family, serial_point):
+    # the first point was run serially (the fixture, shared with the point's own test; each
+    # point is its own task: the second in the other process equals its serial run as this
+    # one does, so one serial run is compared, as before, and the points' order is checked)
+    serial = [serial_point]
+    parallel = force_tradeoff(family, (1.0, 2.0), options=POINT_OPTIONS, margin_boxes=10, jobs=2)
+    for a, b in zip(serial, parallel[:1], strict=True):
         # every field but the time, to the last digit (repr: a NaN equals a NaN)
         assert repr(dataclasses.replace(a, seconds=0.0)) == repr(
             dataclasses.replace(b, seconds=0.0)
@@ -248,15 +301,15 @@ def test_a_given_start_is_checked_against_the_options():
         maximise_margin(fam, options=opts, start=np.eye(2))
 
 
-def test_the_handle_force_start_is_slicots_balanced_truncation(family):
+def test_the_handle_force_start_is_slicots_balanced_truncation(hinf_nominal, start):
     # the start reduces the nominal LMI design by the workbench's own balanced truncation;
     # its realisation is SLICOT ab09ad's (python-control's balred) to rounding, up to each
     # balanced state's sign: ours fixes it (largest entry of [C; B^T] positive), SLICOT's
     # follows its factorisations (it agreed with ours on one nominal design, not on the
     # next: the signs of two of the four states differ now)
-    K = design_hinf_nominal(family).controller
+    K = hinf_nominal  # design_hinf_nominal(family).controller, the module's fixture
     ref = ct.balred(K, OPTIONS.order, method="truncate")
-    K0 = _start(family, OPTIONS, None)
+    K0 = start  # _start(family, OPTIONS, None), the module's fixture
     S = np.diag(np.sign(np.sum(K0.C * ref.C, axis=0) + np.sum(K0.B * ref.B, axis=1)))
     for m, a, b in (
         ("A", K0.A, S @ ref.A @ S),
@@ -279,21 +332,23 @@ def test_the_model_refuses_to_load_without_slicot():
     assert "the workbench needs slycot" in r.stderr and "pip install slycot" in r.stderr
 
 
-def test_rungs_kept_in_the_cache_give_the_same_design(family, tmp_path, monkeypatch):
+def test_rungs_kept_in_the_cache_give_the_same_design(
+    family, start, bisected, hinf_nominal, tmp_path, monkeypatch
+):
     # with caching on, a ladder without bisection (a trade-off point) keeps its rungs; the
     # design's ladder (with bisection, other margin boxes) reads them back and tries only
     # the bisection scale; the levels and the controller equal a run without the cache
+    # (``bisected``: the same ladder from the same start, serially, no cache)
     monkeypatch.setenv(CACHE_ENV, str(tmp_path))
-    o = RobustOptions(
-        ladder=(0.2,), rounds=1, bisection=1, margin_boxes=5, spec_samples=2, tune_iterations=30
-    )
+    o = BISECTION_OPTIONS
+    K0 = _loop_start(start)
     point = dataclasses.replace(o, bisection=0, margin_boxes=3)
     with caching(True):
-        first = maximise_margin(family, options=point)
+        first = maximise_margin(family, options=point, start=K0)
     said = []
     with caching(True):
-        again = maximise_margin(family, options=o, progress=said.append)
-    fresh = maximise_margin(family, options=o)
+        again = maximise_margin(family, options=o, progress=said.append, start=K0)
+    fresh = bisected[0]
     assert [lv.scale for lv in first.levels] == [0.0, 0.2]
     assert [m for m in said if "taken from the cache" in m] == [
         "scale 0: tried before, taken from the cache",
@@ -310,16 +365,22 @@ def test_rungs_kept_in_the_cache_give_the_same_design(family, tmp_path, monkeypa
     # every rung stored: with two processes, nothing is tried beside the ladder either
     said.clear()
     with caching(True), nested_jobs(2):
-        third = maximise_margin(family, options=o, progress=said.append)
+        third = maximise_margin(family, options=o, progress=said.append, start=K0)
     assert sum("taken from the cache" in m for m in said) == 3
     assert not [m for m in said if "beside the ladder" in m]
     for m in "ABCD":
         np.testing.assert_array_equal(getattr(third.controller, m), getattr(fresh.controller, m))
-    # a different controller start is another rung: nothing is shared
+    # a different controller start is another rung: nothing is shared (the module's start
+    # for three states, as ``_start`` makes it: the nominal design truncated to three, here
+    # from the module's nominal design rather than solved again)
     said.clear()
+    K3 = balanced_truncation(hinf_nominal, 3, fix_signs=True).sys
     with caching(True):
         maximise_margin(
-            family, options=dataclasses.replace(o, order=3, bisection=0), progress=said.append
+            family,
+            options=dataclasses.replace(o, order=3, bisection=0),
+            progress=said.append,
+            start=_loop_start(K3),
         )
     assert not [m for m in said if "taken from the cache" in m]
 
@@ -359,17 +420,15 @@ def test_a_rungs_key_is_made_of_values_not_of_objects():
     assert len({c["rung"] for c in changed} | {key["rung"]}) == len(changed) + 1
 
 
-def test_bisection_tried_beside_the_ladder_gives_the_same_design(family):
+def test_bisection_tried_beside_the_ladder_gives_the_same_design(family, start, bisected):
     # with two processes granted, the bisection scale is tried in a worker while the ladder
     # tries the rung that then fails: the levels and the controller equal the serial run's
-    o = RobustOptions(
-        ladder=(0.2,), rounds=1, bisection=1, margin_boxes=5, spec_samples=2, tune_iterations=30
-    )
-    runs, said = [], []
-    for jobs in (1, 2):
-        with nested_jobs(jobs):
-            runs.append(maximise_margin(family, options=o, progress=said.append))
-    one, two = runs
+    # (``bisected``: one process, the same start)
+    one, said = bisected[0], list(bisected[1])
+    with nested_jobs(2):
+        two = maximise_margin(
+            family, options=BISECTION_OPTIONS, progress=said.append, start=_loop_start(start)
+        )
     assert [lv.scale for lv in one.levels] == [0.0, 0.2, 0.1]
     assert not one.levels[1].reached
     assert any("tried beside the ladder" in m for m in said)
