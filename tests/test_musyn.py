@@ -78,7 +78,11 @@ def _dense_peak(cl, blocks, grid):
 # -- D-K on complex uncertainty, against dkpy ----------------------------------------------------
 @pytest.fixture(scope="module")
 def ld_dk():
-    return musyn(_lightly_damped(), 1, 1, method="dk", max_iter=5, frequencies=LD_GRID)
+    # four scaled syntheses (five before): the fourth is within 0.3 % of the fifth (0.6815
+    # against 0.6796 on the grid) and already below the 0.70 asserted, and dkpy, given the
+    # same four iterations, agrees with it to 0.01 %: the comparison still holds the two
+    # D-K iterations to one answer
+    return musyn(_lightly_damped(), 1, 1, method="dk", max_iter=4, frequencies=LD_GRID)
 
 
 def _dkpy_dk(P):
@@ -105,7 +109,7 @@ def _dkpy_dk(P):
         d_scale_fit=dkpy.DScaleFitSlicot(),
         max_mu=1e-3,
         max_mu_fit_error=1e-2,
-        max_iterations=5,
+        max_iterations=4,  # as many as ours (ld_dk): its fifth raised its peak mu (0.6823)
         max_fit_order=4,
     )
     with warnings.catch_warnings():
@@ -125,7 +129,7 @@ def test_dk_converges_and_its_bounds_agree(ld_dk):
     for x in h:
         assert x["mu_peak_design"] <= x["gamma"] * (1 + dgk_module.MU_RTOL)
         assert x["mu_peak_grid"] <= x["mu_peak_design"] * (1 + dgk_module.MU_RTOL)
-    # D-K from the nominal H-infinity design: 1.21 -> 0.68 (measured 0.6802)
+    # D-K from the nominal H-infinity design: 1.21 -> 0.68 (measured 0.6815)
     assert h[0]["mu_peak_design"] > 1.2
     assert res.history[res.best_iteration]["mu_peak_design"] < 0.70
     # the certificate: above the grid, at most a few ladder steps away
@@ -142,14 +146,17 @@ def test_dk_agrees_with_dkpy(ld_dk):
     blocks = [(1, "complex"), (2, "complex")]  # both judged with the complex structure
     ours = _dense_peak(_closed_loop_lft(P, ld_dk.controller)[0], blocks, grid)
     theirs = _dense_peak(_closed_loop_lft(P, K_dkpy)[0], blocks, grid)
-    # measured: ours 0.680, dkpy 0.682
+    # measured: ours 0.6815, dkpy 0.6815 (0.680 and 0.682 after five iterations each)
     assert abs(ours - theirs) <= 0.02 * theirs, (ours, theirs)
 
 
 # -- D-G-K on real parameters ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def msd_dgk():
-    return musyn(_mass_spring_damper(), 1, 1, method="dgk", max_iter=3, frequencies=MSD_GRID)
+    # two scaled syntheses against D-K's three (three before): each D-G-K iteration costs
+    # about three D-K ones, and D-G-K must now beat D-K with one iteration fewer, a bar at
+    # least as high as before for a D-G-K that lost its advantage
+    return musyn(_mass_spring_damper(), 1, 1, method="dgk", max_iter=2, frequencies=MSD_GRID)
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +187,8 @@ def test_dk_certified_on_real_parameters(msd_dk):
 
 @pytest.mark.slow
 def test_dgk_certified_below_dk(msd_dgk, msd_dk):
-    # measured: D-G-K 0.811, D-K 0.842 (grid 0.807 and 0.837)
+    # measured: D-G-K 0.805 after two scaled syntheses, D-K 0.837 after three (grid 0.801
+    # and 0.833)
     assert msd_dgk.method == "D-G-K"
     assert msd_dgk.mu_peak_grid <= msd_dgk.mu_peak_certified
     assert _recertify(_mass_spring_damper(), msd_dgk)
