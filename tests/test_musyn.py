@@ -79,7 +79,7 @@ def _dense_peak(cl, blocks, grid):
 @pytest.fixture(scope="module")
 def ld_dk():
     # four scaled syntheses (five before): the fourth is within 0.3 % of the fifth (0.6815
-    # against 0.6796 on the grid) and already below the 0.70 asserted, and dkpy, given the
+    # against 0.6796 on the grid) and already below the 0.70 ceiling, and dkpy, given the
     # same four iterations, agrees with it to 0.01 %: the comparison still holds the two
     # D-K iterations to one answer
     return musyn(_lightly_damped(), 1, 1, method="dk", max_iter=4, frequencies=LD_GRID)

@@ -25,7 +25,7 @@ def limit():
     """One limit map for both pages: the nominal H-infinity design's set and the scheduled
     design's (LIMIT_SET, which the comparison page's map held already), on 4 members (the
     per-operator page's count; the comparison page had 8). The sets' coverages differ, the
-    assertions do not: they read each design's own set's entry, and the nominal design
+    checks do not: they read each design's own set's entry, and the nominal design
     covers none of its 60 members (measured), so any limit coverage is consistent with it."""
     from designs.scheduled import LIMIT_SET
 
