@@ -205,7 +205,7 @@ def _scalings_feasible(M, blocks, beta: float, g_max: float | None = None):
     n = M.shape[0]
     nv, d_parts, g_parts, psd, lin = _scaling_problem(M, blocks, beta, g_max)
     x = _solve_cvxopt(nv, psd, lin) if n >= CVXOPT_FROM_CHANNELS else None
-    if x is None or not x[-1] < 0:
+    if x is None:
         x = _solve_clarabel(nv, psd, lin)
     if x is None or not x[-1] < 0:
         return None
@@ -287,7 +287,9 @@ def _scaling_problem(M, blocks, beta: float, g_max: float | None):
 
 
 def _solve_cvxopt(nv: int, psd, lin):
-    """``x`` minimising ``t`` by CVXOPT's ``sdp`` (``G x + s = h``), or None."""
+    """``x`` minimising ``t`` by CVXOPT's ``sdp`` (``G x + s = h``), or None where it
+    stops short of the optimum (then Clarabel solves the problem: an optimum with
+    ``t >= 0`` is an answer, the LMI infeasible at this ``beta``)."""
     c = np.zeros(nv)
     c[-1] = 1.0
     Gs = [cvxopt.matrix(-F.reshape(-1, nv, order="F")) for _, F in psd]
@@ -300,7 +302,7 @@ def _solve_cvxopt(nv: int, psd, lin):
         )
     except (ArithmeticError, ValueError):
         return None
-    if sol["x"] is None:
+    if sol["status"] != "optimal" or sol["x"] is None:
         return None
     x = np.asarray(sol["x"], float).ravel()
     return x if np.all(np.isfinite(x)) else None
