@@ -80,8 +80,8 @@ def register(sub) -> None:
         choices=LOWER_METHODS,
         default="auto",
         help="lower-bound certificate: 'auto' (default: zero exclusion on value sets for the "
-        "family's open loop and the region 'lhp', mu for a --system unless damping is asked in a "
-        "band only, else the eigenvalue enclosures), "
+        "family's open loop and the region 'lhp', mu for a --system or a --controller unless "
+        "damping is asked in a band only, else the eigenvalue enclosures), "
         "'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic Lyapunov LMI "
         "per sub-box), 'valueset', or 'mu' (the loop's state matrix as an LFT, the family's or "
         "a --system's, mixed mu below 1 at every frequency; a decay rate and damping of every "

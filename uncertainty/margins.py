@@ -200,12 +200,19 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
 
 def _resolve_method(loop, region, method: str) -> str:
     """``auto``: the value-set route for a family's open loop and the open left half-plane
-    (where it applies); mu for an uncertain system's loop (a decay rate, and a damping
-    ratio required of every pole); else the eigenvalue enclosures."""
+    (where it applies); mu for an uncertain system's loop and for a family's loop closed by
+    a compensator (a decay rate, and a damping ratio required of every pole); else the
+    eigenvalue enclosures.
+
+    On the family's loop closed by the shipped ``hinf-robust`` compensator (the open left
+    half-plane) mu certifies 0.38 of the box, 0.62 of the upper bound, where the eigenvalue
+    enclosures certify 0.0027 (CHANGELOG)."""
     if method != "auto":
         return method
-    if isinstance(loop, _SystemLoop) and (
-        region.min_damping == 0 or tuple(region.band_hz) == EVERY_FREQUENCY_HZ
+    mu_region = region.min_damping == 0 or tuple(region.band_hz) == EVERY_FREQUENCY_HZ
+    if mu_region and (
+        isinstance(loop, _SystemLoop)
+        or (isinstance(loop, _FamilyLoop) and loop.controller is not None)
     ):
         return "mu"
     if (
@@ -391,7 +398,8 @@ def margin_lower_bound(
         unless this limit is hit, which the history records.
     method : str
         ``"auto"`` (default: ``"valueset"`` where it applies, ``"mu"`` for an uncertain
-        system unless damping is asked in a band only, else ``"eigenvalues"``),
+        system or a family's loop with a compensator unless damping is asked in a band
+        only, else ``"eigenvalues"``),
         ``"eigenvalues"`` (verified eigenvalue enclosures over sub-boxes, see
         :func:`certify_box`), ``"lyapunov"`` (a quadratic Lyapunov certificate of the
         interval matrix, :func:`certify_interval_matrix`; decay rate only) or
