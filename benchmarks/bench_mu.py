@@ -6,7 +6,10 @@ Robust performance (:func:`uncertainty.robust_performance`) on the four cases of
 ``tests/test_uss_margin.py`` and an observer-based noncollocated two-mass loop (its exact
 margin from a root of the closed loop's spectral abscissa). Prints, per case, the exact
 margin, both bounds and their ratios to it, and the wall time; then the time of one D-G
-scaling LMI of :func:`uncertainty.mussv` (Clarabel, built numerically). Targets (issue
+scaling LMI of :func:`uncertainty.mussv` (built numerically), and of one LMI of 8, 12, 20
+and 30 channels (seeded random matrices, 2 x 2 repeated real blocks, the family's loop has
+30 channels) by each solver, CVXOPT and Clarabel (:data:`uncertainty.mu.CVXOPT_FROM_CHANNELS`
+picks between them). Targets (issue
 "robust stability and performance of any loop"): lower >= 0.9 exact, upper <= 1.01 exact,
 each case under a minute on two cores.
 
@@ -26,7 +29,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from uncertainty import Region, robust_margin, robust_performance, ureal, uss
-from uncertainty.mu import _scalings_feasible
+from uncertainty.mu import _scaling_problem, _scalings_feasible, _solve_clarabel, _solve_cvxopt
 
 
 def _performance_cases():
@@ -92,6 +95,19 @@ def main() -> None:
     for _ in range(10):
         _scalings_feasible(M, blocks, 3.0)
     lmi_s = (time.perf_counter() - t) / 10
+    solvers = []
+    rng = np.random.default_rng(0)
+    for n in (8, 12, 20, 30):
+        Mn = rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n))
+        Mn /= np.linalg.norm(Mn, 2)
+        nv, _, _, psd, lin = _scaling_problem(Mn, [(2, "real")] * (n // 2), 0.9, 10.0)
+        row = {"channels": n}
+        for name, solve in (("cvxopt", _solve_cvxopt), ("clarabel", _solve_clarabel)):
+            t = time.perf_counter()
+            for _ in range(3):
+                solve(nv, psd, lin)
+            row[f"{name}_seconds"] = (time.perf_counter() - t) / 3
+        solvers.append(row)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     if args.json:
         print(
@@ -102,6 +118,7 @@ def main() -> None:
                         for r in rows
                     ],
                     "dg_lmi_seconds": lmi_s,
+                    "lmi_solvers": solvers,
                     "peak_rss_mib": peak,
                 }
             )
@@ -119,6 +136,11 @@ def main() -> None:
     print(
         f"one D-G scaling LMI (6 x 6, two repeated reals and a complex block): {lmi_s * 1e3:.1f} ms"
     )
+    for row in solvers:
+        print(
+            f"one LMI of {row['channels']:2d} channels: CVXOPT {row['cvxopt_seconds']:6.3f} s, "
+            f"Clarabel {row['clarabel_seconds']:6.3f} s"
+        )
     print(f"process peak resident memory: {peak:.0f} MiB")
 
 
