@@ -202,11 +202,8 @@ def _resolve_method(loop, region, method: str) -> str:
     """``auto``: the value-set route for a family's open loop and the open left half-plane
     (where it applies); mu for an uncertain system's loop and for a family's loop closed by
     a compensator (a decay rate, and a damping ratio required of every pole); else the
-    eigenvalue enclosures.
-
-    On the family's loop closed by the shipped ``hinf-robust`` compensator (the open left
-    half-plane) mu certifies 0.38 of the box, 0.62 of the upper bound, where the eigenvalue
-    enclosures certify 0.0027 (CHANGELOG)."""
+    eigenvalue enclosures (mu is the tighter on the family's compensated loops: the
+    CHANGELOG has the figures)."""
     if method != "auto":
         return method
     mu_region = region.min_damping == 0 or tuple(region.band_hz) == EVERY_FREQUENCY_HZ

@@ -60,9 +60,9 @@ BISECTION_RTOL = 1e-5
 BALANCE_RANGE = 1e8
 #: Sweeps of the balancing's iteration.
 BALANCE_SWEEPS = 30
-#: Channels from which the scaling LMI goes to CVXOPT first (:func:`_scalings_feasible`);
-#: measured on random 2 x 2 repeated real blocks, one LMI: 8 channels 0.10 s (Clarabel
-#: 0.06 s), 12 channels 0.15 s (0.19 s), 20 channels 0.34 s (1.1 s), 30 channels 1.0 s (7.2 s).
+#: Channels from which the scaling LMI goes to CVXOPT first (:func:`_scalings_feasible`):
+#: where it overtakes Clarabel on one LMI of random 2 x 2 repeated real blocks
+#: (``benchmarks/bench_mu.py`` prints both solvers' times from 8 to 30 channels).
 CVXOPT_FROM_CHANNELS = 12
 
 
@@ -191,11 +191,12 @@ def _scalings_feasible(M, blocks, beta: float, g_max: float | None = None):
     which an interior-point method that eliminates the matrix variable (the Schur
     complement of the variables, CVXOPT's ``sdp``: Vandenberghe, "The CVXOPT linear and
     quadratic cone program solvers", 2010) is fastest: on the family's loop (15 parameters,
-    30 channels, the LMI 60 x 60 in real form) about 1 s against 7 s for Clarabel, which
-    factors the whole cone's KKT system. Below :data:`CVXOPT_FROM_CHANNELS` channels
-    Clarabel is the faster (CVXOPT's Python overhead), and it solves the problem wherever
-    CVXOPT stops without an answer. Whatever the solver's accuracy, the bound used is
-    recomputed from the scalings (:func:`_bound_from_scalings`).
+    30 channels, the LMI 60 x 60 in real form) several times faster than Clarabel, which
+    factors the whole cone's KKT system (``benchmarks/bench_mu.py``). Below
+    :data:`CVXOPT_FROM_CHANNELS` channels Clarabel is the faster (CVXOPT's Python
+    overhead), and it solves the problem wherever CVXOPT stops without an answer.
+    Whatever the solver's accuracy, the bound used is recomputed from the scalings
+    (:func:`_bound_from_scalings`).
 
     ``g_max`` bounds each real block's ``G`` by ``-g_max D <= G <= g_max D``: a smaller set
     of scalings, so still an upper bound, and one that varies continuously with ``M``
