@@ -4,6 +4,15 @@ import shutil
 import sys
 import tempfile
 
+from bdft.kernels import pin_numeric_kernels
+
+# the tests run the numerical kernels the commands run (OpenBLAS's Haswell kernels, NumPy's
+# x86-64-v3 loops; bdft/kernels.py), before NumPy loads: the designs' nonsmooth tuning and
+# the synthesis's SDPs turn last-bit differences into other controllers, and a verdict
+# measured on one CPU's own kernels (AVX-512 loops) was not the one another CPU (AVX2 only)
+# reached. Pinned, every x86-64 machine with AVX2 and FMA runs the same instructions
+pin_numeric_kernels()
+
 # under pytest-xdist each worker gets its share of the cores for its BLAS threads (one each
 # for two workers on two cores), set before numpy loads OpenBLAS and passed on to the
 # commands the tests start; a count the user set is kept. Without it two workers ran four

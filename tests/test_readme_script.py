@@ -80,7 +80,9 @@ def ran(tmp_path_factory):
 
 
 def test_it_prints_what_the_readme_says(ran):
-    """The same lines; each number within two units of the README's last digit."""
+    """The same lines; each number within two units of the README's last digit (the
+    controller's last digits differ between CPUs: AVX-512 and AVX2 loops give controllers
+    whose margins are 1 % apart, so the README prints two decimals)."""
     _, _, out, seconds = ran
     got, want = out.strip().splitlines(), _printed().strip().splitlines()
     assert len(got) == len(want), out
@@ -88,8 +90,8 @@ def test_it_prints_what_the_readme_says(ran):
         assert NUMBER.split(g) == NUMBER.split(w), f"{g!r} != {w!r}"
         for a, b in zip(NUMBER.findall(g), NUMBER.findall(w)):
             digits = len(b.split(".")[1]) if "." in b else 0
-            assert abs(float(a) - float(b)) <= 2 * 10.0**-digits, f"{g!r} != {w!r}"
-    assert seconds < 100  # the README: about 30 s; the whole file must stay under two minutes
+            assert abs(float(a) - float(b)) <= 2.000001 * 10.0**-digits, f"{g!r} != {w!r}"
+    assert seconds < 100  # the README: about 15 s; the whole file must stay under two minutes
 
 
 def _scaled_corners(G, scale):

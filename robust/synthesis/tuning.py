@@ -39,7 +39,7 @@ import numpy as np
 from robust.analysis.region import Region
 from robust.checks import POSITIVE, Spec, check_int, check_scalar
 from robust.errors import ModelStructureError
-from robust.synthesis.minimise import SLPResult, _bfgs, slp_minimise
+from robust.synthesis.minimise import SLPResult, bfgs_minimise, slp_minimise
 from robust.synthesis.pk_members import SynthesisMember, from_scaled, scale_members, to_scaled
 from robust.synthesis.pole_derivatives import eigen_region_rows
 from robust.synthesis.region import synthesis_region
@@ -251,7 +251,7 @@ def tune_members(
         # BFGS on a nonsmooth objective may stop at a kink; restarting from the last point
         # (a fresh Hessian) continues the descent
         for _ in range(restarts):
-            xr, fr, it = _bfgs(lambda th, bs=budget_scale: fun(th, bs), xb, max_iter)
+            xr, fr, it = bfgs_minimise(lambda th, bs=budget_scale: fun(th, bs), xb, max_iter)
             nit += it
             if not fr < fb - 1e-9 * max(abs(fb), 1e-12):
                 break
