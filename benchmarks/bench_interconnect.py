@@ -1,7 +1,7 @@
 """Benchmark: the family's closed loops assembled by compiled loops against NumPy.
 
 Builds the blocks of ``--members`` members of the default (physical) family once, then
-times ``uncertainty.interconnect.close_loops`` (compiled; the baseline is excluded from its
+times ``uncertainty.closeloops.close_loops`` (compiled; the baseline is excluded from its
 first call, which loads or compiles the loops) against the same closed loops assembled
 with NumPy as the workbench did before: padded block-diagonal stacks, ``einsum`` products
 and the series of ``(D M)^k``. Prints min/median/max microseconds per member over
@@ -21,7 +21,7 @@ import numpy as np
 import bdft  # noqa: F401 - fixes the numerical kernels before NumPy is used
 from uncertainty import default_family, sample
 from uncertainty.batched import interconnection, loop_blocks
-from uncertainty.interconnect import close_loops
+from uncertainty.closeloops import close_loops
 
 
 def numpy_close(blocks, M) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Closed loops of interconnected blocks (uncertainty.interconnect): against the formula solved
+"""Closed loops of interconnected blocks (uncertainty.closeloops): against the formula solved
 by LAPACK member by member, against python-control, the algebraic-cycle path, bad input."""
 
 import hashlib
@@ -11,7 +11,7 @@ from numba_builds import outputs_here_and_generic, register
 from robust.errors import ModelStructureError
 from uncertainty import default_family, sample
 from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
-from uncertainty.interconnect import algebraic_cycle, close_loops
+from uncertainty.closeloops import algebraic_cycle, close_loops
 
 
 def _reference(As, Bs, Cs, Ds, M, N):

@@ -8,7 +8,7 @@ signal names, and the loop is closed for all members at once::
     x' = A x + B u,   y = C x + D u,   u = M y
     =>  A_cl = A + B M (I - D M)^{-1} C
 
-by the compiled loops of :func:`uncertainty.interconnect.close_loops` (the series of
+by the compiled loops of :func:`uncertainty.closeloops.close_loops` (the series of
 ``(D M)^k`` when the feedthroughs form no algebraic cycle, as in the family's loop; LAPACK's
 solve otherwise). No python-control object is built per member. The eigenvalues of the stack
 are taken by the compiled loop of :func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's
@@ -79,9 +79,9 @@ from robust.model.blocks import (
 from robust.model.loop import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from robust.model.physical import physical_human_matrices
 from robust.model.wiring import CONTROLLER_FORCE, figure5_junctions, interconnection_matrix
+from uncertainty.closeloops import close_loops
 from uncertainty.constants import DEFAULT_CHUNK as DEFAULT_CHUNK
 from uncertainty.family import Family
-from uncertainty.interconnect import close_loops
 
 __all__ = [
     "DEFAULT_CHUNK",
