@@ -500,7 +500,7 @@ def tune_spectral_abscissa(
     prox: float = 1e-3,
     rounds: int = 6,
     add_per_round: int = 12,
-    max_iter: int = 100,
+    max_iter: int = 300,
     force=None,
     tracking=None,
     force_while_stabilising: bool = True,
