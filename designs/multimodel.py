@@ -490,6 +490,15 @@ class RobustTuning:
     chosen_round: int = -1  # the history entry whose controller is returned
 
 
+def _stalled(history, patience: int) -> bool:
+    """Whether none of the last ``patience`` rounds of ``history`` improved on the best of the
+    rounds before them (more members stable, or as many with a lower worst abscissa)."""
+    if patience < 1 or len(history) <= patience:
+        return False
+    best = min((-h[2], h[1]) for h in history[:-patience])
+    return all((-h[2], h[1]) >= best for h in history[-patience:])
+
+
 def tune_spectral_abscissa(
     family,
     samples,
@@ -501,6 +510,7 @@ def tune_spectral_abscissa(
     rounds: int = 6,
     add_per_round: int = 12,
     max_iter: int = 300,
+    patience: int = 3,
     force=None,
     tracking=None,
     force_while_stabilising: bool = True,
@@ -531,6 +541,12 @@ def tune_spectral_abscissa(
         Weight of the proximal term: mean squared relative change of the controller's entries.
     rounds, add_per_round, max_iter : int
         Enlargement rounds, members added per round, BFGS iterations per round.
+    patience : int
+        Stop enlarging after this many rounds in a row that did not improve on the best
+        round so far (more sampled members stable, or as many with a lower worst abscissa):
+        the best round is the one returned, and a tuning stuck at a kink (a line search that
+        cannot leave it) would otherwise repeat the same controller for every round left.
+        0 never stops early.
     output_scales : dict, optional
         Typical size of the entries of an output's row (e.g. ``{"r_corr": k_psf}``), for
         outputs that ``K0`` leaves at zero; other entries are scaled by ``K0``'s own.
@@ -561,7 +577,8 @@ def tune_spectral_abscissa(
     Raises
     ------
     ParameterError
-        If ``margin`` or ``tau`` is not a positive number.
+        If ``margin`` or ``tau`` is not a positive number, ``actuator_lag_s`` is negative
+        or ``patience`` is not an integer >= 0.
     """
     for name, val in (("margin", margin), ("tau", tau)):
         if not (np.isfinite(val) and val > 0):
@@ -570,6 +587,8 @@ def tune_spectral_abscissa(
         raise ParameterError(
             f"actuator_lag_s must be a finite value >= 0, s; got {actuator_lag_s!r}"
         )
+    if isinstance(patience, bool) or not isinstance(patience, (int, np.integer)) or patience < 0:
+        raise ParameterError(f"patience must be an integer >= 0 (0: never); got {patience!r}")
     nk = K0.nstates
     Om0 = _omega(K0)
     # entrywise units of the parameters (diagonal preconditioning): the controller's
@@ -621,6 +640,8 @@ def tune_spectral_abscissa(
             progress(r, history[-1])
         if v.max_real.max() < -margin:
             converged = True
+            break
+        if _stalled(history, patience):
             break
         new = [samples.values[i] for i in worst[:add_per_round] if v.max_real[i] >= -margin]
         rows += new

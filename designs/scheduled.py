@@ -20,8 +20,8 @@ The design, top to bottom:
    smallest largest utilisation on the identified member (with the machine's own valve:
    the machine measures the cylinder position its PI loop closes on, so its rig knows its
    cylinder loop; :attr:`Calibrations.valves`); the candidates' closed loops are
-   evaluated together in numpy (16 ms per design, checked against
-   :func:`designs.spec.check_specification` in the tests);
+   evaluated together in numpy (checked against :func:`designs.spec.check_specification`
+   in the tests);
 4. the bank beside it: a grid of ``cells_per_axis`` intervals per identified quantity of
    the operator over the family's ranges (logarithmic in the frequencies, linear in the
    damping ratios; a cell whose lower mode's frequency interval lies wholly above the

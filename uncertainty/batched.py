@@ -41,8 +41,8 @@ definition, evaluated over numpy batches (:data:`robust.model.blocks.NUMPY`):
   :mod:`robust.model.loop`).
 
 Bad members: every public function here checks the member values once, vectorised,
-before any matrix is built (:meth:`uncertainty.family.Family.check_members`, about 0.1 s per
-million members): NaN, inf and non-physical values (a non-positive mass, gain, natural
+before any matrix is built (:meth:`uncertainty.family.Family.check_members`, a small part of
+a validation's time): NaN, inf and non-physical values (a non-positive mass, gain, natural
 frequency or damping ratio) and, by default, values outside the family's bounds raise
 :class:`~robust.errors.ParameterError` naming the member row and the parameter.
 ``check_bounds=False`` admits members beyond the bounds (a scaled box for robust margins)

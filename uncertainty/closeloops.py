@@ -18,7 +18,7 @@ Arithmetic: plain multiplications and additions in a fixed order (no fused multi
 no reassociation; products with a zero entry of ``M`` or ``D M`` are skipped, which can
 only turn a ``-0.0`` into ``+0.0``), so the bits do not depend on the CPU, the BLAS or its
 threads. The first call in a process loads the compiled loops from Numba's cache (or
-compiles them once after an install, about 1.5 s per number of blocks).
+compiles them once after an install, once per number of blocks).
 """
 
 from __future__ import annotations

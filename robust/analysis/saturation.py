@@ -90,9 +90,9 @@ The PI has no anti-windup (the paper's): held at a stroke end or at full opening
 integral winds up, and the cylinder leaves the end late.
 
 The samples are stepped by loops compiled with Numba (:func:`_steps`,
-:func:`_hydraulic_steps`): 30 000 samples of a 20-state plant in about 10 ms, where the
-same steps as numpy products took about 0.45 s (most of it numpy's per-call overhead on
-vectors of twenty entries); the hydraulic loop (a 9-state rest of the loop and the 4-state
+:func:`_hydraulic_steps`): as numpy products, the steps cost mostly numpy's per-call
+overhead on vectors of twenty entries, about forty times the compiled loops' time; the
+hydraulic loop (a 9-state rest of the loop and the 4-state
 valve/cylinder on the nominal member) costs as much as the linear one. Their sums run in the
 order of their terms, without fused multiply-adds or reassociation (Numba's default), so
 they give the same bits on every x86-64 CPU (tested against a build for a generic one);

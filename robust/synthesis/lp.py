@@ -2,14 +2,14 @@
 
 The sequential linear programs of the tuning (:func:`robust.synthesis.tuning.slp_minimise`)
 solve thousands of small dense programs (about 90 rows and 60 columns). Through
-:func:`scipy.optimize.linprog` (``method="highs"``) each costs about 5 ms, of which HiGHS's
-own solve is under 2: the rest is the argument checks, the option manager's checks of
-every option and the conversion of the results. :func:`solve_lp` hands the same model, with
-the same options, to the same HiGHS library (the build SciPy ships and ``linprog`` runs,
-:mod:`scipy.optimize._highspy._core`), and applies ``linprog``'s test of the answer
-(Sec. "Returns"), so that its answers are ``linprog``'s to the bit (tested, on the tuning's
-programs and on random feasible, infeasible and unbounded ones) at about 2 ms each. Where
-that module is missing (a SciPy that no longer ships it), :func:`solve_lp` calls
+:func:`scipy.optimize.linprog` (``method="highs"``) most of each one's cost is not HiGHS's
+own solve but the argument checks, the option manager's checks of every option and the
+conversion of the results (``benchmarks/bench_lp.py`` measures both). :func:`solve_lp` hands
+the same model, with the same options, to the same HiGHS library (the build SciPy ships and
+``linprog`` runs, :mod:`scipy.optimize._highspy._core`), and applies ``linprog``'s test of
+the answer (Sec. "Returns"), so that its answers are ``linprog``'s to the bit (tested, on
+the tuning's programs and on random feasible, infeasible and unbounded ones) at HiGHS's own
+cost. Where that module is missing (a SciPy that no longer ships it), :func:`solve_lp` calls
 ``linprog`` itself: the same answers, at ``linprog``'s cost.
 
 HiGHS: Huangfu and Hall, "Parallelizing the dual revised simplex method", Math. Prog.
