@@ -28,6 +28,7 @@ def _force_flag_consistent(ev):
     assert ev.force_within_limits == within
 
 
+@pytest.mark.slow
 def test_hinf_robust_stabilises_the_sampled_members_and_says_when_not_all(runs):
     """What the force-only robust design holds, and what it states.
 
@@ -124,6 +125,7 @@ def test_virtual_damping_margins(runs):
     _force_flag_consistent(ev)
 
 
+@pytest.mark.slow
 def test_hinf_robust_with_reference_correction_trades_tracking_for_force(runs):
     r = _run(runs, "hinf-robust-corr")
     ev = r.evaluation
