@@ -6,10 +6,17 @@ import control as ct
 import numpy as np
 import pytest
 
-from designs.multimodel import _eigen_gradients, _omega, force_response, open_loop_data
+from designs.multimodel import (
+    _eigen_gradients,
+    _omega,
+    _stalled,
+    force_response,
+    open_loop_data,
+    tune_spectral_abscissa,
+)
 from designs.virtual_damping import virtual_damping_controller
 from robust.analysis.sampled import sampled_data_check
-from robust.errors import ModelStructureError
+from robust.errors import ModelStructureError, ParameterError
 from robust.export import discretize
 from uncertainty import default_family, sample
 
@@ -110,3 +117,24 @@ def test_sampled_data_check_refuses_a_continuous_kd(setup):
     _, members, K = setup
     with pytest.raises(ModelStructureError, match="Kd must be a discrete-time controller"):
         sampled_data_check(members[0], K, K)
+
+
+def test_enlargement_stops_after_rounds_without_a_better_one():
+    # history entries: (design members, worst sampled abscissa, fraction stable)
+    rising = [(1, 4.0, 0.2), (13, 1.0, 0.9), (25, 0.5, 0.9), (37, 0.4, 0.95)]
+    assert not _stalled(rising, 3)
+    # hinf-robust-corr's rounds: the same controller from the fourth round on
+    stuck = [(1, 4.6, 0.204), (13, 1.45, 0.932), (25, 1.04, 0.984)] + [(37, -0.061, 1.0)] * 4
+    assert not _stalled(stuck[:6], 3)  # two repeats after the best: not yet
+    assert _stalled(stuck, 3)
+    # a lower worst abscissa at the same fraction is an improvement; a higher one is not
+    assert not _stalled([(1, 1.0, 0.9), (2, 2.0, 0.9), (3, 0.9, 0.9)], 1)
+    assert _stalled([(1, 1.0, 0.9), (2, 2.0, 0.9), (3, 1.0, 0.9)], 2)
+    assert not _stalled(stuck, 0)  # 0 never stops early
+
+
+@pytest.mark.parametrize("patience", [-1, 1.5, True, "3"])
+def test_patience_must_be_a_non_negative_integer(setup, patience):
+    fam, samples, K0 = setup[0], None, setup[-1]
+    with pytest.raises(ParameterError, match="patience must be an integer >= 0"):
+        tune_spectral_abscissa(fam, samples, K0, patience=patience)
