@@ -86,6 +86,28 @@ def test_eigenvalue_gradient_against_finite_differences(setup):
     np.testing.assert_allclose(an, fd, rtol=1e-4, atol=1e-6 * np.abs(an).max())
 
 
+def test_gradients_above_a_floor_are_the_full_ones(setup):
+    # the tuning asks only for the eigenvalues above its margin: the same eigenvalues and
+    # the same gradients as the full decomposition, with the others' vectors never formed
+    _, members, K = setup
+    data = open_loop_data(members, K)
+    Om = _omega(K)
+    w, g = _eigen_gradients(data, Om, K.nstates)
+    top = np.sort(w.real, axis=1)[:, -3]
+    floor = float(np.median(top))  # some members above it, some entirely below
+    assert (w.real > floor).any(axis=1).sum() not in (0, len(members))
+    wf, gf = _eigen_gradients(data, Om, K.nstates, floor=floor)
+    above = w.real > floor
+    np.testing.assert_array_equal(wf.real > floor, above)
+    np.testing.assert_allclose(np.sort_complex(wf[above]), np.sort_complex(w[above]), rtol=1e-12)
+    assert gf.shape == (above.sum(),) + Om.shape
+    np.testing.assert_allclose(gf, g[above], rtol=1e-9, atol=1e-12 * np.abs(g).max())
+    # a floor above every eigenvalue: nothing to differentiate
+    w_none, g_none = _eigen_gradients(data, Om, K.nstates, floor=float(w.real.max()) + 1.0)
+    assert g_none.shape == (0,) + Om.shape
+    np.testing.assert_allclose(np.sort(w_none.real, axis=1), np.sort(w.real, axis=1), atol=1e-9)
+
+
 def test_force_response_and_its_gradient(setup):
     _, members, K = setup
     data = open_loop_data(members[:2], K)
