@@ -90,6 +90,7 @@ __all__ = [
     "loop_blocks",
     "closed_loop_matrices",
     "interconnection",
+    "loop_junctions",
     "batched_poles",
 ]
 
@@ -353,13 +354,49 @@ def _loop_blocks(family: Family, values: np.ndarray, controller) -> list[Block]:
     return blocks
 
 
+def _junction_args(family: Family, controller) -> tuple:
+    """What the family's junction table depends on (:func:`loop_junctions`' arguments)."""
+    ctrl_outs = () if controller is None else tuple(controller.output_labels)
+    force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
+    cal = family.calibration
+    return (
+        float(family.k_psf),
+        float(cal.handle_sign * cal.loop_scale),
+        "r_corr" in ctrl_outs,
+        force if family.human == "physical" else (),
+    )
+
+
+def loop_junctions(family: Family, controller=None) -> tuple:
+    """The family's Figure 5 junction table (:func:`robust.model.wiring.figure5_junctions`).
+
+    Parameters
+    ----------
+    family : Family
+        The family (its position scale factor, calibration and human variant).
+    controller : control.StateSpace, optional
+        The compensator (its outputs decide the junctions).
+
+    Returns
+    -------
+    tuple of robust.model.wiring.Junction
+    """
+    k_psf, handle_gain, correction, force_terms = _junction_args(family, controller)
+    return figure5_junctions(
+        k_psf=k_psf,
+        handle_gain=handle_gain,
+        reference_correction=correction,
+        force_terms=force_terms,
+    )
+
+
 def interconnection(family: Family, blocks: list[Block], controller=None) -> np.ndarray:
     """Constant ``M`` with ``u = M y`` (block inputs from block outputs) of the family's loop.
 
     Every block input is expanded through the Figure 5 junction table
-    (:func:`robust.model.wiring.figure5_junctions`, the same table
-    :class:`robust.model.loop.BDFTLoop` is built from) with the exogenous inputs
-    ``u`` and ``f_ext`` at zero (:func:`robust.model.wiring.interconnection_matrix`).
+    (:func:`loop_junctions`, the same table :class:`robust.model.loop.BDFTLoop` is built
+    from) with the exogenous inputs ``u`` and ``f_ext`` at zero
+    (:func:`robust.model.wiring.interconnection_matrix`).
 
     Parameters
     ----------
@@ -370,14 +407,8 @@ def interconnection(family: Family, blocks: list[Block], controller=None) -> np.
     controller : control.StateSpace, optional
         The compensator among the blocks (its outputs decide the junctions).
     """
-    ctrl_outs = () if controller is None else tuple(controller.output_labels)
-    force = ("f_ext", CONTROLLER_FORCE) if "f" in ctrl_outs else ("f_ext",)
-    cal = family.calibration
     return _interconnection(  # (a copy: the cached matrix stays as it was)
-        float(family.k_psf),
-        float(cal.handle_sign * cal.loop_scale),
-        "r_corr" in ctrl_outs,
-        force if family.human == "physical" else (),
+        *_junction_args(family, controller),
         tuple(s for b in blocks for s in b.inputs),
         tuple(s for b in blocks for s in b.outputs),
     ).copy()
