@@ -157,6 +157,7 @@ def test_sweeps_are_the_same_bits_on_every_engine(cluster, tmp_path, capsys):
     assert outs[0] == outs[1]
 
 
+@pytest.mark.slow
 def test_margin_is_the_same_on_every_engine(cluster, monkeypatch):
     # the lower bound's sub-boxes certified in one process, two local processes and on the
     # cluster: the same bounds and the same statistics of every scale tried. The upper

@@ -169,6 +169,7 @@ print(hashlib.sha256(closed_loop_matrices(fam, v).tobytes()).hexdigest())
 register("interconnect", _HASH_SCRIPT)
 
 
+@pytest.mark.slow
 def test_same_bits_for_a_generic_cpu_build(tmp_path):
     """The compiled loops give the same bits built for a generic x86-64 (no AVX, no FMA)."""
     here, generic = outputs_here_and_generic("interconnect", tmp_path)

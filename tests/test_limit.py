@@ -473,6 +473,7 @@ def test_cli_limit_bad_options(capsys):
     assert "--force-scales" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_limit_json_is_the_same_bytes_in_one_or_two_processes(tmp_path, capsys):
     # every member is solved afresh on one BLAS and one solver thread, so which worker
     # solved which member before does not reach the numbers

@@ -40,6 +40,7 @@ def limit():
     return dict(lm.to_json(), conclusions=limit_conclusions(lm))
 
 
+@pytest.mark.slow
 def test_comparison_page_with_verdict(tmp_path, serial_runs, limit):
     runs = serial_runs
     index = write_design_report(runs, tmp_path / "designs", samples=200, seed=0, limit=limit)

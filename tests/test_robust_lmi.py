@@ -178,6 +178,7 @@ def test_certified_margin_of_the_design_controller(design, family):
 DETERMINISM_RTOL = 1e-8
 
 
+@pytest.mark.slow
 def test_same_seed_same_controller_under_one_and_two_blas_threads(design):
     code = textwrap.dedent(
         """

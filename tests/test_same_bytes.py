@@ -119,6 +119,7 @@ def outputs(tmp_path_factory):
     return folder, runs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_the_json_hashes_alike_across_threads_and_kernels(name, outputs):
     folder, runs = outputs

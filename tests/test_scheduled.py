@@ -85,6 +85,7 @@ def test_bank_coverage_against_the_continuous_schedule(calibrated):
     assert "reference effort" in cov.binding
 
 
+@pytest.mark.slow
 def test_cli_design_scheduled_json_and_artifact(tmp_path, capsys):
     out = tmp_path / "designs"
     argv = ["design", "scheduled", "--coverage-samples", "8", "--cells", "1"]
