@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from bdft.args import check_json_file, integer, real, seed
+from bdft.args import UsageError, check_json_file, integer, real, seed
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
 from bdft.validate import (
     add_family_arguments,
@@ -16,6 +16,10 @@ from bdft.validate import (
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
 
 __all__ = ["register", "run"]
+
+#: Default members per scale of the upper bounds' searches: the stability margin's (an
+#: eigenvalue problem per member) and the robust performance's (an H-infinity norm each)
+MARGIN_SAMPLES, PERFORMANCE_SAMPLES = 1000, 64
 
 
 def register(sub) -> None:
@@ -36,7 +40,12 @@ def register(sub) -> None:
         "every eigenvalue of every member over sub-boxes, or a quadratic Lyapunov LMI per "
         "sub-box). A margin >= 1 means the whole family meets the region.",
     )
-    add_family_arguments(p, samples=1000)
+    add_family_arguments(
+        p,
+        samples=0,
+        samples_help="members per scale of the upper bound's worst-case search (default: "
+        f"{MARGIN_SAMPLES}; with --gamma {PERFORMANCE_SAMPLES})",
+    )
     add_system_argument(p)
     add_jobs_argument(p)
     add_scheduler_argument(p)
@@ -93,8 +102,55 @@ def register(sub) -> None:
         default=None,
         help="seed of the upper bound's search (default: --seed)",
     )
+    p.add_argument(
+        "--gamma",
+        type=real("--gamma", low=0.0, low_open=True),
+        default=None,
+        help="robust performance instead of stability: the largest scale at which every "
+        "member is stable with ||T||_inf < GAMMA, T the closed loop from --inputs to "
+        "--outputs (certified lower bound by mu with a performance block, upper bound with "
+        "the worst member's exact norm)",
+    )
+    p.add_argument(
+        "--inputs",
+        default=None,
+        help="with --gamma: the loop's inputs, comma-joined (the family's: u, and with the "
+        "physical human f_ext; default u; a --system's names, default all)",
+    )
+    p.add_argument(
+        "--outputs",
+        default=None,
+        help="with --gamma: the loop's outputs, comma-joined (the family's: y, c, h, x, e, r, "
+        "err, f, r_corr, f_ctrl; default y; a --system's names, default all)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
+
+
+def _names(option: str, text):
+    if text is None:
+        return None
+    names = [t.strip() for t in str(text).split(",")]
+    if not all(names):
+        raise UsageError(f"{option}: expected signal names, comma-joined (e.g. u); got {text!r}")
+    return names
+
+
+def _check_performance_options(args) -> None:
+    if args.gamma is None:
+        for opt, val in (("--inputs", args.inputs), ("--outputs", args.outputs)):
+            if val is not None:
+                raise UsageError(f"{opt} is for robust performance: give --gamma as well")
+        return
+    if args.region != "lhp":
+        raise UsageError(
+            f"--region: robust performance (--gamma) asks for stability only (lhp); got "
+            f"{args.region!r}"
+        )
+    if args.method != "auto":
+        raise UsageError(
+            f"--method: robust performance (--gamma) is certified by mu; got {args.method!r}"
+        )
 
 
 def _parameters_json(system) -> list:
@@ -136,7 +192,10 @@ def run(args) -> int:
     from uncertainty.margins import robust_margin
     from uncertainty.region import Region
 
+    _check_performance_options(args)
     region = Region.parse(args.region)
+    if args.gamma is not None:
+        return _run_performance(args)
     if args.system is not None:
         family, controller = read_system(args)
     else:
@@ -155,7 +214,7 @@ def run(args) -> int:
             family,
             controller=controller,
             region=region,
-            samples=args.samples,
+            samples=args.samples or MARGIN_SAMPLES,
             seed=search_seed,
             max_boxes=args.max_boxes,
             time_limit_s=args.time_limit,
@@ -197,5 +256,77 @@ def run(args) -> int:
     if res.critical:
         print(f"  critical member (violation {res.critical['violation']:.4g} rad/s):")
         for k, v in res.critical["parameters"].items():
+            print(f"    {k:18s} {v:.6g}")
+    return 0
+
+
+def _run_performance(args) -> int:
+    """``bdft margin --gamma``: both bounds of the robust performance margin."""
+    from tqdm import tqdm
+
+    from uncertainty.files import load_controller
+    from uncertainty.loop import family_uss
+    from uncertainty.performance import robust_performance
+
+    inputs, outputs = _names("--inputs", args.inputs), _names("--outputs", args.outputs)
+    if args.system is not None:
+        system, controller = read_system(args)
+    else:
+        if args.controller is not None:
+            check_json_file("--controller", args.controller)
+        family = build_family(args).with_workspace_factor(args.workspace_factor)
+        controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
+        inputs, outputs = inputs or ["u"], outputs or ["y"]
+        system = family_uss(family, controller, inputs=inputs, outputs=outputs)
+    search_seed = args.seed if args.search_seed is None else args.search_seed
+    with tqdm(desc="performance", unit="step", file=sys.stderr, disable=None) as bar:
+
+        def progress(msg: str) -> None:
+            bar.set_postfix_str(msg[:60])
+            bar.update(1)
+
+        res = robust_performance(
+            system,
+            controller=controller if args.system is not None else None,
+            inputs=inputs,
+            outputs=outputs,
+            gamma=args.gamma,
+            samples=args.samples or PERFORMANCE_SAMPLES,
+            seed=search_seed,
+            time_limit_s=args.time_limit,
+            progress=progress,
+        )
+    for k, v in res.timings_s.items():
+        print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)
+    obj = res.to_json()
+    obj.pop("timings_s")
+    obj.update(gamma=args.gamma, inputs=inputs, outputs=outputs)
+    if args.system is not None:
+        obj.update(
+            system=args.system,
+            parameters=_parameters_json(system),
+            controller=controller_source(args, controller),
+        )
+    else:
+        obj.update(
+            family=family.name,
+            ranges=family.ranges,
+            workspace_factor=args.workspace_factor,
+            controller=args.controller,
+        )
+    if args.json:
+        print_json(obj)
+        return 0
+    where = f"system {args.system}" if args.system is not None else f"family {family.name}"
+    print(f"{where}, controller {args.controller or 'none'}")
+    chans = f"{','.join(inputs or ['all'])} -> {','.join(outputs or ['all'])}"
+    print(f"robust performance: ||T||_inf < {args.gamma:.6g} and stable, T: {chans}")
+    print(f"  nominal ||T||_inf / gamma  {res.nominal_norm:.4g}")
+    print(f"  certified lower bound    {res.lower:.4g}")
+    print(f"  upper bound              {res.upper:.4g}")
+    if res.worst:
+        w = res.worst
+        print(f"  worst member (||T||_inf / gamma {w['norm']:.4g} at {w['frequency_hz']:.4g} Hz):")
+        for k, v in w["parameters"].items():
             print(f"    {k:18s} {v:.6g}")
     return 0

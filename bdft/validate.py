@@ -35,7 +35,7 @@ __all__ = [
 _METHODS = ("mc", "lhs", "grid", "vertices")
 
 
-def add_family_arguments(p, *, samples: int) -> None:
+def add_family_arguments(p, *, samples: int, samples_help: str | None = None) -> None:
     """Add the options shared by ``validate`` and ``sweep``: family, sampling, plant files.
 
     The options are ``--samples``, ``--seed``, ``--human``, ``--posture``, ``--ranges``,
@@ -46,14 +46,16 @@ def add_family_arguments(p, *, samples: int) -> None:
     p : argparse.ArgumentParser
         The sub-command's parser.
     samples : int
-        Default of ``--samples`` (number of family members; ``sweep`` passes 0, meaning
-        its per-sweep default).
+        Default of ``--samples`` (number of family members; ``sweep`` and ``margin`` pass 0,
+        meaning their own defaults).
+    samples_help : str, optional
+        The help of ``--samples`` (default: the number of members and the default).
     """
     p.add_argument(
         "--samples",
         type=members("--samples"),
         default=samples,
-        help=members_help("number of members (default: %(default)s)"),
+        help=members_help(samples_help or "number of members (default: %(default)s)"),
     )
     p.add_argument(
         "--seed",
