@@ -166,6 +166,66 @@ def _parameters_json(system) -> list:
     ]
 
 
+def _loop(args):
+    """The ``--system``'s uncertain system or the family, and the controller, checked."""
+    from uncertainty.files import load_controller
+
+    if args.system is not None:
+        return read_system(args)
+    if args.controller is not None:
+        check_json_file("--controller", args.controller)
+    family = build_family(args).with_workspace_factor(args.workspace_factor)
+    controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
+    return family, controller
+
+
+def _search_seed(args) -> int:
+    return args.seed if args.search_seed is None else args.search_seed
+
+
+def _with_progress(desc: str, call):
+    """``call(progress)`` under a progress bar on standard error."""
+    from tqdm import tqdm
+
+    with tqdm(desc=desc, unit="step", file=sys.stderr, disable=None) as bar:
+
+        def progress(msg: str) -> None:
+            bar.set_postfix_str(msg[:60])
+            bar.update(1)
+
+        return call(progress)
+
+
+def _result_json(args, res, source, controller) -> dict:
+    """The result's JSON with what was analysed; each bound's time goes to standard error."""
+    for k, v in res.timings_s.items():
+        print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)
+    obj = res.to_json()
+    obj.pop("timings_s")
+    if args.system is not None:
+        obj.update(
+            system=args.system,
+            parameters=_parameters_json(source),
+            controller=controller_source(args, controller),
+        )
+    else:
+        obj.update(
+            family=source.name,
+            ranges=source.ranges,
+            workspace_factor=args.workspace_factor,
+            controller=args.controller,
+        )
+    return obj
+
+
+def _heading(args, source, obj) -> str:
+    """The summary's first line: what was analysed, with which controller."""
+    if args.system is not None:
+        return f"system {args.system}, controller {obj['controller'] or 'none'}"
+    label = " (STRESS VARIANT)" if source.ranges == "stress" else ""
+    return f"family {source.name}{label}, controller {args.controller or 'none'}"
+
+
 def run(args) -> int:
     """Compute both bounds of the robust margin and print them.
 
@@ -186,9 +246,6 @@ def run(args) -> int:
         Exit code 0. Standard output gets one JSON object (``--json``) or a summary;
         progress goes to standard error.
     """
-    from tqdm import tqdm
-
-    from uncertainty.files import load_controller
     from uncertainty.margins import robust_margin
     from uncertainty.region import Region
 
@@ -196,58 +253,28 @@ def run(args) -> int:
     region = Region.parse(args.region)
     if args.gamma is not None:
         return _run_performance(args)
-    if args.system is not None:
-        family, controller = read_system(args)
-    else:
-        if args.controller is not None:
-            check_json_file("--controller", args.controller)
-        family = build_family(args).with_workspace_factor(args.workspace_factor)
-        controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
-    search_seed = args.seed if args.search_seed is None else args.search_seed
-    with tqdm(desc="margin", unit="step", file=sys.stderr, disable=None) as bar:
-
-        def progress(msg: str) -> None:
-            bar.set_postfix_str(msg[:60])
-            bar.update(1)
-
-        res = robust_margin(
+    family, controller = _loop(args)
+    res = _with_progress(
+        "margin",
+        lambda progress: robust_margin(
             family,
             controller=controller,
             region=region,
             samples=args.samples or MARGIN_SAMPLES,
-            seed=search_seed,
+            seed=_search_seed(args),
             max_boxes=args.max_boxes,
             time_limit_s=args.time_limit,
             method=args.method,
             progress=progress,
             jobs=args.jobs,
             scheduler=args.scheduler,
-        )
-    for k, v in res.timings_s.items():
-        print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)
-    obj = res.to_json()
-    obj.pop("timings_s")
-    if args.system is not None:
-        obj.update(
-            system=args.system,
-            parameters=_parameters_json(family),
-            controller=controller_source(args, controller),
-        )
-    else:
-        obj.update(
-            family=family.name,
-            ranges=family.ranges,
-            workspace_factor=args.workspace_factor,
-            controller=args.controller,
-        )
+        ),
+    )
+    obj = _result_json(args, res, family, controller)
     if args.json:
         print_json(obj)
         return 0
-    if args.system is not None:
-        print(f"system {args.system}, controller {obj['controller'] or 'none'}")
-    else:
-        label = " (STRESS VARIANT)" if family.ranges == "stress" else ""
-        print(f"family {family.name}{label}, controller {args.controller or 'none'}")
+    print(_heading(args, family, obj))
     print(f"region: {region.describe()}")
     print(f"  certified lower bound  {res.lower:.4g}")
     print(f"  upper bound            {res.upper:.4g}")
@@ -262,63 +289,37 @@ def run(args) -> int:
 
 def _run_performance(args) -> int:
     """``bdft margin --gamma``: both bounds of the robust performance margin."""
-    from tqdm import tqdm
-
-    from uncertainty.files import load_controller
     from uncertainty.loop import family_uss
     from uncertainty.performance import robust_performance
 
     inputs, outputs = _names("--inputs", args.inputs), _names("--outputs", args.outputs)
-    if args.system is not None:
-        system, controller = read_system(args)
-    else:
-        if args.controller is not None:
-            check_json_file("--controller", args.controller)
-        family = build_family(args).with_workspace_factor(args.workspace_factor)
-        controller = load_controller(args.controller, bdft_loop=True) if args.controller else None
+    source, controller = _loop(args)
+    if args.system is None:
+        # the family's loop is closed here, through its ports
         inputs, outputs = inputs or ["u"], outputs or ["y"]
-        system = family_uss(family, controller, inputs=inputs, outputs=outputs)
-    search_seed = args.seed if args.search_seed is None else args.search_seed
-    with tqdm(desc="performance", unit="step", file=sys.stderr, disable=None) as bar:
-
-        def progress(msg: str) -> None:
-            bar.set_postfix_str(msg[:60])
-            bar.update(1)
-
-        res = robust_performance(
+        system = family_uss(source, controller, inputs=inputs, outputs=outputs)
+    else:
+        system = source
+    res = _with_progress(
+        "performance",
+        lambda progress: robust_performance(
             system,
             controller=controller if args.system is not None else None,
             inputs=inputs,
             outputs=outputs,
             gamma=args.gamma,
             samples=args.samples or PERFORMANCE_SAMPLES,
-            seed=search_seed,
+            seed=_search_seed(args),
             time_limit_s=args.time_limit,
             progress=progress,
-        )
-    for k, v in res.timings_s.items():
-        print(f"[bdft margin] {k} bound: {v:.1f} s", file=sys.stderr)
-    obj = res.to_json()
-    obj.pop("timings_s")
+        ),
+    )
+    obj = _result_json(args, res, source, controller)
     obj.update(gamma=args.gamma, inputs=inputs, outputs=outputs)
-    if args.system is not None:
-        obj.update(
-            system=args.system,
-            parameters=_parameters_json(system),
-            controller=controller_source(args, controller),
-        )
-    else:
-        obj.update(
-            family=family.name,
-            ranges=family.ranges,
-            workspace_factor=args.workspace_factor,
-            controller=args.controller,
-        )
     if args.json:
         print_json(obj)
         return 0
-    where = f"system {args.system}" if args.system is not None else f"family {family.name}"
-    print(f"{where}, controller {args.controller or 'none'}")
+    print(_heading(args, source, obj))
     chans = f"{','.join(inputs or ['all'])} -> {','.join(outputs or ['all'])}"
     print(f"robust performance: ||T||_inf < {args.gamma:.6g} and stable, T: {chans}")
     print(f"  nominal ||T||_inf / gamma  {res.nominal_norm:.4g}")
