@@ -98,6 +98,22 @@ class _DFit:
             out *= (w2[:, 0] + z**2) / (w2[:, 0] + p**2)
         return out
 
+    def log_magnitude2_gradient(self, w) -> np.ndarray:
+        """``d log |d(jw)|^2 / d x`` at each ``w`` (rows) for each entry of :meth:`x`
+        (columns): every factor's derivative with respect to the log of its parameter."""
+        w2 = np.asarray(w, float) ** 2
+        cols = [np.full(w2.shape, 2.0)]
+        for wz, zz, wp, zp in self.quads:
+            for wn, z, sign in ((wz, zz, 1.0), (wp, zp, -1.0)):
+                q = (wn**2 - w2) ** 2 + 4 * z**2 * wn**2 * w2
+                damp = 8 * z**2 * wn**2 * w2 / q
+                cols.append(sign * (4 * wn**2 * (wn**2 - w2) / q + damp))
+                cols.append(sign * damp)
+        for z, p in self.firsts:
+            cols.append(2 * z**2 / (w2 + z**2))
+            cols.append(-2 * p**2 / (w2 + p**2))
+        return np.stack(cols, axis=1)
+
     def system(self, inverse: bool = False) -> ct.StateSpace:
         """``d`` (or ``1 / d``): its sections in cascade, each ``1 + (b1 s + b0) / den`` with
         the state ``[w_p q, s q]`` of ``den q = input`` (frequency-scaled companion form)."""
@@ -137,6 +153,21 @@ class _GFit:
         """``G_1(w)``."""
         w = np.asarray(w, float)[:, None]
         return np.sum(self.h * 2 * self.a * w / (self.a**2 + w**2), axis=1)
+
+    def value_gradient(self, w, x: np.ndarray) -> np.ndarray:
+        """``d G_1(w) / d x`` at each ``w`` (rows) for each entry of ``x`` (columns), the
+        vector this fit was made from (:meth:`from_x`): through the sorting and the pole
+        separation of :func:`_separated`, piecewise as they are."""
+        k = self.a.size
+        w = np.asarray(w, float)[:, None]
+        den = self.a**2 + w**2
+        out = np.zeros((w.shape[0], 2 * k))
+        out[:, k:] = 2 * self.a * w / den
+        dval_da = 2 * self.h * w * (w**2 - self.a**2) / den**2
+        for j, src in enumerate(_separated_sources(np.asarray(x[:k], float))):
+            # a_j = exp(x_src) times the separation ratios: d a_j / d x_src = a_j
+            out[:, src] += dval_da[:, j] * self.a[j]
+        return out
 
     def stable_part(self):
         """``(A_b, B_b, C_b)`` of ``A(s) Y(s)``, ``A`` the all-pass of :func:`_allpass`:
@@ -183,6 +214,23 @@ def _separated(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _separated_sources(xa: np.ndarray) -> list:
+    """For each pole of ``_separated(exp(xa))``, the entry of ``xa`` it is a multiple of
+    (itself, or the pole below it raised by :data:`POLE_RATIO`), as :func:`_separated`
+    decides."""
+    order = np.argsort(xa, kind="stable")
+    a = np.exp(xa[order])
+    src = [int(order[0])] if a.size else []
+    for j in range(1, a.size):
+        raised = a[j - 1] * POLE_RATIO
+        if raised > a[j]:
+            a[j] = raised
+            src.append(src[-1])
+        else:
+            src.append(int(order[j]))
+    return src
+
+
 def _d_bounds(w, order: int):
     lw = np.log(w)
     lo, hi = lw.min() - math.log(10), lw.max() + math.log(10)
@@ -216,6 +264,9 @@ def _fit_d(w, mag2, weight, order: int) -> _DFit:
     def resid(x):
         return sw * (np.log(_DFit.from_x(x, order).magnitude2(w)) - y)
 
+    def jac(x):
+        return sw[:, None] * _DFit.from_x(x, order).log_magnitude2_gradient(w)
+
     n2, n1 = divmod(order, 2)
     lw = np.log(w)
     slope = np.abs(np.gradient(y, lw))
@@ -239,7 +290,7 @@ def _fit_d(w, mag2, weight, order: int) -> _DFit:
     for x0 in starts:
         x0 = np.clip(x0, lo, hi)
         x0[0] -= np.sum(weight * resid(x0) / sw) / np.sum(weight) / 2
-        res = least_squares(resid, x0, bounds=(lo, hi), method="trf", max_nfev=100)
+        res = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=100)
         if best is None or res.cost < best.cost:
             best = res
     return _DFit.from_x(best.x, order)
@@ -308,6 +359,41 @@ def _scaled_bounds(Mws, dd, gg) -> np.ndarray:
     return np.sqrt(np.maximum(np.linalg.eigvalsh(H)[:, -1], 0.0))
 
 
+def _scaled_bounds_gradient(Mws, dd, gg):
+    """:func:`_scaled_bounds` and, at each frequency, the bound's derivatives with respect
+    to ``log dd[:, i]`` and to ``gg[:, i]`` (zero where the bound is zero).
+
+    With ``v`` the unit eigenvector of the largest eigenvalue ``lambda`` of ``H``,
+    ``d lambda = v^H dH v`` (a simple eigenvalue; at a repeated one, a subgradient). With
+    ``u = N v``, ``q = N^H u``, ``p = G_1 v`` and ``r = N^H p``, and
+    ``dN = (E_i N - N E_i) / 2`` for ``d log dd_i = 1`` (``E_i = e_i e_i^T``)::
+
+        d lambda / d log dd_i = |u_i|^2 - Re(conj(q_i) v_i) - Im(conj(p_i) u_i)
+                                + Im(conj(r_i) v_i)
+        d lambda / d gg_i     = -2 Im(conj(v_i) u_i)
+
+    and ``d beta = d lambda / (2 beta)`` (Magnus, "On differentiating eigenvalues and
+    eigenvectors", Econometric Theory 1, 1985)."""
+    dh = np.sqrt(dd)
+    N = dh[:, :, None] * Mws / dh[:, None, :]
+    NH = np.conj(np.swapaxes(N, 1, 2))
+    H = NH @ N + 1j * (gg[:, :, None] * N - NH * gg[:, None, :])
+    H = 0.5 * (H + np.conj(np.swapaxes(H, 1, 2)))
+    lam, V = np.linalg.eigh(H)
+    v = V[:, :, -1]
+    beta = np.sqrt(np.maximum(lam[:, -1], 0.0))
+    u = np.einsum("fab,fb->fa", N, v)
+    q = np.einsum("fab,fb->fa", NH, u)
+    pv = gg * v
+    r = np.einsum("fab,fb->fa", NH, pv)
+    d_log_dd = (
+        np.abs(u) ** 2 - (np.conj(q) * v).real - (np.conj(pv) * u).imag + (np.conj(r) * v).imag
+    )
+    d_gg = -2 * (np.conj(v) * u).imag
+    half = np.divide(0.5, beta, out=np.zeros_like(beta), where=beta > 0)[:, None]
+    return beta, d_log_dd * half, d_gg * half
+
+
 def _excess(sc: _Scalings, Mws, w, mu) -> np.ndarray:
     """How far the fitted scalings' bound lies above the grid's mu, relative to its peak."""
     return (sc.bounds(Mws, w) - mu) / mu.max()
@@ -337,13 +423,37 @@ def _refine(sc: _Scalings, Mws, w, mu) -> _Scalings:
         )
 
     tau = 1e-3
+    F, n = Mws.shape[0], Mws.shape[1]
+    g_channels = [i for i, k in enumerate(kg) if k]
 
     def f(x):
-        e = _excess(unpack(x), Mws, w, mu)
+        """The smooth maximum of the excess and its gradient (the chain rule through
+        :func:`_scaled_bounds_gradient` and the fits' own derivatives)."""
+        xs = np.split(x, cuts)
+        sc = unpack(x)
+        dd, gg = np.ones((F, n)), np.zeros((F, n))
+        for i, (d, g) in enumerate(zip(sc.d, sc.g)):
+            dd[:, i] = d.magnitude2(w)
+            if g.a.size:
+                gg[:, i] = g.value(w)
+        beta, db_dlog_dd, db_dgg = _scaled_bounds_gradient(Mws, dd, gg)
+        e = (beta - mu) / mu.max()
         m = e.max()
-        return m + tau * math.log(np.sum(np.exp((e - m) / tau)))
+        soft = np.exp((e - m) / tau)
+        total = np.sum(soft)
+        weight = soft / total / mu.max()  # d f / d beta at each frequency
+        grads = [
+            (weight * db_dlog_dd[:, i]) @ d.log_magnitude2_gradient(w) for i, d in enumerate(sc.d)
+        ]
+        grads += [
+            (weight * db_dgg[:, i]) @ sc.g[i].value_gradient(w, xs[len(kd) + j])
+            for j, i in enumerate(g_channels)
+        ]
+        return m + tau * math.log(total), np.concatenate(grads)
 
-    res = minimize(f, x0, method="L-BFGS-B", bounds=list(zip(lo, hi)), options={"maxiter": 60})
+    res = minimize(
+        f, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)), options={"maxiter": 60}
+    )
     new = unpack(res.x)
     return new if _excess(new, Mws, w, mu).max() < _excess(sc, Mws, w, mu).max() else sc
 
