@@ -47,3 +47,15 @@ def pytest_collection_modifyitems(session, config, items):
     started last would run alone at the end."""
     slow = {item.path for item in items if item.get_closest_marker("slow")}
     items.sort(key=lambda item: item.path not in slow)
+
+
+def pytest_collection_finish(session):
+    """Under pytest-xdist, each worker compiles its share of the compiled kernels before its
+    first test and waits for the others' (:func:`numba_builds.build_share`): each kernel is
+    compiled once in a clean checkout, not once per worker (in a warm one the shares load
+    from Numba's cache in a second)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if _WORKERS > 1 and worker.startswith("gw"):
+        from numba_builds import build_share
+
+        build_share(int(worker[2:]), _WORKERS)

@@ -29,6 +29,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 _SCRIPTS: dict = {}
@@ -107,6 +108,28 @@ def _shared(digest: str) -> dict:
         for p in (path, path.with_suffix(".lock")):
             atexit.register(p.unlink, missing_ok=True)
         return out
+
+
+def build_share(index: int, count: int, timeout: float = 300.0) -> None:
+    """Compile this worker's share of the registered scripts' kernels, then wait for the
+    other workers' shares (at most ``timeout`` seconds).
+
+    Under pytest-xdist every worker needs most kernels early, and Numba compiles a kernel in
+    every process that needs it before another has stored it in its cache: in a clean
+    checkout both workers compiled every kernel. Split and waited for, each is compiled once
+    and loaded from Numba's cache by the other workers at first use.
+    """
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID", "")
+    for name in sorted(_SCRIPTS)[index::count]:
+        _here(name)
+    folder = Path(tempfile.gettempdir())
+    done = folder / f"bdft-numba-share-{run}-{index}"
+    done.touch()
+    atexit.register(done.unlink, missing_ok=True)
+    others = [folder / f"bdft-numba-share-{run}-{i}" for i in range(count) if i != index]
+    deadline = time.monotonic() + timeout
+    while not all(p.exists() for p in others) and time.monotonic() < deadline:
+        time.sleep(0.1)
 
 
 def outputs_here_and_generic(name: str, cache_dir=None) -> tuple[str, str]:
