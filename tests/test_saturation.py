@@ -20,6 +20,7 @@ from designs.evaluate import INTENT_FRACTION, intended_motion
 from designs.virtual_damping import virtual_damping_controller
 from robust.analysis.sampled import open_plant
 from robust.analysis.saturation import (
+    _contiguous,
     _hydraulic_steps,
     _ramp_discretisation,
     _steps,
@@ -488,7 +489,9 @@ def test_compiled_hydraulic_steps_match_numpy_products(delayed):
     for _ in range(4):
         mats = _random_hydraulic_loop(rng)
         uu = np.concatenate([2.0 * np.sin(np.arange(2000) / 40.0), np.zeros(500)])
-        y, applied, norms, _, e, counts = _hydraulic_steps(*mats, rows, lims, hyd, uu, delayed)
+        y, applied, norms, _, e, counts = _hydraulic_steps(
+            *_contiguous(*mats), rows, lims, hyd, uu, delayed
+        )
         ry, rapplied, re, rcounts = _reference_hydraulic_steps(mats, rows, lims, hyd, uu, delayed)
         assert np.array_equal(counts, rcounts) and np.all(counts > 0), counts
         for got, want in ((y, ry), (applied, rapplied), (e, re)):

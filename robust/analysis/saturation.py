@@ -538,6 +538,16 @@ def _rest_of_loop(loop, Kd) -> ct.StateSpace:
     )
 
 
+def _contiguous(*arrays) -> tuple:
+    """The arrays C-contiguous and writeable, each of its own type (float, or the integer
+    rows): the compiled steps get one signature whatever views, orders and read-only
+    arrays the discretisations return (each other layout was a compilation of its own, 3 s)."""
+    return tuple(
+        np.require(a, np.int64 if np.asarray(a).dtype.kind in "iu" else float, ["C", "W"])
+        for a in arrays
+    )
+
+
 def _run_linear(loop, Kd, uu, lims):
     """:func:`_steps` on the member's whole plant (ZOH): ``(y, applied, norms, requests, None,
     clipped, delayed)`` (no valve command)."""
@@ -549,18 +559,9 @@ def _run_linear(loop, Kd, uu, lims):
     delayed = bool(np.any(Dp[meas_rows][:, 1:] != 0) and np.any(np.asarray(Kd.D) != 0))
     Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kd.A, Kd.B, Kd.C, Kd.D))
     out = _steps(
-        Ap,
-        Bp,
-        Cp,
-        Dp,
-        Ak,
-        Bk,
-        Ck,
-        Dk,
-        np.asarray(meas_rows, np.int64),
+        *_contiguous(Ap, Bp, Cp, Dp, Ak, Bk, Ck, Dk, np.asarray(meas_rows, np.int64)),
         plant_outs.index("y"),
-        lims,
-        uu,
+        *_contiguous(lims, uu),
         delayed,
     )
     y, applied, norms, requests, clipped = out
@@ -587,22 +588,8 @@ def _run_hydraulic(loop, Kd, uu, lims):
     hyd = np.array([e_max, h.deadband * e_max, h.max_speed_m_s * cu * dt, 0.5 * h.stroke_m * cu])
     Ak, Bk, Ck, Dk = (np.asarray(m, float) for m in (Kd.A, Kd.B, Kd.C, Kd.D))
     out = _hydraulic_steps(
-        Ap,
-        Bp,
-        Fp,
-        Cp,
-        Dp,
-        Av,
-        Bv,
-        Fv,
-        Ak,
-        Bk,
-        Ck,
-        Dk,
-        np.asarray(meas_rows, np.int64),
-        lims,
-        hyd,
-        uu,
+        *_contiguous(Ap, Bp, Fp, Cp, Dp, Av, Bv, Fv, Ak, Bk, Ck, Dk),
+        *_contiguous(np.asarray(meas_rows, np.int64), lims, hyd, uu),
         delayed,
     )
     return (*out, delayed)
