@@ -246,6 +246,23 @@ def test_force_budget_follows_the_tighter_limit():
     assert ct is not None
 
 
+def test_a_scale_is_given_up_when_its_utilisation_keeps_growing_above_one():
+    """The rounds measured on ``hinf-robust-lmi``'s failed scales (0.1: 1.214, 1.232, 1.466,
+    then 1.695) stop after the third; those of scales that were reached or that fell back
+    below a larger value run on."""
+    from designs.robust_lmi_rung import _given_up
+
+    assert _given_up([1.214, 1.232, 1.466], 2)
+    assert _given_up([0.991, 1.139, 1.395], 2)
+    assert not _given_up([1.214, 1.232], 2)  # one growth only
+    assert not _given_up([1.554, 1.154, 1.233], 2)  # fell back first (cylinder-lmi's 0.05)
+    assert not _given_up([0.90, 0.95, 0.99], 2)  # growing, but within the limits
+    assert not _given_up([1.214, 1.232, 1.466], 0)  # 0: every round is run
+    assert _given_up([1.1, 1.2], 1) and not _given_up([1.2, 1.1], 1)
+    with pytest.raises(ParameterError, match="give_up"):
+        RobustOptions(give_up=-1)
+
+
 def test_cylinder_reference_design_on_a_short_ladder(family):
     """Design (ii): the same LMI machinery through the cylinder reference, no handle force."""
     o = RobustOptions(
