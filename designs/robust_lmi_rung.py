@@ -237,6 +237,14 @@ def _given_up(utilisations, rounds: int) -> bool:
     return all(u[-i] > u[-i - 1] for i in range(1, rounds + 1))
 
 
+def _binding(check):
+    """The constraint of :data:`LADDER_CONSTRAINTS` with the largest utilisation."""
+    return max(
+        (c for c in check.constraints if c.name in LADDER_CONSTRAINTS),
+        key=lambda c: c.utilisation,
+    )
+
+
 def _accepted(check) -> bool:
     """Whether a rung's check meets :data:`LADDER_CONSTRAINTS`."""
     return all(c.holds for c in check.constraints if c.name in LADDER_CONSTRAINTS)
@@ -361,7 +369,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         outcome.update(K=K, pk=pk, check=check, members=members)
         if worst_v < 0 and _accepted(check):
             break
-        grown.append(max(c.utilisation for c in check.constraints if c.name in LADDER_CONSTRAINTS))
+        grown.append(_binding(check).utilisation)
         if rnd + 1 < options.rounds and _given_up(grown, options.give_up):
             outcome["reason"] = (
                 f"abandoned after round {rnd + 1} of {options.rounds}: the largest utilisation "
@@ -375,10 +383,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         if worst_v >= 0:
             rows.append(row)
         if not _accepted(check):
-            bad = max(
-                (c for c in check.constraints if c.name in LADDER_CONSTRAINTS),
-                key=lambda c: c.utilisation,
-            )
+            bad = _binding(check)
             if bad.worst_member >= n_design:
                 rows.append(checked[bad.worst_member])
     else:
@@ -392,14 +397,7 @@ def _try_scale(family, k, K, rows, spec, options, limits, progress):
         # rungs reached once the ladder is done (the path never depends on it)
         outcome["reached"] = True
     # the ladder's binding constraint: the largest utilisation among those it requires
-    bad = (
-        max(
-            (c for c in check.constraints if c.name in LADDER_CONSTRAINTS),
-            key=lambda c: c.utilisation,
-        )
-        if check
-        else None
-    )
+    bad = _binding(check) if check else None
     level = ScaleLevel(
         scale=float(k),
         reached=outcome["reached"],

@@ -181,7 +181,8 @@ def close_loops(As, Bs, Cs, Ds, M) -> np.ndarray:
         return _solved(arrays, M, xs, us, ys, N, n, m, p)
     out = np.zeros((N, n, n))
     if N:
-        _close(*_padded(arrays, xs, us, ys), M, *_padded_offsets(xs, us, ys, K), out)
+        blocks, offsets = _padded(arrays, (xs, us, ys))
+        _close(*blocks, M, *offsets, out)
     return out
 
 
@@ -190,18 +191,14 @@ def close_loops(As, Bs, Cs, Ds, M) -> np.ndarray:
 TUPLE_BLOCKS = 8
 
 
-def _padded(arrays, xs, us, ys) -> list:
-    """Each group of block arrays as a tuple of :data:`TUPLE_BLOCKS` (empty blocks after
-    the loop's own: no states, inputs or outputs, so the compiled loop passes them by)."""
+def _padded(arrays, offsets):
+    """Each group of block arrays as a tuple of :data:`TUPLE_BLOCKS`, and the state, input
+    and output offsets to match: empty blocks after the loop's own (no states, inputs or
+    outputs, each at the end of the last real block), which the compiled loop passes by."""
     pad = max(TUPLE_BLOCKS - len(arrays[0]), 0)
     empty = np.zeros((1, 0, 0))
-    return [tuple(g) + (empty,) * pad for g in arrays]
-
-
-def _padded_offsets(xs, us, ys, K) -> list:
-    """The offsets with the empty blocks' (each at the end of the last real block)."""
-    pad = max(TUPLE_BLOCKS - K, 0)
-    return [np.concatenate([v, np.full(pad, v[-1], dtype=v.dtype)]) for v in (xs, us, ys)]
+    blocks = [tuple(g) + (empty,) * pad for g in arrays]
+    return blocks, [np.concatenate([v, np.full(pad, v[-1], dtype=v.dtype)]) for v in offsets]
 
 
 def _solved(arrays, M, xs, us, ys, N, n, m, p) -> np.ndarray:

@@ -336,26 +336,35 @@ class _Scalings:
             "G": max((f.a.size for f in self.g), default=0),
         }
 
-    def bounds(self, Mws: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """The D-G bound these scalings give ``M(jw)`` at each ``w`` (module notes)."""
-        F, n = Mws.shape[0], Mws.shape[1]
-        dd, gg = np.ones((F, n)), np.zeros((F, n))
+    def diagonals(self, w: np.ndarray, n: int):
+        """``(dd, gg)``, shape ``(len(w), n)``: each channel's ``|d(jw)|^2`` and ``G_1(w)``
+        (1 and 0 on the channels beyond the scalings', the performance block's)."""
+        dd, gg = np.ones((len(w), n)), np.zeros((len(w), n))
         for i, (d, g) in enumerate(zip(self.d, self.g)):
             dd[:, i] = d.magnitude2(w)
             if g.a.size:
                 gg[:, i] = g.value(w)
-        return _scaled_bounds(Mws, dd, gg)
+        return dd, gg
+
+    def bounds(self, Mws: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The D-G bound these scalings give ``M(jw)`` at each ``w`` (module notes)."""
+        return _scaled_bounds(Mws, *self.diagonals(w, Mws.shape[1]))
 
 
-def _scaled_bounds(Mws, dd, gg) -> np.ndarray:
-    """``sqrt(lambda_max(N^H N + j (G_1 N - N^H G_1)))``, ``N = D^(1/2) M D^(-1/2)``, at each
-    frequency: the least ``beta`` of the D-G condition with ``D = diag(dd)``,
-    ``G = diag(gg dd)``."""
+def _scaled_matrices(Mws, dd, gg):
+    """``(N, N^H, H)`` at each frequency: ``N = D^(1/2) M D^(-1/2)`` and the Hermitian
+    ``H = N^H N + j (G_1 N - N^H G_1)`` with ``D = diag(dd)``, ``G = diag(gg dd)``."""
     dh = np.sqrt(dd)
     N = dh[:, :, None] * Mws / dh[:, None, :]
     NH = np.conj(np.swapaxes(N, 1, 2))
     H = NH @ N + 1j * (gg[:, :, None] * N - NH * gg[:, None, :])
-    H = 0.5 * (H + np.conj(np.swapaxes(H, 1, 2)))
+    return N, NH, 0.5 * (H + np.conj(np.swapaxes(H, 1, 2)))
+
+
+def _scaled_bounds(Mws, dd, gg) -> np.ndarray:
+    """``sqrt(lambda_max(H))`` (:func:`_scaled_matrices`) at each frequency: the least
+    ``beta`` of the D-G condition."""
+    H = _scaled_matrices(Mws, dd, gg)[2]
     return np.sqrt(np.maximum(np.linalg.eigvalsh(H)[:, -1], 0.0))
 
 
@@ -374,11 +383,7 @@ def _scaled_bounds_gradient(Mws, dd, gg):
 
     and ``d beta = d lambda / (2 beta)`` (Magnus, "On differentiating eigenvalues and
     eigenvectors", Econometric Theory 1, 1985)."""
-    dh = np.sqrt(dd)
-    N = dh[:, :, None] * Mws / dh[:, None, :]
-    NH = np.conj(np.swapaxes(N, 1, 2))
-    H = NH @ N + 1j * (gg[:, :, None] * N - NH * gg[:, None, :])
-    H = 0.5 * (H + np.conj(np.swapaxes(H, 1, 2)))
+    N, NH, H = _scaled_matrices(Mws, dd, gg)
     lam, V = np.linalg.eigh(H)
     v = V[:, :, -1]
     beta = np.sqrt(np.maximum(lam[:, -1], 0.0))
@@ -423,7 +428,6 @@ def _refine(sc: _Scalings, Mws, w, mu) -> _Scalings:
         )
 
     tau = 1e-3
-    F, n = Mws.shape[0], Mws.shape[1]
     g_channels = [i for i, k in enumerate(kg) if k]
 
     def f(x):
@@ -431,12 +435,7 @@ def _refine(sc: _Scalings, Mws, w, mu) -> _Scalings:
         :func:`_scaled_bounds_gradient` and the fits' own derivatives)."""
         xs = np.split(x, cuts)
         sc = unpack(x)
-        dd, gg = np.ones((F, n)), np.zeros((F, n))
-        for i, (d, g) in enumerate(zip(sc.d, sc.g)):
-            dd[:, i] = d.magnitude2(w)
-            if g.a.size:
-                gg[:, i] = g.value(w)
-        beta, db_dlog_dd, db_dgg = _scaled_bounds_gradient(Mws, dd, gg)
+        beta, db_dlog_dd, db_dgg = _scaled_bounds_gradient(Mws, *sc.diagonals(w, Mws.shape[1]))
         e = (beta - mu) / mu.max()
         m = e.max()
         soft = np.exp((e - m) / tau)
