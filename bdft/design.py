@@ -291,6 +291,10 @@ def run(args) -> int:
         if margin is not None:
             print(f"{'margin, certified':20s} {margin.lower:.4g}")
             print(f"{'margin, upper':20s} {margin.upper:.4g}")
+        perf = None if res.checks is None else res.checks.performance
+        if perf is not None:
+            print(f"{'tracking, certified':20s} {perf.lower:.4g} (robust performance margin)")
+            print(f"{'tracking, upper':20s} {perf.upper:.4g}")
         if res.coverage is not None:
             print(f"{'coverage':20s} {res.coverage.describe()}")
         for note in obj["notes"]:

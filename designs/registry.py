@@ -30,6 +30,7 @@ from designs.evaluate import INTENT_FRACTION, evaluate_design, intended_motion
 from designs.result import Design, DesignChecks, DesignResult, HeldOutCheck, SaturatedRun
 from designs.spec import SpecCheck, check_specification
 from designs.specification import Specification
+from designs.tracking_performance import tracking_performance
 from robust.analysis.sampled import sampled_data_check
 from robust.analysis.saturation import saturated_response
 from robust.cache import cached, caching
@@ -203,7 +204,10 @@ def run_design(
         Sub-boxes per scale of the certified robust margin
         (:func:`uncertainty.margins.robust_margin`, open left half-plane, eigenvalue
         method); 0 skips the margin. Both bounds, the critical member, the method and the
-        certificate's summary go into ``checks.margin``.
+        certificate's summary go into ``checks.margin``; with it, the robust performance
+        margin of the specification's tracking bound
+        (:func:`designs.tracking_performance.tracking_performance`) into
+        ``checks.performance``.
     coverage_samples : int
         Independent members (Monte Carlo, seed ``seed + 2``, never used by the design)
         of the coverage certificate (:func:`designs.coverage.design_coverage`: the
@@ -290,7 +294,9 @@ def _build_design(
             iterations=2,
             jobs=n_jobs,
         )
-        checks = dataclasses.replace(checks, margin=margin)
+        # the tracking bound's robust performance margin, with the same switch
+        performance = tracking_performance(fam, K, spec, seed=seed)
+        checks = dataclasses.replace(checks, margin=margin, performance=performance)
     coverage = None
     if coverage_samples:
         coverage = design_coverage(

@@ -20,8 +20,10 @@ from typing import ClassVar
 from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck
 from designs.specification import Specification
+from designs.tracking_performance import TRACKING_REQUIREMENT, performance_summary
 from robust.analysis.sampled import SampledDataCheck
 from robust.analysis.saturation import SaturationCheck
+from uncertainty.performance import PerformanceResult
 from uncertainty.region import MarginResult
 
 __all__ = [
@@ -131,6 +133,9 @@ class DesignChecks:
     margin : uncertainty.MarginResult or None
         The certified robust margin for the specification's pole region (``None``: not
         computed).
+    performance : uncertainty.PerformanceResult or None
+        The robust performance margin of the specification's tracking bound
+        (:func:`designs.tracking_performance.tracking_performance`; ``None``: not computed).
     sampled_data : dict
         Label (``"nominal"``, ``"worst"``) -> :class:`robust.analysis.sampled.SampledDataCheck`
         of the 1 kHz loop (empty without a controller).
@@ -142,6 +147,7 @@ class DesignChecks:
     spec: SpecCheck
     specification: Specification
     margin: MarginResult | None = None
+    performance: PerformanceResult | None = None
     sampled_data: dict[str, SampledDataCheck] = dataclasses.field(default_factory=dict)
     saturation: dict[str, SaturatedRun] = dataclasses.field(default_factory=dict)
 
@@ -156,6 +162,10 @@ class DesignChecks:
             margin = self.margin.to_json()
             margin.pop("timings_s")
             out["robust_margin"] = margin
+        if self.performance is not None:
+            out["robust_performance"] = dict(
+                performance_summary(self.performance), requirement=TRACKING_REQUIREMENT
+            )
         if self.sampled_data:
             out["sampled_data_check"] = {k: v.to_json() for k, v in self.sampled_data.items()}
         if self.saturation:

@@ -120,6 +120,7 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
         fails = {k: v for k, v in c["binding"].items() if v}
         top = max(fails, key=fails.get) if fails else "-"
         m = r.checks.margin if r.checks is not None else None
+        p = r.checks.performance if r.checks is not None else None
         row = [
             name,
             f"{100 * c['fraction']:.2f} %",
@@ -128,6 +129,7 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
             f"{100 * c['lower']:.2f} %",
             top if not fails else f"{top} ({fails[top]})",
             float("nan") if m is None else m.lower,
+            "-" if p is None else f"[{p.lower:.4g}, {p.upper:.4g}]",
         ]
         if limit is not None:
             row += _limit_cells(r, limit)
@@ -142,6 +144,7 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
         "certified coverage 1 - epsilon",
         "most frequent binding constraint",
         "margin, certified lower",
+        "tracking robust performance margin [certified, upper]",
     ]
     if limit is not None:
         head += ["its set (actuators/sensors)", "limit coverage of the set, Omni's force"]
@@ -167,7 +170,12 @@ def _population_coverage_section(page: HtmlPage, runs: dict, limit: dict | None 
         f"{first.confidence:g}, epsilon the one-sided Clopper-Pearson bound (the binomial "
         "tail of k or fewer failures equals 1 - confidence at epsilon; Tempo, Calafiore & "
         "Dabbene). The certified margin is a different guarantee: the pole region on every "
-        "member of the scaled box, no probability.",
+        "member of the scaled box, no probability. The tracking robust performance margin is "
+        "the largest scale of the box on which every member is stable and meets the tracking "
+        "bound |Y/Y_ref - 1| <= |W_t| at every frequency of the operator's band: its lower "
+        "bound certified by mu with a performance block over the band (and the box's "
+        "stability by mu over every frequency), its upper bound a member that breaks the "
+        "bound, with its exact peak over the band (bdft design --json: robust_performance).",
         cls="note",
     )
 

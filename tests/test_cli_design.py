@@ -72,6 +72,14 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
     assert cov["violations"]["tracking"] == 60
     assert 10 < cov["violations"]["decay rate"] < 60
     assert sum(cov["binding"].values()) == 60
+    # the tracking bound's robust performance margin: the cancellation is exact on the
+    # nominal member only, so the bound holds on a sliver of the box (2 % of its scale),
+    # and no fresh member of the coverage sample lies that close to the nominal
+    perf = obj["details"]["robust_performance"]
+    assert 0.0 < perf["lower"] <= perf["upper"] < 0.05 and perf["nominal_norm"] < 1.0
+    assert perf["certificate"]["certified"] and perf["certificate"]["scale"] == perf["lower"]
+    assert perf["worst"]["norm"] >= 1.0 and perf["worst"]["found_by"] == "worst-case search"
+    assert "operator's band" in perf["requirement"]
     art = load_artifact(obj["artifact"])
     assert art.inputs == ["c"] and art.outputs == ["r_corr"] and art.discrete.dt == 0.001
     m = scipy.io.loadmat(tmp_path / "cancellation.mat")

@@ -168,3 +168,86 @@ def test_bad_input_names_the_parameter():
         performance_system(ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
     with pytest.raises(ParameterError, match="k must be a finite scale"):
         certify_performance(performance_system(kwargs["system"]), -1.0)
+
+
+# -- a bound over a band ------------------------------------------------------------------------
+# ``1 / (s + a)`` has the gain ``1 / sqrt(w^2 + a^2)``, largest at the band's lowest
+# frequency ``w1``: the bound 1 holds on ``[w1, inf)`` while ``a^2 > 1 - w1^2``.
+# * ``a`` in ``[0.5, 3.5]`` about 2, from 0.6 rad/s: ``a > 0.8``, the scale 0.8 (not the 2/3
+#   of every frequency);
+# * ``a`` in ``[-0.5, 2.5]`` about 1, from 2 rad/s: the gain is below 1/2 on every stable
+#   member, so the margin is the box's stability, ``a > 0``, the scale 2/3, which only the
+#   stability certificate can give.
+BAND_CASES = {
+    "from 0.6 rad/s": (0.6, 2.0, 0.5, 3.5, 0.8),
+    "from 2 rad/s": (2.0, 1.0, -0.5, 2.5, 2 / 3),
+}
+
+
+def _band_lag(nominal, low, high):
+    a = ureal("a", nominal, low, high)
+    return dict(system=uss([[-a]], [[1.0]], [[1.0]], [[0.0]]))
+
+
+@pytest.fixture(scope="module", params=sorted(BAND_CASES))
+def band_case(request):
+    w1, nominal, low, high, exact = BAND_CASES[request.param]
+    band = (w1 / (2 * math.pi), math.inf)
+    kwargs = _band_lag(nominal, low, high)
+    return band, exact, (nominal, low, high), robust_performance(**kwargs, band_hz=band)
+
+
+def test_a_band_bound_is_bracketed_tightly_around_its_exact_margin(band_case):
+    band, exact, (nominal, low, _), res = band_case
+    assert res.lower <= exact <= res.upper
+    assert res.lower >= 0.99 * exact
+    assert res.upper <= 1.01 * exact
+    # the worst member: the box's low end at the upper bound, its band peak by two algorithms
+    w = res.worst
+    assert w["parameters"]["a"] == pytest.approx(nominal - (nominal - low) * res.upper, rel=1e-9)
+    if math.isfinite(w["norm"]):
+        assert w["norm"] >= 1.0
+        assert w["grid_norm"] == pytest.approx(w["norm"], rel=1e-6)
+        assert w["frequency_hz"] == pytest.approx(band[0], rel=1e-6)
+    else:
+        assert w["rightmost_pole"].real >= -1e-9
+
+
+def test_a_band_certificate_covers_the_band_and_the_box_stability_every_frequency(band_case):
+    band, _, _, res = band_case
+    cert = res.certificate
+    assert cert["certified"]
+    ivs = sorted(f["interval_hz"] for f in cert["frequencies"])
+    assert ivs[0][0] <= band[0] * (1 + 1e-12)
+    reach = ivs[0][0]
+    for a, b in ivs:
+        assert a <= reach * (1 + 1e-12)
+        reach = max(reach, b)
+    assert math.isinf(reach)
+    stab = sorted(f["interval_hz"] for f in cert["stability"]["frequencies"])
+    assert cert["stability"]["certified"] and stab[0][0] == 0.0
+    assert all(f["mu_upper"] < 1.0 for f in cert["frequencies"] + cert["stability"]["frequencies"])
+
+
+def test_members_of_a_certified_band_box_meet_the_bound_on_a_dense_grid(band_case):
+    band, _, box, res = band_case
+    P = performance_system(**_band_lag(*box))
+    lo, hi = scaled_bounds(P, res.lower)
+    w = np.geomspace(2 * math.pi * band[0], 1e4, 2000)
+    for a in np.concatenate([lo, hi, np.linspace(lo[0], hi[0], 30)]):
+        assert a > 0  # stable
+        assert np.max(1.0 / np.sqrt(w**2 + a**2)) < 1.0
+
+
+def test_a_band_needs_a_siso_map_and_a_valid_band():
+    kwargs, _ = _lag()
+    with pytest.raises(ParameterError, match="band_hz must satisfy 0 <= low < high"):
+        robust_performance(**kwargs, band_hz=(2.0, 1.0))
+    with pytest.raises(ParameterError, match="band_hz must be a pair"):
+        certify_performance(performance_system(**kwargs), 0.5, band_hz=3.0)
+    a = ureal("a", 2.0, 0.5, 3.5)
+    two = uss([[-a]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]])
+    with pytest.raises(ModelStructureError, match="single-input single-output"):
+        robust_performance(two, band_hz=(0.0, 1.0))
+    with pytest.raises(ParameterError, match="fractions must be numbers in"):
+        robust_performance(**kwargs, fractions=(1.5,))

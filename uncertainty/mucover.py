@@ -8,9 +8,9 @@ the imaginary-axis zeros of the para-Hermitian ``Phi(s) = [M~ I] Pi [M; I]`` wit
 ``Pi = [[D, -jG], [jG, -D]]``, found as finite eigenvalues of its Rosenbrock pencil (the
 test of Ferreres & Biannic, "A mu analysis technique without frequency gridding", ACC 1998),
 and the interval is backed by direct evaluations of ``F`` inside it. Frequencies are added
-where the intervals leave a gap until ``[0, inf]`` is covered, or a frequency's bound
-reaches 1. With real ``M`` (a real system), ``mu(M(-jw)) = mu(M(jw))``: the non-negative
-frequencies suffice.
+where the intervals leave a gap until ``[0, inf]`` (or the band asked for) is covered, or a
+frequency's bound reaches 1. With real ``M`` (a real system), ``mu(M(-jw)) = mu(M(jw))``:
+the non-negative frequencies suffice.
 
 Used by :mod:`uncertainty.performance` (robust performance, a complex performance block)
 and :mod:`uncertainty.margins` (robust stability, ``method="mu"``).
@@ -24,6 +24,7 @@ import time
 import numpy as np
 import scipy.linalg as sla
 
+from robust.errors import ParameterError
 from uncertainty.mu import (
     _balance,
     _bound_from_scalings,
@@ -181,9 +182,20 @@ def _start_bound(M, blocks) -> float:
 
 
 def mu_cover(
-    A, B, C, D, blocks, *, max_frequencies: int, deadline: float, g_max: float = G_MAX
+    A,
+    B,
+    C,
+    D,
+    blocks,
+    *,
+    max_frequencies: int,
+    deadline: float,
+    g_max: float = G_MAX,
+    band: tuple[float, float] = (0.0, math.inf),
+    least_bound: bool = True,
 ) -> dict:
-    """Certificate that ``mu(M(jw)) < 1`` at every ``w`` in ``[0, inf]`` (module notes).
+    """Certificate that ``mu(M(jw)) < 1`` at every ``w`` in ``[0, inf]``, or in a band
+    (module notes).
 
     Parameters
     ----------
@@ -198,6 +210,13 @@ def mu_cover(
         :func:`time.perf_counter` value at which it gives up.
     g_max : float
         Bound of each real block's G scaling relative to its D (:data:`G_MAX`).
+    band : (float, float)
+        The frequencies to cover, rad/s, ``0 <= low < high <= inf``, both ends included
+        (default: all of them).
+    least_bound : bool
+        Where no scalings prove the bound below 1 at a frequency, bisect for the least bound
+        there (its value goes into the answer: several more LMIs) or stop at once (``False``:
+        the answer is the same, not certified).
 
     Returns
     -------
@@ -206,11 +225,20 @@ def mu_cover(
         scalings cover, Hz); when not certified, ``reason`` and, where the bound reached 1,
         ``frequency_hz`` and ``mu_upper``.
     """
+    lo, hi = (float(x) for x in band)
+    if not (0.0 <= lo < hi):
+        raise ParameterError(f"mu_cover: band must satisfy 0 <= low < high; got {band!r}")
     shown: list = []
+    # what lies outside the band counts as covered (and is not shown)
     intervals: list = []
+    if lo > 0:
+        intervals.append((0.0, lo, True, False))
+    if math.isfinite(hi):
+        intervals.append((hi, math.inf, False, True))
     poles = np.linalg.eigvals(A) if A.shape[0] else np.zeros(0)
-    natural = sorted({float(abs(p)) for p in poles if abs(p) > 0})
-    queue = [0.0, math.inf] + natural[:: max(1, len(natural) // 6)]
+    natural = sorted({float(abs(p)) for p in poles if lo < abs(p) < hi})
+    queue = [lo, hi] + natural[:: max(1, len(natural) // 6)]
+    what = "[0, inf]" if lo == 0 and math.isinf(hi) else f"[{_hz(lo):.6g}, {_hz(hi):.6g}] Hz"
     while True:
         w = queue.pop(0) if queue else _first_uncovered(intervals)
         if w is None:
@@ -220,7 +248,7 @@ def mu_cover(
         if len(shown) >= max_frequencies or time.perf_counter() > deadline:
             return {
                 "certified": False,
-                "reason": f"budget: {len(shown)} frequencies did not cover [0, inf]",
+                "reason": f"budget: {len(shown)} frequencies did not cover {what}",
                 "frequencies": shown,
             }
         # the realisation's channels balanced at this frequency (S M S^-1, the same mu; the
@@ -236,6 +264,14 @@ def mu_cover(
             if np.linalg.norm(Mw, 2) < SINGULAR_VALUE_ENOUGH
             else _scalings_feasible(Mw, blocks, 1.0 - 10 * MU_MARGIN, g_max)
         )
+        if found is None and not least_bound:
+            return {
+                "certified": False,
+                "reason": f"mu upper bound >= {1.0 - 10 * MU_MARGIN:g} at {_hz(w):.6g} Hz (no "
+                "D-G scalings prove it below)",
+                "frequency_hz": _hz(w),
+                "frequencies": shown,
+            }
         if found is None:
             _, Dsc, Gsc = _upper_balanced(
                 Mw, blocks, _start_bound(Mw, blocks), rtol=SCALING_RTOL, g_max=g_max

@@ -46,7 +46,8 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.stats import qmc
 
-from robust.analysis.norms import hinf_norm, sigma_max
+from robust.analysis.bounds import bound_ratio
+from robust.analysis.norms import hinf_norm, is_stable, sigma_max
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from uncertainty.lft import lft_form
 from uncertainty.mucover import MAX_FREQUENCIES, mu_cover
@@ -66,6 +67,9 @@ __all__ = [
 SEARCH_RTOL = 1e-5
 #: Largest scale the searches try (beyond it the bound is reported as reaching it).
 K_MAX = 8.0
+#: Fractions of the upper bound the lower bound tries, in order, before its bisection: near
+#: the upper bound first, for a certificate as tight as the mu bound allows.
+FRACTIONS = (0.999, 0.99, 0.95, 0.9, 0.8, 0.6, 0.4, 0.2, 0.1, 0.05, 0.01)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -217,8 +221,24 @@ def _check_system(P) -> USS:
 
 
 # -- exact norms of members ------------------------------------------------------------------
-def _member_norm(P: USS, names, row, rtol: float = 1e-9) -> tuple[float, float]:
-    """``(||P_member||_inf, peak frequency rad/s)``; ``(inf, nan)`` if unstable or unbounded.
+def _peak(sys: ct.StateSpace, rtol: float, band) -> tuple[float, float]:
+    """``(peak gain, its frequency rad/s)`` of a member: its H-infinity norm, or with a band
+    (rad/s) the largest gain over the band, exact at every frequency of it
+    (:func:`robust.analysis.bounds.bound_ratio` against 1); ``(inf, nan)`` if unstable."""
+    if band is None:
+        val, w = hinf_norm(sys, rtol=rtol, return_frequency=True)
+        return float(val), float(w)
+    if not is_stable(sys):
+        return math.inf, math.nan
+    unit = (np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1)))
+    hz = (band[0] / (2 * math.pi), band[1] / (2 * math.pi))
+    r = bound_ratio(sys, [unit], band_hz=hz, rtol=min(max(rtol, 1e-12), 0.1))
+    return float(r.value), 2 * math.pi * float(r.frequency_hz)
+
+
+def _member_norm(P: USS, names, row, rtol: float = 1e-9, band=None) -> tuple[float, float]:
+    """``(||P_member||_inf, peak frequency rad/s)``, over ``band`` (rad/s) if given;
+    ``(inf, nan)`` if unstable or unbounded.
 
     ``rtol`` is the norm's relative tolerance (the searches use a coarse one)."""
     try:
@@ -227,17 +247,21 @@ def _member_norm(P: USS, names, row, rtol: float = 1e-9) -> tuple[float, float]:
         return math.inf, math.nan
     if not np.all(np.isfinite(sys.A)):
         return math.inf, math.nan
-    val, w = hinf_norm(sys, rtol=rtol, return_frequency=True)
-    return float(val), float(w)
+    return _peak(sys, rtol, band)
 
 
 class _Loop:
     """The weighted map seen by the scaled-box helpers of :mod:`uncertainty.search`."""
 
-    def __init__(self, P: USS):
+    def __init__(self, P: USS, band=None):
         self.system = P
         self.parameters = tuple(P.parameters.values())
         self.names = tuple(P.parameters)
+        self.band = band
+
+    def norm(self, row, rtol: float = 1e-9) -> tuple[float, float]:
+        """A member's weighted norm (over the band, if any) and where it peaks."""
+        return _member_norm(self.system, self.names, row, rtol, self.band)
 
 
 def _worst_at(loop: _Loop, k: float, samples: int, seed: int, starts: int):
@@ -245,7 +269,7 @@ def _worst_at(loop: _Loop, k: float, samples: int, seed: int, starts: int):
     d = len(lo_t)
     T = lo_t + qmc.LatinHypercube(d=d, seed=seed).random(samples) * (hi_t - lo_t)
     rows = _to_values(loop, T)
-    vals = np.array([_member_norm(loop.system, loop.names, r, SEARCH_RTOL)[0] for r in rows])
+    vals = np.array([loop.norm(r, SEARCH_RTOL)[0] for r in rows])
     order = np.argsort(-vals)
     best, best_t = float(vals[order[0]]), T[order[0]]
     if not math.isfinite(best):
@@ -255,7 +279,7 @@ def _worst_at(loop: _Loop, k: float, samples: int, seed: int, starts: int):
 
     def fun(x):
         row = _to_values(loop, (lo_t + x * span)[None])[0]
-        v = _member_norm(loop.system, loop.names, row, SEARCH_RTOL)[0]
+        v = loop.norm(row, SEARCH_RTOL)[0]
         return -min(v, 1e12)
 
     for i in order[:starts]:
@@ -301,24 +325,27 @@ def worst_performance(
 
 def _ray_violation(loop: _Loop, row, rel: float = 1e-3):
     """The first member with norm >= 1 on the segment from the nominal to ``row``."""
-    return first_violation_on_segment(
-        loop, row, lambda m: _member_norm(loop.system, loop.names, m)[0] >= 1.0, rel
-    )
+    return first_violation_on_segment(loop, row, lambda m: loop.norm(m)[0] >= 1.0, rel)
 
 
 def _worst_record(loop: _Loop, row, k: float) -> dict:
-    val, w = _member_norm(loop.system, loop.names, row)
+    val, w = loop.norm(row)
     out = {
         "scale": float(k),
         "parameters": dict(zip(loop.names, (float(x) for x in row))),
         "norm": val,
         "frequency_hz": w / (2 * math.pi) if math.isfinite(w) else w,
-        "checked_with": "Bruinsma-Steinbuch H-infinity norm of the member",
+        "checked_with": "Bruinsma-Steinbuch H-infinity norm of the member"
+        if loop.band is None
+        else "the largest gain over the band, exact at every frequency (bound_ratio)",
     }
     if math.isfinite(val):
         # a second algorithm: the largest singular value on a dense grid about the peak
         sys = loop.system.at(out["parameters"])
         grid = np.concatenate([np.logspace(-4, 6, 4001), [w] if math.isfinite(w) and w > 0 else []])
+        if loop.band is not None:
+            grid = grid[(grid >= loop.band[0]) & (grid <= loop.band[1])]
+            grid = np.concatenate([grid, [x for x in loop.band if math.isfinite(x)]])
         out["grid_norm"] = float(np.max(sigma_max(sys, grid)))
         out["checked_with"] += " and the largest singular value on 4,000 frequencies"
     else:
@@ -380,14 +407,41 @@ def _lft_at(P: USS, k: float):
     return lft_form(P, bounds={n: (a, b) for n, a, b in zip(P.parameters, lo, hi)})
 
 
+def _band(P: USS, band_hz, owner: str):
+    """``band_hz`` checked, in rad/s (``None``: every frequency)."""
+    if band_hz is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in band_hz)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"{owner}: band_hz must be a pair (low, high) of frequencies in Hz; got {band_hz!r}"
+        ) from None
+    if not (0.0 <= lo < hi) or math.isnan(hi):
+        raise ParameterError(f"{owner}: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
+    if P.ninputs != 1 or P.noutputs != 1:
+        raise ModelStructureError(
+            f"{owner}: a band (band_hz) needs a single-input single-output weighted map; got "
+            f"{P.noutputs} outputs and {P.ninputs} inputs"
+        )
+    return 2 * math.pi * lo, 2 * math.pi * hi
+
+
 def certify_performance(
     system: USS,
     k: float,
     *,
     max_frequencies: int = MAX_FREQUENCIES,
     time_limit_s: float = 300.0,
+    band_hz: tuple[float, float] | None = None,
 ) -> dict:
     """Certify that every member of the box scaled by ``k`` is stable with ``||P||_inf < 1``.
+
+    With ``band_hz``, that every member is stable and ``|P(jw)| < 1`` at every frequency of
+    the band: the mu bound with the performance block is covered over the band only, and
+    the stability of the box is certified apart, by the mu bound of the parameters' channels
+    alone (``M_11``) over every frequency (the main loop theorem holds frequency by
+    frequency once the box is known to be stable).
 
     Parameters
     ----------
@@ -399,15 +453,20 @@ def certify_performance(
         Frequencies the cover may use before it gives up.
     time_limit_s : float
         Wall-clock limit, s.
+    band_hz : (float, float), optional
+        The band of the bound, Hz, ``0 <= low < high <= inf`` (a SISO ``P``; default: every
+        frequency).
 
     Returns
     -------
     dict
         ``certified`` (bool), ``scale``, ``frequencies`` (each with its mu upper bound and
         the interval its scalings cover, Hz), ``blocks``; when not certified, ``reason``
-        and, where the mu upper bound reached 1, ``frequency_hz`` and ``mu_upper``.
+        and, where no scalings prove the mu upper bound below 1, ``frequency_hz``; with a
+        band, ``stability`` (the same for the box's stability certificate).
     """
     P = _check_system(system)
+    band = _band(P, band_hz, "certify_performance")
     if not (isinstance(k, (int, float)) and math.isfinite(k) and k >= 0):
         raise ParameterError(f"certify_performance: k must be a finite scale >= 0; got {k!r}")
     if not (isinstance(max_frequencies, int) and max_frequencies >= 1):
@@ -428,6 +487,27 @@ def certify_performance(
             frequencies=[],
         )
         return out
+    deadline = time.perf_counter() + float(time_limit_s)
+    if band is not None:
+        # the box's stability: mu of the parameters' channels below 1 at every frequency
+        stab = mu_cover(
+            A,
+            B[:, :R],
+            C[:R],
+            D[:R, :R],
+            form.mu_blocks,
+            max_frequencies=max_frequencies,
+            deadline=deadline,
+            least_bound=False,
+        )
+        out["stability"] = stab
+        if not stab["certified"]:
+            out.update(
+                certified=False,
+                reason=f"stability of the box: {stab['reason']}",
+                frequencies=[],
+            )
+            return out
     res = mu_cover(
         A,
         B,
@@ -435,17 +515,19 @@ def certify_performance(
         D,
         blocks,
         max_frequencies=max_frequencies,
-        deadline=time.perf_counter() + float(time_limit_s),
+        deadline=deadline,
+        band=(0.0, math.inf) if band is None else band,
+        least_bound=False,
     )
     out.update(res)
     if out["certified"]:
         # seeded members of the certified box, its corners first: any at or above the bound
         # means the certificate is wrong
-        loop = _Loop(P)
+        loop = _Loop(P, band)
         lo_t, hi_t = _scaled_t(loop, float(k))
         T = lo_t + np.random.default_rng(0).random((8, len(lo_t))) * (hi_t - lo_t)
         T[0], T[1] = lo_t, hi_t
-        worst = max(_member_norm(P, loop.names, r, 1e-6)[0] for r in _to_values(loop, T))
+        worst = max(loop.norm(r, 1e-6)[0] for r in _to_values(loop, T))
         if worst >= 1.0:
             raise BDFTError(
                 "robust performance: a member of a box certified by mu has weighted norm "
@@ -469,8 +551,10 @@ def robust_performance(
     starts: int = 2,
     iterations: int = 4,
     bisections: int = 5,
+    fractions: Sequence[float] = FRACTIONS,
     max_frequencies: int = MAX_FREQUENCIES,
     time_limit_s: float = 600.0,
+    band_hz: tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> PerformanceResult:
     """Both bounds of the robust performance margin (module notes).
@@ -478,7 +562,9 @@ def robust_performance(
     The margin is the largest scale ``k`` of the parameters' box about the nominal
     (:func:`uncertainty.search.scaled_bounds`) at which every member is stable with
     ``||W_out T W_in||_inf < gamma``, ``T`` the closed loop's map from ``inputs`` to
-    ``outputs``.
+    ``outputs``; with ``band_hz``, ``|W_out T W_in (jw)| < gamma`` at every frequency of the
+    band (a requirement that holds over a band only, such as tracking in the operator's
+    band; :func:`certify_performance`).
 
     Parameters
     ----------
@@ -497,10 +583,18 @@ def robust_performance(
         scale, bisection steps on the scale.
     bisections : int
         Lower bound: bisection steps after the first certified scale of the ladder.
+    fractions : sequence of float
+        Lower bound: the ladder, fractions of the upper bound tried in this order until one
+        is certified (:data:`FRACTIONS`; a shorter one starting lower is cheaper where the
+        mu bound is far from exact: each scale it fails to certify near the bound costs
+        up to ``max_frequencies`` frequencies).
     max_frequencies : int
         Lower bound: frequencies one scale's certificate may use.
     time_limit_s : float
         Lower bound: wall-clock limit, s.
+    band_hz : (float, float), optional
+        The band of the bound, Hz (a single-input single-output map; default: every
+        frequency).
     progress : callable, optional
         Called with a short message at each step.
 
@@ -521,6 +615,14 @@ def robust_performance(
     (0.667, 0.667, 1.0)
     >>> res.lower <= 2 / 3 <= res.upper
     True
+
+    Asked above 0.6 rad/s only, the gain ``1 / sqrt(w^2 + a^2)`` stays below 1 while
+    ``a > 0.8``: the scale 0.8.
+
+    >>> import math
+    >>> res = robust_performance(G, band_hz=(0.6 / (2 * math.pi), math.inf))
+    >>> round(res.lower, 3), res.lower <= 0.8 <= res.upper < 0.802
+    (0.8, True)
     """
     step = progress or (lambda msg: None)
     P = _check_system(
@@ -534,8 +636,14 @@ def robust_performance(
             gamma=gamma,
         )
     )
-    loop = _Loop(P)
-    nominal = hinf_norm(P.nominal())
+    band = _band(P, band_hz, "robust_performance")
+    fracs = [float(f) for f in fractions]
+    if not fracs or not all(0.0 < f <= 1.0 for f in fracs):
+        raise ParameterError(
+            f"robust_performance: fractions must be numbers in (0, 1]; got {fractions!r}"
+        )
+    loop = _Loop(P, band)
+    nominal = _peak(P.nominal(), 1e-9, band)[0]
     t0 = time.perf_counter()
     if nominal >= 1.0:
         upper, row, history = 0.0, np.array([p.nominal for p in loop.parameters]), []
@@ -548,7 +656,9 @@ def robust_performance(
     def attempt(k):
         step(f"lower bound: certifying the scale {k:.4g}")
         left = max(deadline - time.perf_counter(), 0.0)
-        c = certify_performance(P, k, max_frequencies=max_frequencies, time_limit_s=left)
+        c = certify_performance(
+            P, k, max_frequencies=max_frequencies, time_limit_s=left, band_hz=band_hz
+        )
         tried.append(
             {k_: v for k_, v in c.items() if k_ != "frequencies"}
             | {"frequencies_used": len(c["frequencies"])}
@@ -558,7 +668,7 @@ def robust_performance(
     good, good_cert, bad = 0.0, None, None
     if nominal < 1.0:
         top = upper if math.isfinite(upper) else K_MAX
-        for frac in (0.999, 0.99, 0.95, 0.9, 0.8, 0.6, 0.4, 0.2, 0.1, 0.05, 0.01):
+        for frac in fracs:
             if time.perf_counter() > deadline:
                 break
             c = attempt(frac * top)
@@ -594,8 +704,14 @@ def robust_performance(
         "the weighted map's LFT over the scaled box with a full complex performance block, "
         "below 1 at every frequency: each frequency's scalings hold on the interval bounded "
         "by the nearest imaginary-axis zeros of the scaled Popov function (Ferreres-Biannic), "
-        "backed by direct checks inside it; intervals added until [0, inf] is covered; 8 "
-        "seeded members of the certified box (its corners first) checked by their exact "
+        "backed by direct checks inside it; intervals added until [0, inf] is covered"
+        + (
+            ""
+            if band is None
+            else " (the band, with the box's stability certified by the parameters' channels' "
+            "mu over [0, inf])"
+        )
+        + "; 8 seeded members of the certified box (its corners first) checked by their exact "
         "norms; bisection on the scale",
         "upper": "worst-case search: seeded Latin hypercube of the scaled box, L-BFGS-B ascent "
         "of the exact H-infinity norm from the worst samples, bisection on the scale; the "
