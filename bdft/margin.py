@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 
 from bdft.args import UsageError, check_json_file, integer, real, seed
@@ -123,8 +125,33 @@ def register(sub) -> None:
         help="with --gamma: the loop's outputs, comma-joined (the family's: y, c, h, x, e, r, "
         "err, f, r_corr, f_ctrl; default y; a --system's names, default all)",
     )
+    p.add_argument(
+        "--band",
+        type=_band,
+        default=None,
+        help="with --gamma: the bound over a band only, LOW,HIGH in Hz (HIGH may be inf; a "
+        "single-input single-output T); the box's stability is still certified over every "
+        "frequency (default: every frequency)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
+
+
+def _band(text: str) -> tuple[float, float]:
+    """An argparse ``type``: ``LOW,HIGH`` in Hz, ``0 <= LOW < HIGH``, ``HIGH`` may be ``inf``."""
+    parts = str(text).split(",")
+    try:
+        lo, hi = (float(x) for x in parts) if len(parts) == 2 else (math.nan, math.nan)
+    except ValueError:
+        lo = hi = math.nan
+    if not (math.isfinite(lo) and 0.0 <= lo < hi) or math.isnan(hi):
+        raise argparse.ArgumentTypeError(
+            f"expected LOW,HIGH in Hz with 0 <= LOW < HIGH (HIGH may be inf); got {text!r}"
+        )
+    return lo, hi
+
+
+_band.__name__ = "band for --band"
 
 
 def _names(option: str, text):
@@ -138,7 +165,11 @@ def _names(option: str, text):
 
 def _check_performance_options(args) -> None:
     if args.gamma is None:
-        for opt, val in (("--inputs", args.inputs), ("--outputs", args.outputs)):
+        for opt, val in (
+            ("--inputs", args.inputs),
+            ("--outputs", args.outputs),
+            ("--band", args.band),
+        ):
             if val is not None:
                 raise UsageError(f"{opt} is for robust performance: give --gamma as well")
         return
@@ -308,6 +339,7 @@ def _run_performance(args) -> int:
             inputs=inputs,
             outputs=outputs,
             gamma=args.gamma,
+            band_hz=args.band,
             samples=args.samples or PERFORMANCE_SAMPLES,
             seed=_search_seed(args),
             time_limit_s=args.time_limit,
@@ -315,13 +347,14 @@ def _run_performance(args) -> int:
         ),
     )
     obj = _result_json(args, res, source, controller)
-    obj.update(gamma=args.gamma, inputs=inputs, outputs=outputs)
+    obj.update(gamma=args.gamma, inputs=inputs, outputs=outputs, band_hz=args.band)
     if args.json:
         print_json(obj)
         return 0
     print(_heading(args, source, obj))
     chans = f"{','.join(inputs or ['all'])} -> {','.join(outputs or ['all'])}"
-    print(f"robust performance: ||T||_inf < {args.gamma:.6g} and stable, T: {chans}")
+    over = "" if args.band is None else f" over {args.band[0]:g}-{args.band[1]:g} Hz"
+    print(f"robust performance: ||T||_inf < {args.gamma:.6g}{over} and stable, T: {chans}")
     print(f"  nominal ||T||_inf / gamma  {res.nominal_norm:.4g}")
     print(f"  certified lower bound    {res.lower:.4g}")
     print(f"  upper bound              {res.upper:.4g}")

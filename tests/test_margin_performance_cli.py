@@ -43,6 +43,20 @@ def test_a_users_system_gets_both_bounds_at_the_hand_derived_scale(tmp_path, cap
     assert "certified lower bound" in text and "worst member" in text and "a " in text
 
 
+def test_a_bound_over_a_band_from_the_command_line(tmp_path, capsys):
+    # above 0.6 rad/s the lag's gain 1 / sqrt(w^2 + a^2) stays below 1 while a > 0.8: the
+    # scale 0.8, not the 2/3 of every frequency (derived by hand)
+    f = tmp_path / "lag.py"
+    f.write_text(LAG)
+    band = f"{0.6 / (2 * np.pi)!r},inf"
+    out = _json(capsys, ["margin", "--system", str(f), "--gamma", "1", "--band", band, "--json"])
+    assert out["lower"] <= 0.8 <= out["upper"]
+    assert out["lower"] >= 0.99 * 0.8 and out["upper"] <= 1.01 * 0.8
+    # (the JSON writes an infinity as "inf" and six significant digits)
+    assert out["band_hz"] == [pytest.approx(0.6 / (2 * np.pi), rel=1e-5), "inf"]
+    assert out["certificate"]["stability"]["certified"]
+
+
 def test_the_familys_loop_through_its_ports(capsys):
     # the literal family's loop with the doubled workspace (stable at its nominal; at the
     # Omni's workspace it is not), intended motion to cylinder position, with a bound 1.3
@@ -71,6 +85,9 @@ def test_the_familys_loop_through_its_ports(capsys):
     "extra, message",
     [
         (["--outputs", "y"], "--outputs is for robust performance: give --gamma"),
+        (["--band", "0,2"], "--band is for robust performance: give --gamma"),
+        (["--gamma", "1", "--band", "2,1"], "expected LOW,HIGH in Hz"),
+        (["--gamma", "1", "--band", "0"], "expected LOW,HIGH in Hz"),
         (["--gamma", "1", "--region", "decay:0.1"], "--region: robust performance"),
         (["--gamma", "1", "--method", "eigenvalues"], "--method: robust performance"),
         (["--gamma", "0"], "--gamma"),
