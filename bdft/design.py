@@ -141,10 +141,10 @@ def _run_scheduled(args) -> int:
             f"its result); got {args.coverage_samples}"
         )
     out = check_artifact_targets("--out", args.out, [SCHEDULED])
+    from backhoe import default_family
     from designs.calibration_region import REGION_RADIUS
     from designs.scheduled import scheduled_design
     from robust.jsonio import atomic_write_json
-    from uncertainty import default_family
 
     print(
         f"[bdft design] scheduled bank, {args.cells} cells per axis, coverage on "

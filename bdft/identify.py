@@ -10,7 +10,7 @@ the requested form over a band and writes, into ``--out``:
 * ``<stem>_<form>_fit.json``: the full fit summary.
 
 ``--save-model FILE.json`` also writes the fitted component in the format
-:func:`robust.sysid.load_component_fit` reads. Every option, the data file and both
+:func:`backhoe.sysid.load_component_fit` reads. Every option, the data file and both
 output paths are checked before any work (:mod:`bdft.args`); everything is computed
 before the first file is written, and the files are written as one group
 (:func:`robust.jsonio.atomic_write_group`: all of them or none), so a failure leaves
@@ -47,7 +47,7 @@ DEFAULT_OUT = Path("reports") / "out" / "identify"
 MAX_RATIONAL_ORDER = 20
 #: The data file may use at most this fraction of the memory budget (text and arrays).
 _DATA_BUDGET_FRACTION = 8
-#: Kind of the files ``--save-model`` writes (:mod:`robust.sysid.model_file`).
+#: Kind of the files ``--save-model`` writes (:mod:`backhoe.sysid.model_file`).
 _COMPONENT_FIT_KIND = "bdft-component-fit"
 _DATA_SUFFIXES = (".csv", ".txt", ".mat")
 
@@ -176,7 +176,7 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError(
             f"--input, --output: expected two different channels; got {args.input!r} for both"
         )
-    from robust.sysid.fit import parse_form
+    from backhoe.sysid.fit import parse_form
 
     try:
         parsed = parse_form(args.form)
@@ -296,10 +296,10 @@ def run(args: argparse.Namespace) -> int:
         written or would replace a file of the user's.
     """
     _check(args)
+    from backhoe.sysid.identify import identify_file
+    from backhoe.sysid.model_file import save_component_fit
+    from backhoe.sysid.plots import bode_figure, coherence_figure
     from robust.jsonio import atomic_write_group, to_jsonable
-    from robust.sysid.identify import identify_file
-    from robust.sysid.model_file import save_component_fit
-    from robust.sysid.plots import bode_figure, coherence_figure
 
     band = (float(args.band[0]), float(args.band[1]))
     result = identify_file(

@@ -105,9 +105,9 @@ def run(args) -> int:
     if not args.force_scales:
         raise UsageError("--force-scales: expected at least one multiple; got none")
     out = check_report_dir("--out", Path(args.out))
+    from backhoe import default_family
     from designs.limit import basis_check, limit_map
     from reports.limit import best_set, limit_conclusions, write_limit_report
-    from uncertainty import default_family
 
     family = default_family()
     t0 = time.perf_counter()

@@ -199,7 +199,7 @@ def _parameters_json(system) -> list:
 
 def _loop(args):
     """The ``--system``'s uncertain system or the family, and the controller, checked."""
-    from uncertainty.files import load_controller
+    from backhoe.families.files import load_controller
 
     if args.system is not None:
         return read_system(args)
@@ -320,7 +320,7 @@ def run(args) -> int:
 
 def _run_performance(args) -> int:
     """``bdft margin --gamma``: both bounds of the robust performance margin."""
-    from uncertainty.loop import family_uss
+    from backhoe.families.loop import family_uss
     from uncertainty.performance import robust_performance
 
     inputs, outputs = _names("--inputs", args.inputs), _names("--outputs", args.outputs)

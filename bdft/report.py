@@ -32,9 +32,9 @@ _SCHEDULED = "per-operator design"
 
 def _limit_task(task) -> dict:
     """The report's achievable-limit map (a task of the designs' pool): ``(samples, seed)``."""
+    from backhoe import default_family
     from designs.limit import limit_map
     from reports.limit import limit_conclusions
-    from uncertainty import default_family
 
     samples, seed = task
     lm = limit_map(default_family(), samples=samples, seed=seed)
@@ -44,8 +44,8 @@ def _limit_task(task) -> dict:
 def _scheduled_task(task):
     """The report's per-operator design (a task of the designs' pool): ``(samples, seed)``;
     its bank of controllers and its result."""
+    from backhoe import default_family
     from designs.scheduled import scheduled_design
-    from uncertainty import default_family
 
     samples, seed = task
     return scheduled_design(default_family(), samples=samples, seed=seed, limit_samples=0)
@@ -147,13 +147,13 @@ def run(args) -> int:
         and every design's summary or error) or one line per design; progress goes to
         standard error.
     """
+    from backhoe import default_family
     from designs.registry import design_names
     from designs.robust_lmi_tradeoff import tradeoff_point, tradeoff_tasks
     from reports.coverage import family_coverage
     from reports.designs import run_designs_with, write_design_report
     from robust.cache import lookup, store
     from robust.jsonio import atomic_write_json
-    from uncertainty import default_family
 
     designs = set(design_names())
 

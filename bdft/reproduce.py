@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import sys
 
+from backhoe.constants import HUMAN_VARIANT_NAMES
 from bdft.args import check_report_dir
 from bdft.common import print_json
-from robust.constants import HUMAN_VARIANT_NAMES
 
 __all__ = ["register", "run"]
 
@@ -52,7 +52,7 @@ def run(args) -> int:
     args : argparse.Namespace
         Parsed ``bdft reproduce`` options: ``out`` (report folder: a new folder or a
         previous report, checked before any work), ``human``
-        (a name of :data:`robust.model.human.HUMAN_VARIANT_NAMES` or ``"all"``) and ``json``.
+        (a name of :data:`backhoe.model.human.HUMAN_VARIANT_NAMES` or ``"all"``) and ``json``.
 
     Returns
     -------

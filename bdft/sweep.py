@@ -81,12 +81,12 @@ def register(sub) -> None:
 def _run_sweep(args, family, progress):
     import numpy as np
 
-    from robust.model.blocks import parameter_name
-    from uncertainty.sweeps import (
+    from backhoe.families.sweeps import (
         frequency_damping_sweep,
         structure_frequency_sweep,
         workspace_sweep,
     )
+    from backhoe.model.blocks import parameter_name
 
     members = args.samples or _DEFAULT_MEMBERS[args.name]
     common = dict(

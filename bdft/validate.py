@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
+from backhoe.constants import DEFAULT_POSTURE, POSTURES, RANGES
 from bdft.args import (
     UsageError,
     batch,
@@ -17,8 +18,8 @@ from bdft.args import (
     seed,
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
-from robust.constants import DAMPING_BAND_HZ, DEFAULT_POSTURE, POSTURES
-from uncertainty.constants import DEFAULT_CHUNK, RANGES
+from robust.constants import DAMPING_BAND_HZ
+from uncertainty.constants import DEFAULT_CHUNK
 
 __all__ = [
     "add_family_arguments",
@@ -183,7 +184,7 @@ def read_system(args):
     -------
     (uncertainty.USS, control.StateSpace or None)
         The controller of ``--controller`` when given (in place of the file's), with its
-        signals paired to the system's (:func:`uncertainty.files.match_controller`: by
+        signals paired to the system's (:func:`backhoe.families.files.match_controller`: by
         name, or by position).
 
     Raises
@@ -200,7 +201,7 @@ def read_system(args):
     path = getattr(args, "controller", None)
     if path is not None:
         check_json_file("--controller", path)
-    from uncertainty.files import load_controller, load_system, match_controller
+    from backhoe.families.files import load_controller, load_system, match_controller
 
     system, controller = load_system(args.system)
     if path is not None:
@@ -246,13 +247,13 @@ def build_family(args):
 
     Returns
     -------
-    uncertainty.Family
-        :func:`uncertainty.default_family` of that human variant, at the nominal
+    backhoe.Family
+        :func:`backhoe.default_family` of that human variant, at the nominal
         workspace (factor 1).
     """
-    from robust.model.physical import nominal_params
-    from uncertainty import default_family
-    from uncertainty.files import family_nominals, load_component_fit
+    from backhoe import default_family
+    from backhoe.families.files import family_nominals, load_component_fit
+    from backhoe.model.physical import nominal_params
 
     fits = [load_component_fit(path) for path in args.plant_file]
     nominals = family_nominals(fits, human=args.human)
@@ -387,8 +388,8 @@ def run(args) -> int:
     check_family_arguments(args)
     if args.controller is not None:
         check_json_file("--controller", args.controller)
+    from backhoe.families.files import load_controller
     from uncertainty import sample, validate_family
-    from uncertainty.files import load_controller
 
     family = build_family(args).with_workspace_factor(args.workspace_factor)
     controller = load_controller(args.controller, bdft_loop=True) if args.controller else None

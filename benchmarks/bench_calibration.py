@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from backhoe import default_family
 from designs.calibration import (
     IDENTIFIED,
     identify_operator,
@@ -32,7 +33,7 @@ from designs.calibration import (
     simulate_calibration,
 )
 from designs.scheduled import cancellation_gap
-from uncertainty import default_family, sample
+from uncertainty import sample
 from uncertainty.randomized import CoverageBound
 
 

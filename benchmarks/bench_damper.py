@@ -22,6 +22,7 @@ import time
 import control as ct
 import numpy as np
 
+from backhoe import default_family
 from designs.calibration import CAB_IDENTIFIED, IDENTIFIED
 from designs.scheduled import (
     TIE_RTOL,
@@ -32,7 +33,7 @@ from designs.scheduled import (
     damped_cancellation,
 )
 from designs.spec import Specification, check_specification
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 KEYS = ("decay rate", "damping", "tracking", "feedthrough")
 

@@ -1,6 +1,6 @@
 """Benchmark: robust performance of a shipped design over the default family, from its LFT.
 
-The family's closed loop with ports (:func:`uncertainty.family_uss` with ``inputs="u"`` and
+The family's closed loop with ports (:func:`backhoe.family_uss` with ``inputs="u"`` and
 an output), 15 uncertain parameters, closed by a shipped handle-force design; the weighted
 bound is ``||T_fu||_inf < gamma`` (handle force per intended motion) with ``gamma`` a
 multiple of the nominal member's norm. Prints both bounds of the robust performance margin
@@ -22,9 +22,10 @@ import time
 import control as ct
 import numpy as np
 
+from backhoe import default_family, family_uss
 from designs.registry import run_design
 from robust.analysis.norms import hinf_norm
-from uncertainty import default_family, family_uss, robust_performance
+from uncertainty import robust_performance
 
 
 def main(argv=None) -> dict:

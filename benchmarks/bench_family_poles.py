@@ -28,7 +28,8 @@ import time
 import control as ct
 import numpy as np
 
-from uncertainty import DEFAULT_CHUNK, closed_loop_matrices, default_family, sample, validate_family
+from backhoe import closed_loop_matrices, default_family
+from uncertainty import DEFAULT_CHUNK, sample, validate_family
 
 
 def peak_rss_mib() -> float:

@@ -19,8 +19,9 @@ import time
 import numpy as np
 
 import bdft  # noqa: F401 - fixes the numerical kernels before NumPy is used
-from uncertainty import default_family, sample
-from uncertainty.batched import interconnection, loop_blocks
+from backhoe import default_family
+from backhoe.families.batched import interconnection, loop_blocks
+from uncertainty import sample
 from uncertainty.closeloops import close_loops
 
 

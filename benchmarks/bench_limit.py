@@ -22,11 +22,12 @@ import platform
 import resource
 import time
 
+from backhoe import default_family
+from backhoe.model.device import DeviceLimits
 from designs.coverage import member_verdicts
 from designs.limit import DEFAULT_SETS, limit_map
 from designs.registry import get_design
-from robust.model.device import DeviceLimits
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 
 def peak_rss_mib() -> float:

@@ -17,8 +17,8 @@ import argparse
 import resource
 import time
 
+from backhoe import default_family
 from designs import design_names, run_design
-from uncertainty import default_family
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
 from uncertainty.margins import margin_lower_bound
 from uncertainty.search import margin_upper_bound

@@ -38,13 +38,13 @@ import control as ct
 import numpy as np
 from threadpoolctl import threadpool_info
 
+from backhoe import default_family
+from backhoe.synthesis.forcefb import synthesis_member
 from designs.hinf_nominal import design_hinf_nominal
 from designs.robust_lmi import START_METHODS, RobustOptions, maximise_margin
 from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
-from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.tuning import minimax_start, tune_members
-from uncertainty import default_family
 from uncertainty.search import scaled_bounds
 
 

@@ -25,8 +25,9 @@ pin_numeric_kernels()
 
 import numpy as np  # noqa: E402
 
+from backhoe import closed_loop_matrices, default_family  # noqa: E402
 from robust.analysis.small_eig import eigvals_stack, load_kernels  # noqa: E402
-from uncertainty import closed_loop_matrices, default_family, sample  # noqa: E402
+from uncertainty import sample  # noqa: E402
 
 
 def main(argv=None) -> None:

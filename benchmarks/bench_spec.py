@@ -2,7 +2,7 @@
 
 Prints, for the default family:
 
-1. the Figure 5 loop with a controller assembled by :func:`robust.model.wiring.connect`
+1. the Figure 5 loop with a controller assembled by :func:`backhoe.model.wiring.connect`
    (the exact closed form) against the baseline, python-control's
    :func:`control.interconnect` on the same blocks (a nonlinear interconnection
    linearised by finite differences): time per assembly of each, their ratio, and the
@@ -28,11 +28,12 @@ import warnings
 import control as ct
 import numpy as np
 
+from backhoe import default_family
+from backhoe.model.wiring import connect
 from designs.cancellation import cancellation_controller
 from designs.coverage import member_verdicts
 from designs.hinf_nominal import design_hinf_nominal
-from robust.model.wiring import connect
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 
 def main() -> None:

@@ -13,6 +13,9 @@ import math
 
 import numpy as np
 
+from backhoe import default_family
+from backhoe.model.blocks import parameter_name
+from backhoe.model.wiring import connect
 from designs.calibration_fit import _coords, _fit, _values
 from designs.calibration_models import _cab_jacobian, _cab_residual, cab_response
 from designs.calibration_record import (
@@ -23,9 +26,6 @@ from designs.calibration_record import (
     _coherent,
     _excitation_responses,
 )
-from robust.model.blocks import parameter_name
-from robust.model.wiring import connect
-from uncertainty import default_family
 
 __all__ = ["CAB_IDENTIFIED", "CAB_LOG_AXES", "cab_truth", "identify_cab"]
 
@@ -42,7 +42,7 @@ def cab_truth(family, row) -> dict:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     row : array_like
         The member's parameter values.
     """
@@ -99,11 +99,11 @@ def identify_cab(
     Parameters
     ----------
     record : CalibrationRecord
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member the record is of (its own cylinder loop, valve included, divides the
         estimate).
     protocol : CalibrationProtocol, optional
-    family : uncertainty.Family, optional
+    family : backhoe.Family, optional
         Whose ranges bound the fit (default: the default family).
     responses : tuple, optional
         :func:`excitation_responses` of this record and protocol, when already computed.

@@ -18,6 +18,9 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.model.blocks import VALVE_FIELDS, parameter_name
+from backhoe.model.components import ValveCylinderParams, realise_siso
+from backhoe.model.wiring import connect
 from designs.calibration import IDENTIFIED, operator_row
 from designs.scheduled_bank import _cancellations
 from designs.specification import N_TRACKING_FREQS, Specification
@@ -25,9 +28,6 @@ from robust.analysis.loops import resolvent_times
 from robust.analysis.small_eig import eigvals_stack
 from robust.analysis.stability import damping_in_band, stability_bound
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.blocks import VALVE_FIELDS, parameter_name
-from robust.model.components import ValveCylinderParams, realise_siso
-from robust.model.wiring import connect
 
 __all__ = [
     "DAMPER_PHASES",
@@ -110,7 +110,7 @@ def member_valve(family, row) -> np.ndarray:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     row : array_like, shape (d,)
         The member's values (``family.names`` order).
     """
@@ -269,7 +269,7 @@ def damped_cancellation(family, human: dict, cab: dict, spec=None, *, valve=None
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     human : dict
         :data:`designs.calibration.IDENTIFIED` -> estimate.
     cab : dict

@@ -23,9 +23,9 @@ operator it can tell, with an error bound:
    *System Identification*, 2nd ed., 1999, Sec. 13.5; Pintelon & Schoukens, *System
    Identification: A Frequency Domain Approach*, 2nd ed., 2012, Ch. 2).
 3. **Physical fit**. What the record can tell: seat acceleration drives the hand through
-   the seated 2-DOF chain (:mod:`robust.model.physical`), whose response depends on the
+   the seated 2-DOF chain (:mod:`backhoe.model.physical`), whose response depends on the
    arm-to-trunk mass ratio and the four modal parameters only (the stiffnesses and
-   dampings follow the masses, :func:`robust.model.modal.modal_to_physical`), not on the
+   dampings follow the masses, :func:`backhoe.model.modal.modal_to_physical`), not on the
    masses themselves; fitted beside the four, the mass ratio (an arm of 0.5-3 kg on an
    upper body of 25-55 kg) is all but unidentifiable from a 40-60 s record (its standard
    deviation came out larger than itself), so it is held at the family's nominal ratio
@@ -82,6 +82,8 @@ import math
 
 import numpy as np
 
+from backhoe.model.blocks import parameter_name
+from backhoe.model.modal import physical_to_modal
 from designs.cab_calibration import CAB_IDENTIFIED, CAB_LOG_AXES, cab_truth, identify_cab
 from designs.calibration_fit import LOG_AXES, _coords, _fit, _values
 from designs.calibration_fit import _local_fit as _local_fit
@@ -112,8 +114,6 @@ from designs.calibration_region import (
     response_distance,
 )
 from robust.errors import ParameterError
-from robust.model.blocks import parameter_name
-from robust.model.modal import physical_to_modal
 
 __all__ = [
     "IDENTIFIED",
@@ -153,7 +153,7 @@ def operator_truth(family, row) -> dict:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         A family with the physical human.
     row : array_like
         The member's parameter values (columns of ``family.names``).
@@ -185,7 +185,7 @@ def identified_ranges(family):
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         A family with the physical human.
 
     Returns
@@ -240,10 +240,10 @@ def identify_operator(
     ----------
     record : CalibrationRecord
         The record (:func:`simulate_calibration`, or a rig's, in the same units).
-    family : uncertainty.Family
+    family : backhoe.Family
         The family whose ranges bound the fit (physical human).
     handle_gain : float
-        ``sigma * kappa`` of the loop (:attr:`robust.model.loop.BDFTLoop.handle_gain`).
+        ``sigma * kappa`` of the loop (:attr:`backhoe.model.loop.BDFTLoop.handle_gain`).
     protocol : CalibrationProtocol, optional
         The protocol the record was taken with (its band and segment length).
     responses : tuple, optional
@@ -362,9 +362,9 @@ def noise_free_estimate(
 
     Parameters
     ----------
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member the record was taken on.
-    family : uncertainty.Family
+    family : backhoe.Family
         The family ``estimate`` was fitted within.
     estimate : OperatorEstimate
         :func:`identify_operator`'s estimate from the noisy record (with its weights).
@@ -416,7 +416,7 @@ def operator_row(family, values: dict, row=None) -> np.ndarray:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (its parameter names).
     values : dict
         :data:`IDENTIFIED` -> value (an :attr:`OperatorEstimate.values`).

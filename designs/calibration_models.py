@@ -27,13 +27,13 @@ def human_response(
     motion is ``-c_u g (s^2 + d_3 s + R (w_a^2 + w_t^2)) / D(s)``, ``D`` its characteristic
     quartic with ``d_3 = R (s_a + s_t)``, ``d_2 = R (w_a^2 + w_t^2 + s_a s_t)``, ``d_1 = R
     (s_a w_t^2 + s_t w_a^2)``, ``d_0 = R w_a^2 w_t^2`` (``s_i = 2 zeta_i w_i``, ``R = 1 +``
-    the mass ratio; :mod:`uncertainty.valueset`), equal to the state-space model of
-    :func:`robust.model.physical.physical_human_matrices` to rounding (tested) and a tenth
+    the mass ratio; :mod:`backhoe.families.valueset`), equal to the state-space model of
+    :func:`backhoe.model.physical.physical_human_matrices` to rounding (tested) and a tenth
     of its cost.
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         Gives the nominal masses (their ratio is held), ``h_gain`` and ``c_unit``.
     theta : ndarray, shape (N, 4)
         Rows of (f_arm_hz, zeta_arm, f_trunk_hz, zeta_trunk).
@@ -74,7 +74,7 @@ def human_log_derivatives(family, theta: np.ndarray, f_hz: np.ndarray) -> np.nda
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         Gives the nominal mass ratio (held).
     theta : ndarray, shape (N, 4)
         Rows of (f_arm_hz, zeta_arm, f_trunk_hz, zeta_trunk).
@@ -124,7 +124,7 @@ def cab_response(theta: np.ndarray, f_hz: np.ndarray) -> np.ndarray:
     """The cab's acceleration per cylinder position (Eqn 4) for rows of cab parameters.
 
     ``C/Y = K_s s^2 prod_i (2 zeta_i w_i s + w_i^2) / (s^2 + 2 zeta_i w_i s + w_i^2)``
-    (:func:`robust.model.components.structure`): a product, so symmetric in its two modes.
+    (:func:`backhoe.model.components.structure`): a product, so symmetric in its two modes.
 
     Parameters
     ----------

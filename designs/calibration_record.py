@@ -18,12 +18,12 @@ import math
 import numpy as np
 import scipy.signal as sig
 
+from backhoe.analysis.simulation import lifted_response
+from backhoe.model.wiring import connect
 from designs.limit_plant import ACCEL_NOISE_RMS, ENCODER_MM
 from designs.specification import Specification
-from robust.analysis.simulation import lifted_response
 from robust.checks import POSITIVE, Spec, validate_fields
 from robust.errors import DataError, ParameterError
-from robust.model.wiring import connect
 from robust.sysid.spectral import estimate_frequency_responses
 
 __all__ = [
@@ -228,7 +228,7 @@ def simulate_calibration(
 
     Parameters
     ----------
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member (operator and machine); no compensator is in the loop.
     protocol : CalibrationProtocol, optional
     seed : int

@@ -92,7 +92,7 @@ def response_distance(family, estimate: OperatorEstimate, a, b, handle_gain: flo
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     estimate : OperatorEstimate
         Whose frequencies, weights and residual variance are used.
     a, b : array_like, shape (m, 4) or (4,)
@@ -147,7 +147,7 @@ def region_points(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     estimate : OperatorEstimate
         :func:`identify_operator`'s estimate (covariance, weights, residual variance).
     centre : array_like, shape (4,)

@@ -17,8 +17,8 @@ import dataclasses
 
 import control as ct
 
+from backhoe.model.loop import BDFTLoop
 from designs.result import Design, DesignFacts, DesignResult
-from robust.model.loop import BDFTLoop
 
 __all__ = ["CancellationFacts", "cancellation_controller", "build", "DESIGN"]
 
@@ -76,11 +76,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         Unused: the design is not tuned over members.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Unused: the design applies no force.
 
     Returns

@@ -28,6 +28,8 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
+from backhoe import Family
+from backhoe.families.batched import closed_loop_matrices
 from designs.spec import check_specification, unstable_member_check
 from designs.spec_forces import peak_force, peak_time_grid
 from designs.specification import CONSTRAINTS, Specification
@@ -38,8 +40,7 @@ from robust.engine import run_calls
 from robust.errors import BDFTError, ModelStructureError, ParameterError
 from robust.jsonio import to_jsonable
 from robust.synthesis.solve import deterministic_solvers
-from uncertainty import Family, sample
-from uncertainty.batched import closed_loop_matrices
+from uncertainty import sample
 from uncertainty.randomized import DEFAULT_CONFIDENCE, CoverageBound
 
 __all__ = [
@@ -113,7 +114,7 @@ def _screen(family, rows, controller, spec):
     tip with the realisation's rounding: no pole within that tolerance of the origin, none
     within :data:`SCREEN_EDGE` of the damping band's edges, and its in-band damping not within
     it of the required one. The full closed loop
-    (:func:`uncertainty.batched.closed_loop_matrices`) has every mode of the minimal
+    (:func:`backhoe.families.batched.closed_loop_matrices`) has every mode of the minimal
     realisation the check takes its poles from, but may have more: :func:`_screened_rows`
     screens only where the check's minimal realisation drops none.
     """
@@ -230,12 +231,12 @@ def member_verdicts(
 
     Parameters
     ----------
-    family : uncertainty.Family
-        The family (its :meth:`~uncertainty.Family.member` builds each loop).
+    family : backhoe.Family
+        The family (its :meth:`~backhoe.Family.member` builds each loop).
     values : array_like, shape (n, d)
         Member rows in the order of ``family.names``.
     controller : control.StateSpace or None
-        The compensator (loop convention of :mod:`robust.model.loop`).
+        The compensator (loop convention of :mod:`backhoe.model.loop`).
     spec : Specification, optional
         Default :class:`~designs.spec.Specification` ``()``.
     seed : int
@@ -354,7 +355,7 @@ def design_coverage(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     controller : control.StateSpace or None
     spec : Specification, optional
     samples : int

@@ -4,7 +4,7 @@ The specification's effort and noise checks (:mod:`designs.spec`) are stationary
 of closed-loop signals driven by three kinds of input:
 
 * the **intended motion**: white noise through the unit intent filter ``F``
-  (:func:`robust.synthesis.forcefb.intent_filter`), scaled to RMS ``amplitude / sqrt(2)``
+  (:func:`backhoe.synthesis.forcefb.intent_filter`), scaled to RMS ``amplitude / sqrt(2)``
   (as :func:`designs.evaluate.intended_motion` simulates it);
 * the operator's **remnant**, the part of a person's command that is not a linear response
   to anything (McRuer & Jex 1967; Levison, Baron & Kleinman, "A model for human controller
@@ -31,15 +31,15 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
+from backhoe.model.components import REALISATIONS_KEPT
+from backhoe.model.loop import BDFTLoop
+from backhoe.model.wiring import Junction, connect, renamed
+from backhoe.synthesis.forcefb import intent_filter
 from robust.analysis.bounds import siso_response
 from robust.analysis.norms import h2_norm
 from robust.analysis.realization import minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, validate_fields
 from robust.errors import ModelStructureError
-from robust.model.components import REALISATIONS_KEPT
-from robust.model.loop import BDFTLoop
-from robust.model.wiring import Junction, connect, renamed
-from robust.synthesis.forcefb import intent_filter
 
 __all__ = [
     "Noise",
@@ -176,7 +176,7 @@ def unit_intent(bandwidth_hz: float) -> tuple:
     Parameters
     ----------
     bandwidth_hz : float
-        The intent's bandwidth, Hz (:func:`robust.synthesis.forcefb.intent_filter`).
+        The intent's bandwidth, Hz (:func:`backhoe.synthesis.forcefb.intent_filter`).
     """
     F = intent_filter(bandwidth_hz, 1.0)
     Af, Bf, Cf = (np.array(m, float) for m in (F.A, F.B, F.C))

@@ -1,7 +1,7 @@
 """Evaluation of a compensator on a family: the numbers every design reports (BRIEF section 7).
 
 * family stability: fraction stable, worst largest real part, minimum damping in the
-  BDFT band, and the worst member's parameters (batched poles, :mod:`uncertainty.batched`);
+  BDFT band, and the worst member's parameters (batched poles, :mod:`backhoe.families.batched`);
 * BDFT suppression: ``|Y/Y_ref|`` in dB near the structure mode (5-7.5 Hz), where
   ``Y_ref`` is the cylinder response without BDFT and without compensation;
 * tracking of intended motion: ``max |Y/Y_ref - 1|`` over 0.05-2 Hz;
@@ -19,14 +19,15 @@ import math
 import control as ct
 import numpy as np
 
-from robust.analysis.loops import frequency_response, loop_poles
-from robust.analysis.simulation import SweptSine, foh_response, simulate
+from backhoe.analysis.loops import loop_poles
+from backhoe.analysis.simulation import SweptSine, foh_response, simulate
+from backhoe.model.components import K_PSF_NOMINAL, REALISATIONS_KEPT
+from backhoe.model.device import DeviceLimits, check_force
+from backhoe.model.loop import BDFTLoop
+from backhoe.synthesis.forcefb import intent_filter
+from robust.analysis.loops import frequency_response
 from robust.checks import NONNEGATIVE, check_vector
 from robust.errors import ModelStructureError
-from robust.model.components import K_PSF_NOMINAL, REALISATIONS_KEPT
-from robust.model.device import DeviceLimits, check_force
-from robust.model.loop import BDFTLoop
-from robust.synthesis.forcefb import intent_filter
 from uncertainty import validate_family
 
 __all__ = [
@@ -136,7 +137,7 @@ def intended_motion(
         Amplitude of the equivalent sine, in the loop's handle units.
     bandwidth_hz : float
         Cut-off of the second-order Butterworth intent filter
-        (:func:`robust.synthesis.forcefb.intent_filter`), Hz; 2 Hz in the evaluation.
+        (:func:`backhoe.synthesis.forcefb.intent_filter`), Hz; 2 Hz in the evaluation.
     seed : int
         Seed of the white noise.
 
@@ -327,7 +328,7 @@ def evaluate_design(
     ----------
     name : str
         Design name.
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (its ``k_psf`` is the design's workspace).
     samples : uncertainty.SampleSet
         Members to validate; the seed is reported.

@@ -3,10 +3,10 @@
 The design, top to bottom:
 
 1. family: the default family; synthesis uses its nominal member only;
-2. weights: :class:`robust.synthesis.forcefb.ForceFeedbackWeights` (intended motion
+2. weights: :class:`backhoe.synthesis.forcefb.ForceFeedbackWeights` (intended motion
    0-2 Hz, tracking error 0.2, force relative to the device's peak, sensor noise);
 3. synthesis: :func:`robust.synthesis.hinfsyn_lmi` on
-   :func:`robust.synthesis.forcefb.force_feedback_plant` (Gahinet & Apkarian 1994,
+   :func:`backhoe.synthesis.forcefb.force_feedback_plant` (Gahinet & Apkarian 1994,
    verified there by closed-loop poles and an independent H-infinity norm), then
    balanced truncation keeping the nominal loop stable;
 4. validation and export: the common pipeline (:func:`designs.registry.run_design`).
@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import dataclasses
 
+from backhoe.analysis.loops import reduce_controller
+from backhoe.model.device import DeviceLimits
+from backhoe.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
 from designs.result import Design, DesignFacts, DesignResult
-from robust.analysis.loops import reduce_controller
-from robust.model.device import DeviceLimits
 from robust.synthesis import hinfsyn_lmi
-from robust.synthesis.forcefb import ForceFeedbackWeights, as_loop_controller, force_feedback_plant
 
 __all__ = [
     "NominalHinf",
@@ -69,7 +69,7 @@ def design_hinf_nominal(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (physical human); its nominal member is the plant.
     weights : ForceFeedbackWeights, optional
         Weights of the generalized plant (default: the documented defaults).
@@ -147,11 +147,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         Unused by the synthesis (the pipeline validates on it).
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
 
     Returns

@@ -3,7 +3,7 @@
 The design, top to bottom:
 
 1. family: the default family; the design sample is the scenario set;
-2. weights: :class:`robust.synthesis.forcefb.ForceFeedbackWeights`; force budget 0.8 of
+2. weights: :class:`backhoe.synthesis.forcefb.ForceFeedbackWeights`; force budget 0.8 of
    the device limits on the design members; decay-rate margin 0.3 rad/s;
 3. synthesis: the nominal LMI design (:mod:`designs.hinf_nominal`), reduced, then
    multi-model spectral-abscissa tuning over sampled members with scenario
@@ -30,19 +30,20 @@ import dataclasses
 import control as ct
 import numpy as np
 
-from designs.evaluate import TRACKING_BAND_HZ
-from designs.hinf_nominal import NominalHinf, design_hinf_nominal, synthesis_json
-from designs.multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
-from designs.result import Design, DesignFacts, DesignResult
-from robust.analysis.loops import frequency_response, reduce_controller
-from robust.analysis.norms import hinf_norm
-from robust.model.device import DeviceLimits
-from robust.synthesis.forcefb import (
+from backhoe.analysis.loops import reduce_controller
+from backhoe.model.device import DeviceLimits
+from backhoe.synthesis.forcefb import (
     ForceFeedbackWeights,
     as_loop_controller,
     as_plant_controller,
     force_feedback_plant,
 )
+from designs.evaluate import TRACKING_BAND_HZ
+from designs.hinf_nominal import NominalHinf, design_hinf_nominal, synthesis_json
+from designs.multimodel import ForceBudget, TrackingBudget, tune_spectral_abscissa
+from designs.result import Design, DesignFacts, DesignResult
+from robust.analysis.loops import frequency_response
+from robust.analysis.norms import hinf_norm
 from robust.synthesis.genplant import as_generalized_plant
 from robust.synthesis.solve import deterministic_solvers
 
@@ -116,7 +117,7 @@ def design_hinf_robust(
        ``force_margin`` times the device's peak and continuous limits (chirp 0.1-8 Hz at the
        weights' intended-motion amplitude, :class:`designs.multimodel.ForceBudget`);
     3. the H-infinity norm of the weighted force-feedback closed loop
-       (:func:`robust.synthesis.forcefb.force_feedback_plant`) is computed independently on every
+       (:func:`backhoe.synthesis.forcefb.force_feedback_plant`) is computed independently on every
        design member and reported (worst member, nominal, and all of them).
 
     With ``reference_correction`` the controller gets a second output, a correction of
@@ -130,7 +131,7 @@ def design_hinf_robust(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (physical human).
     samples : uncertainty.SampleSet
         The scenario set of the tuning.
@@ -276,11 +277,11 @@ def build_robust(family, samples, limits, **options) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         The scenario set.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     **options
         Passed to :func:`design_hinf_robust` (``reference_correction``, ``margin``,
@@ -326,11 +327,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         The scenario set.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     """
     return build_robust(family, samples, limits, reference_correction=False, margin=0.3)

@@ -29,11 +29,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         The scenario set.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     """
     return build_robust(

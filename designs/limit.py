@@ -342,7 +342,7 @@ def limit_map(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         A family with the physical human.
     spec : Specification, optional
         The specification (default :class:`Specification` ``()``).
@@ -436,7 +436,7 @@ def basis_check(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The map's family.
     lm : LimitMap
         The map.

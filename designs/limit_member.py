@@ -80,7 +80,7 @@ def member_limit(
 
     Parameters
     ----------
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member (physical human).
     actuators : str
         A key of :data:`ACTUATOR_SETS`.
@@ -135,7 +135,7 @@ def member_controller(
     Output feedback only (measured ``sensors``, not ``"full"``): the observer-based
     controller with its Youla parameter (:func:`robust.synthesis.youla.of_controller`),
     in the loop's units and signal names (inputs the measurements, outputs the actuators),
-    ready for :meth:`robust.model.loop.BDFTLoop.system` and the specification check.
+    ready for :meth:`backhoe.model.loop.BDFTLoop.system` and the specification check.
 
     Parameters
     ----------

@@ -18,15 +18,15 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.signal as sig
 
+from backhoe.analysis.simulation import lifted_response
+from backhoe.model.wiring import connect
 from designs.effort import Noise, sensor_intensities
 from designs.evaluate import intended_motion
 from designs.response import deviation_maps
 from designs.spec_forces import peak_time_grid
 from designs.specification import N_TRACKING_FREQS, Specification
 from robust.analysis.bounds import siso_response
-from robust.analysis.simulation import lifted_response
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.wiring import connect
 from robust.synthesis.stabilising import stabilising_gain
 from robust.synthesis.youla import Measurements, YoulaPlant, observer_gain
 
@@ -37,7 +37,7 @@ __all__ = ["ENCODER_MM", "ACCEL_NOISE_RMS", "sensor_noise"]
 ENCODER_MM = 0.055
 
 #: Accelerometer noise RMS at the 1 kHz servo rate, in the paper's units of ``c`` (the
-#: force-feedback synthesis' default accelerometer weight, :mod:`robust.synthesis.forcefb`).
+#: force-feedback synthesis' default accelerometer weight, :mod:`backhoe.synthesis.forcefb`).
 ACCEL_NOISE_RMS = 0.05
 
 
@@ -157,7 +157,7 @@ def sensor_noise(loop, sensors, *, encoder_mm: float, accel_rms: float) -> np.nd
 
     Parameters
     ----------
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member (its handle units).
     sensors : sequence of str
         ``"x"`` and/or ``"c"``.

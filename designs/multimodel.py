@@ -36,7 +36,7 @@ import dataclasses
 import control as ct
 import numpy as np
 
-from robust.analysis.sampled import open_plant
+from backhoe.analysis.sampled import open_plant
 from robust.analysis.small_eig import eigvals_stack
 from robust.errors import ModelStructureError, ParameterError
 from robust.synthesis.minimise import bfgs_minimise
@@ -90,7 +90,7 @@ def open_loop_data(members, K, lag_s: float = 0.0) -> OpenLoopData:
     """Cut each member's Figure 5 loop open at ``K``'s signals.
 
     The plant's inputs are ``u`` and K's outputs, its outputs ``y`` and K's inputs
-    (:func:`robust.analysis.sampled.open_plant`). With ``lag_s > 0`` every controller
+    (:func:`backhoe.analysis.sampled.open_plant`). With ``lag_s > 0`` every controller
     output reaches the plant through a first-order lag ``1 / (1 + s lag_s)``: at the
     frequencies the loop uses, its phase ``-w lag_s`` is that of a delay ``lag_s``, so a
     controller tuned on these plants keeps its decay rate when the sampled-data loop adds
@@ -552,7 +552,7 @@ def tune_spectral_abscissa(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (physical human for a force budget); its nominal member starts the
         design set.
     samples : uncertainty.SampleSet

@@ -16,6 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
+from backhoe import default_family
+from backhoe.analysis.sampled import sampled_data_check
+from backhoe.analysis.saturation import saturated_response
+from backhoe.model.device import DeviceLimits
 from designs import (
     cancellation,
     hinf_nominal,
@@ -31,14 +35,11 @@ from designs.result import Design, DesignChecks, DesignResult, HeldOutCheck, Sat
 from designs.spec import SpecCheck, check_specification
 from designs.specification import Specification
 from designs.tracking_performance import tracking_performance
-from robust.analysis.sampled import sampled_data_check
-from robust.analysis.saturation import saturated_response
 from robust.cache import cached, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
-from robust.model.device import DeviceLimits
-from uncertainty import default_family, sample, validate_family
+from uncertainty import sample, validate_family
 from uncertainty.margins import robust_margin
 
 __all__ = ["DESIGNS", "design_names", "get_design", "run_design"]

@@ -141,7 +141,7 @@ def effort_lower_bound(loop, plant, scales, actuators, spec, *, n_freq: int = N_
 
     Parameters
     ----------
-    loop : robust.model.loop.BDFTLoop
+    loop : backhoe.model.loop.BDFTLoop
         The member.
     plant : robust.synthesis.youla.YoulaPlant
         Its open loop with the tracked deviation ``R`` and the actuators

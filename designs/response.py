@@ -16,10 +16,10 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.model.components import REALISATIONS_KEPT
+from backhoe.model.loop import BDFTLoop
 from robust.analysis.bounds import BoundRatio, bound_ratio
 from robust.errors import ParameterError
-from robust.model.components import REALISATIONS_KEPT
-from robust.model.loop import BDFTLoop
 
 __all__ = [
     "NOTCH_POLE_DAMPING",

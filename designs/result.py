@@ -17,12 +17,12 @@ import dataclasses
 from collections.abc import Callable
 from typing import ClassVar
 
+from backhoe.analysis.sampled import SampledDataCheck
+from backhoe.analysis.saturation import SaturationCheck
 from designs.evaluate import DesignEvaluation
 from designs.spec import SpecCheck
 from designs.specification import Specification
 from designs.tracking_performance import TRACKING_REQUIREMENT, performance_summary
-from robust.analysis.sampled import SampledDataCheck
-from robust.analysis.saturation import SaturationCheck
 from uncertainty.performance import PerformanceResult
 from uncertainty.region import MarginResult
 
@@ -137,7 +137,7 @@ class DesignChecks:
         The robust performance margin of the specification's tracking bound
         (:func:`designs.tracking_performance.tracking_performance`; ``None``: not computed).
     sampled_data : dict
-        Label (``"nominal"``, ``"worst"``) -> :class:`robust.analysis.sampled.SampledDataCheck`
+        Label (``"nominal"``, ``"worst"``) -> :class:`backhoe.analysis.sampled.SampledDataCheck`
         of the 1 kHz loop (empty without a controller).
     saturation : dict
         Label -> :class:`SaturatedRun` (empty unless the controller drives the force).
@@ -183,7 +183,7 @@ class DesignResult:
         Design name (as registered).
     description : str
         One line: what the design is.
-    family : uncertainty.Family
+    family : backhoe.Family
         The family the design runs on (the workspace design changes its ``k_psf``).
     controller : control.StateSpace or None
         The compensator in the loop's signal convention (inputs among ``x, c, y``,
@@ -297,9 +297,9 @@ class Design:
         One line: what the design is.
     build : callable
         ``build(family, samples, limits) -> DesignResult``: the design on ``family``
-        (an :class:`uncertainty.Family`), tuned or checked on ``samples`` (an
+        (an :class:`backhoe.Family`), tuned or checked on ``samples`` (an
         :class:`uncertainty.SampleSet`), within ``limits`` (a
-        :class:`robust.model.device.DeviceLimits`).
+        :class:`backhoe.model.device.DeviceLimits`).
     """
 
     name: str

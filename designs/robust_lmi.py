@@ -178,11 +178,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         Unused (the design members come from the worst-member search and seeded samples).
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     """
     spec = Specification(
@@ -197,11 +197,11 @@ def build_cylinder(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         Unused.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     """
     spec = Specification(
@@ -217,11 +217,11 @@ def build_workspace_force(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family (its workspace is doubled here).
     samples : uncertainty.SampleSet
         Unused.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits.
     """
     spec = Specification(

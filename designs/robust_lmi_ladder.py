@@ -121,7 +121,7 @@ def maximise_margin(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (physical human for handle force).
     spec : Specification, optional
         The specification (default: its defaults).

@@ -18,10 +18,10 @@ import time
 import control as ct
 import numpy as np
 
+from backhoe.synthesis.forcefb import synthesis_member
 from designs.spec import Specification, check_specification
 from robust.checks import POSITIVE, Spec, check_int, validate_fields
 from robust.errors import BDFTError, InfeasibleError, ParameterError
-from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import pksyn_multi
 from robust.synthesis.tuning import minimax_start, tune_members
 from uncertainty.search import scaled_bounds, worst_member

@@ -162,7 +162,7 @@ def force_tradeoff(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family.
     factors : sequence of float
         Multipliers of the force limits (> 0).

@@ -63,6 +63,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from backhoe.model.blocks import VALVE_FIELDS
 from designs.cab_damper import (
     DAMPER_GAINS,
     DAMPER_PHASES,
@@ -89,7 +90,6 @@ from designs.scheduled_checks import (
 )
 from designs.specification import Specification
 from robust.checks import check_int
-from robust.model.blocks import VALVE_FIELDS
 from uncertainty import sample
 from uncertainty.randomized import CoverageBound
 
@@ -148,7 +148,7 @@ def scheduled_design(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     cells_per_axis : int
         Cells per identified quantity of the bank written with the result.
     samples : int

@@ -18,6 +18,9 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe import member_metrics
+from backhoe.model.blocks import parameter_name
+from backhoe.model.physical import physical_human_matrices
 from designs.calibration import IDENTIFIED, identified_ranges, operator_row
 from designs.calibration_fit import LOG_AXES
 from designs.constants import CELLS_PER_AXIS
@@ -25,9 +28,6 @@ from designs.coverage import member_verdicts
 from designs.specification import Specification
 from robust.checks import check_int
 from robust.errors import ParameterError
-from robust.model.blocks import parameter_name
-from robust.model.physical import physical_human_matrices
-from uncertainty import member_metrics
 from uncertainty.randomized import DEFAULT_CONFIDENCE, CoverageBound
 
 __all__ = ["LIMIT_SET", "ScheduledBank", "build_bank", "BankCoverage", "bank_coverage"]
@@ -132,7 +132,7 @@ class ScheduledBank:
 def _cancellations(family, centres: np.ndarray) -> tuple:
     """:func:`designs.cancellation.cancellation_controller` of each centre's human, batched.
 
-    The humans' matrices come from :meth:`uncertainty.Family.model_arrays` of the centres'
+    The humans' matrices come from :meth:`backhoe.Family.model_arrays` of the centres'
     rows (:func:`designs.calibration.operator_row`, masses nominal), so each compensator is
     the one the member's own loop would give, without assembling the loops.
     """
@@ -161,7 +161,7 @@ def build_bank(family, cells_per_axis: int = CELLS_PER_AXIS) -> ScheduledBank:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         A family with the physical human.
     cells_per_axis : int
         Cells per identified quantity (>= 1).
@@ -248,7 +248,7 @@ def bank_coverage(
     Parameters
     ----------
     bank : ScheduledBank
-    family : uncertainty.Family
+    family : backhoe.Family
     values : array_like, shape (n, d)
         The members (fresh Monte Carlo draws for the certificate).
     estimates, truth, inside : numpy.ndarray

@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from backhoe.model.blocks import VALVE_FIELDS
 from designs.cab_calibration import CAB_IDENTIFIED, cab_truth, identify_cab
 from designs.calibration import IDENTIFIED, identify_operator, noise_free_estimate, operator_truth
 from designs.calibration_record import (
@@ -27,7 +28,6 @@ from designs.calibration_record import (
 from designs.calibration_region import REGION_RADIUS, region_points, response_distance
 from robust.checks import check_int
 from robust.engine import run_calls
-from robust.model.blocks import VALVE_FIELDS
 from robust.synthesis.solve import deterministic_solvers
 
 __all__ = ["Calibrations", "calibrate_members"]
@@ -163,7 +163,7 @@ def calibrate_members(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     values : array_like, shape (n, d)
         Member rows.
     seed : int

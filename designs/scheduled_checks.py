@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 
+from backhoe import member_metrics
+from backhoe.model.blocks import block_of
 from designs.cab_calibration import CAB_IDENTIFIED, CAB_LOG_AXES
 from designs.cab_damper import _cab_names, _valve_params, damped_cancellation, member_valve
 from designs.calibration import IDENTIFIED, OPERATOR_NAMES
@@ -31,9 +33,7 @@ from designs.scheduled_calibrations import Calibrations, _run, calibrate_members
 from designs.specification import Specification
 from robust.checks import check_int
 from robust.errors import ParameterError
-from robust.model.blocks import block_of
 from robust.synthesis.solve import deterministic_solvers
-from uncertainty import member_metrics
 from uncertainty.margins import robust_margin
 
 __all__ = [
@@ -76,7 +76,7 @@ def continuous_coverage(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     values : array_like, shape (n, d)
         The members.
     estimates : numpy.ndarray, shape (n, 4)
@@ -130,7 +130,7 @@ def cancellation_gap(family, values, *, seed: int = 0, protocol=None, spec=None)
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     values : array_like, shape (n, d)
         Member rows.
     seed : int
@@ -257,7 +257,7 @@ def border_check(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     values : array_like, shape (n, d)
         The members.
     cal : Calibrations
@@ -327,7 +327,7 @@ def operator_family(family, cal: Calibrations, i: int):
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family the member was drawn from.
     cal : Calibrations
         Calibrations (:func:`calibrate_members`).
@@ -336,7 +336,7 @@ def operator_family(family, cal: Calibrations, i: int):
 
     Returns
     -------
-    (uncertainty.Family, dict, dict)
+    (backhoe.Family, dict, dict)
         The family, the operator's and the cab's estimates.
     """
     h, c = dict(zip(IDENTIFIED, cal.estimates[i])), dict(zip(CAB_IDENTIFIED, cal.cabs[i]))
@@ -395,7 +395,7 @@ def operator_certificates(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family the members were drawn from.
     cal : Calibrations
         Their calibrations (:func:`calibrate_members`).

@@ -36,7 +36,7 @@ checked by :func:`robust.analysis.bounds.bound_ratio`: the imaginary-axis crossi
 Constraints and their worst value over the members
 --------------------------------------------------
 ``"decay rate"``
-    Largest real part of the closed-loop poles (:func:`robust.analysis.loops.loop_poles`),
+    Largest real part of the closed-loop poles (:func:`backhoe.analysis.loops.loop_poles`),
     rad/s; holds when every pole has ``Re p < -max(decay_rate, STABILITY_TOL)``
     (:func:`robust.analysis.stability.poles_stable` with that margin).
 ``"damping"``
@@ -60,7 +60,7 @@ Constraints and their worst value over the members
 ``"reference effort"``
     ``peak_factor`` times the RMS cylinder speed and valve command that a cylinder-reference
     correction asks for, over ``correction_flow_share`` of the flow limit and of the
-    valve's command range (:class:`robust.model.components.HydraulicLimits`); holds at
+    valve's command range (:class:`backhoe.model.components.HydraulicLimits`); holds at
     most 1.
 
 Everything but the poles is undefined on a member whose closed loop is unstable: its value
@@ -95,6 +95,7 @@ from collections.abc import Sequence
 import control as ct
 import numpy as np
 
+from backhoe.model.loop import BDFTLoop
 from designs.effort import member_effort
 from designs.response import deviation_checks
 from designs.spec_forces import peak_force, peak_time_grid, rms_force
@@ -104,7 +105,6 @@ from robust.analysis.stability import damping_in_band, poles_stable, stability_b
 from robust.checks import Spec, check_int, check_scalar
 from robust.errors import ModelStructureError, ParameterError
 from robust.jsonio import to_jsonable
-from robust.model.loop import BDFTLoop
 
 __all__ = [
     "CONSTRAINTS",
@@ -278,7 +278,7 @@ def check_specification(
         Specification, or ``seed``, ``simulate_peak`` or ``duration_s`` is out of range.
     robust.errors.ModelStructureError
         If ``controller`` does not fit the loop convention
-        (:meth:`robust.model.loop.BDFTLoop.system`).
+        (:meth:`backhoe.model.loop.BDFTLoop.system`).
     """
     where = "check_specification"
     if isinstance(members, BDFTLoop) or not isinstance(members, Sequence):

@@ -16,15 +16,15 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.analysis.simulation import simulate
+from backhoe.model.loop import BDFTLoop
 from designs.effort import unit_intent
 from designs.evaluate import intended_motion
 from robust.analysis.norms import h2_norm
 from robust.analysis.realization import minimal_realization
-from robust.analysis.simulation import simulate
 from robust.analysis.stability import poles_stable
 from robust.checks import POSITIVE, check_scalar
 from robust.errors import ParameterError
-from robust.model.loop import BDFTLoop
 
 __all__ = ["rms_force", "peak_force", "peak_time_grid"]
 
@@ -44,7 +44,7 @@ def rms_force(
     """Exact stationary RMS handle force under the realistic intended motion, N.
 
     The motion is white noise through the unit intent filter ``F``
-    (:func:`robust.synthesis.forcefb.intent_filter`) scaled to RMS
+    (:func:`backhoe.synthesis.forcefb.intent_filter`) scaled to RMS
     ``amplitude / sqrt(2)`` (as :func:`designs.evaluate.intended_motion`), so the RMS
     force is ``amplitude / sqrt(2) * ||G_f F||_2 / ||F||_2`` with ``G_f`` the
     closed-loop ``u -> f`` (a minimal realisation); the H2 norms come from the

@@ -19,6 +19,8 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.model.components import K_PSF_NOMINAL
+from backhoe.model.device import DeviceLimits
 from designs.effort import Noise
 from designs.evaluate import INTENT_FRACTION, SUPPRESSION_BAND_HZ, TRACKING_BAND_HZ
 from designs.response import (
@@ -39,8 +41,6 @@ from robust.checks import (
 )
 from robust.errors import ParameterError
 from robust.jsonio import to_jsonable
-from robust.model.components import K_PSF_NOMINAL
-from robust.model.device import DeviceLimits
 from uncertainty.region import Region
 
 __all__ = ["CONSTRAINTS", "Specification"]

@@ -5,7 +5,7 @@ The specification's tracking requirement (:mod:`designs.response`) bounds the de
 BDFT-free response by the tracking weight, ``|R(jw)| <= |W_t(jw)|``, at every frequency of
 the operator's band ``[0, split_hz]``. ``R`` is the closed-loop map
 ``u -> (x - u) + r_corr / K_PSF`` (:func:`designs.response.deviation_maps`), so on the
-family's uncertain loop (:func:`uncertainty.family_uss`, the blocks' one definition over
+family's uncertain loop (:func:`backhoe.family_uss`, the blocks' one definition over
 uncertain reals) it is an uncertain system, and ``P = W_t^-1 R`` a weighted map whose robust
 performance over the band (:func:`uncertainty.robust_performance` with ``band_hz``) answers:
 how far can every parameter move from its nominal value, as a scale of the family's box,
@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from backhoe.families.family import Family
+from backhoe.families.loop import family_uss
 from designs.response import weight_system
 from robust.checks import check_int
-from uncertainty.family import Family
-from uncertainty.loop import family_uss
 from uncertainty.performance import PerformanceResult, robust_performance
 from uncertainty.uss import USS, uss
 
@@ -119,7 +119,7 @@ def tracking_performance(
 
     >>> from designs.spec import Specification
     >>> from designs.tracking_performance import tracking_performance
-    >>> from uncertainty import default_family
+    >>> from backhoe import default_family
     >>> res = tracking_performance(default_family(), None, Specification())
     >>> res.nominal_norm > 1, res.lower, res.upper
     (True, 0.0, 0.0)

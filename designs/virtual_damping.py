@@ -20,12 +20,12 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.analysis.loops import loop_poles
+from backhoe.model.device import DeviceLimits, check_force
+from backhoe.model.loop import BDFTLoop
 from designs.evaluate import INTENT_FRACTION, force_histories
 from designs.result import Design, DesignFacts, DesignResult
-from robust.analysis.loops import loop_poles
 from robust.checks import POSITIVE, Spec, check_scalar
-from robust.model.device import DeviceLimits, check_force
-from robust.model.loop import BDFTLoop
 from uncertainty import validate_family
 
 __all__ = [
@@ -135,7 +135,7 @@ def design_virtual_damping(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family (physical human).
     samples : uncertainty.SampleSet
         Members to validate every pair on.
@@ -184,11 +184,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The default family.
     samples : uncertainty.SampleSet
         Members to tune and validate on (its seed also seeds the force simulation).
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits the nominal member's force must respect.
 
     Returns

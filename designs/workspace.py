@@ -92,7 +92,7 @@ def design_workspace(
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family at the nominal workspace.
     samples : uncertainty.SampleSet
         Members to check.
@@ -143,11 +143,11 @@ def build(family, samples, limits) -> DesignResult:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         The family at the nominal workspace.
     samples : uncertainty.SampleSet
         Members the factor must stabilise.
-    limits : robust.model.device.DeviceLimits
+    limits : backhoe.model.device.DeviceLimits
         Device limits (unused: the design applies no force).
 
     Returns

@@ -17,11 +17,12 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import FormatStrFormatter
 
+from backhoe import Family
+from backhoe.model.blocks import block_of, field_of
+from backhoe.model.literature import published_box, stress_box
+from backhoe.model.physical import EQN5_FIT
 from reports.html import HtmlPage
-from robust.model.blocks import block_of, field_of
-from robust.model.literature import published_box, stress_box
-from robust.model.physical import EQN5_FIT
-from uncertainty import Family, sample, validate_family
+from uncertainty import sample, validate_family
 
 __all__ = ["FamilyCoverage", "family_coverage", "coverage_figure", "add_coverage_section"]
 
@@ -85,7 +86,7 @@ def family_coverage(family: Family, *, samples: int = 2000, seed: int = 0) -> Fa
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
         A physical-human family.
     samples : int
         LHS sample size.

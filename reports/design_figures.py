@@ -12,12 +12,13 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from backhoe import batched_poles, default_family
+from backhoe.analysis.loops import loop_poles
+from backhoe.model.device import DeviceLimits
 from designs.evaluate import INTENT_FRACTION, force_histories, output_ratio
 from designs.spec import Specification
 from reports.html import HtmlPage
-from robust.analysis.loops import loop_poles
-from robust.model.device import DeviceLimits
-from uncertainty import batched_poles, default_family, sample
+from uncertainty import sample
 
 #: Nothing public: :mod:`reports.designs`'s own.
 __all__: list[str] = []

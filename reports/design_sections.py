@@ -13,11 +13,11 @@ import math
 
 import matplotlib.pyplot as plt
 
+from backhoe import default_family
+from backhoe.model.device import DeviceLimits
 from designs.calibration_region import REGION_RADIUS
 from designs.limit_sets import design_set, limit_coverage_of
 from reports.html import HtmlPage
-from robust.model.device import DeviceLimits
-from uncertainty import default_family
 from uncertainty.randomized import coverage_consistent
 
 #: Nothing public: :mod:`reports.designs`'s own.
@@ -403,7 +403,7 @@ def _saturation_section(page: HtmlPage, runs: dict) -> None:
         "device's peak, the reference correction at a quarter of the stroke, and the "
         "hydraulics the linear model leaves out (the valve command at full opening and "
         "through the spool's dead zone, the flow limit on the cylinder's speed, the stroke "
-        "ends; robust.model.components.HydraulicLimits). The clipped and limited columns "
+        "ends; backhoe.model.components.HydraulicLimits). The clipped and limited columns "
         "are fractions of the samples; 'amplitude left' is the cylinder's oscillation in the "
         "last second. 'Sustained' means the response did not die out after the motion "
         "stopped (the limit cycles the paper's hardware showed). 'Linear 1 kHz loop': the "

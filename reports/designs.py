@@ -6,6 +6,9 @@ import dataclasses
 import json
 import math
 
+from backhoe import default_family
+from backhoe.model.components import StructureParams
+from backhoe.model.device import DeviceLimits
 from designs.evaluate import INTENT_FRACTION
 from designs.robust_lmi import RobustLMIFacts
 from reports.coverage import FamilyCoverage, add_coverage_section, family_coverage
@@ -22,9 +25,6 @@ from reports.design_sections import (
 from reports.html import HtmlPage, write_report_dir
 from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.jsonio import to_jsonable
-from robust.model.components import StructureParams
-from robust.model.device import DeviceLimits
-from uncertainty import default_family
 
 __all__ = ["run_all_designs", "run_designs_with", "verdict", "write_design_report"]
 

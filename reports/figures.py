@@ -127,7 +127,7 @@ def time_response_figure(with_bdft, without_bdft, *, title: str, signal: str = "
 
     Parameters
     ----------
-    with_bdft, without_bdft : robust.analysis.simulation.TimeResponse
+    with_bdft, without_bdft : backhoe.analysis.simulation.TimeResponse
         The same intended motion simulated with and without the feedthrough path.
     title : str
         Title of the top plot.
@@ -173,7 +173,7 @@ def ratio_figure(freqs_hz: np.ndarray, study: dict, *, title: str):
         Frequency grid of the study, Hz.
     study : dict
         Workspace factor to a row with ``ratio_db`` (shape (F,)) and ``stable``, as
-        :func:`robust.analysis.claims.ratio_study` returns; unstable members are
+        :func:`backhoe.analysis.claims.ratio_study` returns; unstable members are
         dotted.
     title : str
         Plot title.
@@ -216,7 +216,7 @@ def loop_gain_figure(
         Frequencies, Hz.
     curves : list of (str, ndarray)
         ``(legend label, complex loop gain at freqs_hz)`` pairs, e.g. the ``"loop"``
-        entry of :func:`robust.analysis.loops.bdft_loop_gain`.
+        entry of :func:`backhoe.analysis.loops.bdft_loop_gain`.
     title : str
         Plot title.
     mark_hz : sequence of float

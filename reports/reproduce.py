@@ -2,7 +2,7 @@
 
 ``bdft reproduce`` calls :func:`reproduce` and :func:`write_reproduction_report`.
 For each human variant the loop is built with the calibration of
-:mod:`robust.analysis.calibration` and every claim is checked by :mod:`robust.analysis.claims`.
+:mod:`backhoe.analysis.calibration` and every claim is checked by :mod:`backhoe.analysis.claims`.
 """
 
 from __future__ import annotations
@@ -17,25 +17,26 @@ from pathlib import Path
 import control as ct
 import numpy as np
 
-from reports import figures as plots
-from reports.html import HtmlPage, fmt, write_report_dir
-from robust import __version__
-from robust.analysis.calibration import K_PSF_STABLE, CalibrationResult, calibrate
-from robust.analysis.claims import (
+from backhoe.analysis.calibration import K_PSF_STABLE, CalibrationResult, calibrate
+from backhoe.analysis.claims import (
     CLAIM_TEXT,
     RATIO_FREQS_HZ,
     ClaimResult,
     evaluate_claims,
     ratio_study,
 )
-from robust.analysis.loops import PoleSet, bdft_loop_gain, loop_poles
-from robust.analysis.simulation import SweptSine, TimeResponse, simulate_swept_sine
+from backhoe.analysis.loops import bdft_loop_gain, loop_poles
+from backhoe.analysis.simulation import SweptSine, TimeResponse, simulate_swept_sine
+from backhoe.model.components import K_PSF_NOMINAL, structure, valve_cylinder
+from backhoe.model.human import HUMAN_VARIANT_NAMES, HumanModel, LiteralHuman, human_variant
+from backhoe.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
+from backhoe.model.physical import fit_summary
+from reports import figures as plots
+from reports.html import HtmlPage, fmt, write_report_dir
+from robust import __version__
+from robust.analysis.loops import PoleSet
 from robust.errors import InfeasibleError
 from robust.jsonio import to_jsonable
-from robust.model.components import K_PSF_NOMINAL, structure, valve_cylinder
-from robust.model.human import HUMAN_VARIANT_NAMES, HumanModel, LiteralHuman, human_variant
-from robust.model.loop import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
-from robust.model.physical import fit_summary
 
 __all__ = [
     "VariantResult",
@@ -61,7 +62,7 @@ class VariantResult:
     claims : dict of str to ClaimResult
         Claims ``"C1"`` to ``"C5"`` and their verdicts.
     study : dict
-        The workspace study (:func:`robust.analysis.claims.ratio_study`): workspace
+        The workspace study (:func:`backhoe.analysis.claims.ratio_study`): workspace
         factor to the with/without-BDFT ratio in dB and the member's stability.
     poles_nominal, poles_stable : PoleSet
         Closed-loop poles at ``K_PSF = 0.1097`` (nominal) and ``K_PSF = 0.055`` (the
@@ -107,7 +108,7 @@ class ReproductionResult:
     unavailable : dict of str to str
         Variants (or their own calibrations) that could not be evaluated, with why.
     physical_fit : dict or None
-        The physical human's fit to Eqn 5 (:func:`robust.model.physical.fit_summary`),
+        The physical human's fit to Eqn 5 (:func:`backhoe.model.physical.fit_summary`),
         when the physical variant was evaluated.
     sweep : SweptSine
         The intended motion of the time simulations.
@@ -165,7 +166,7 @@ def reproduce(
     Parameters
     ----------
     variants : sequence of str
-        Human variants to evaluate (:data:`robust.model.human.HUMAN_VARIANT_NAMES`:
+        Human variants to evaluate (:data:`backhoe.model.human.HUMAN_VARIANT_NAMES`:
         literal, physical, physical-no-backrest, eqn5-fit); an unknown name is listed
         in ``unavailable``, not raised.
     sweep : SweptSine, optional

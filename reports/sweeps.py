@@ -1,6 +1,6 @@
 """Sweep pages (``bdft sweep``): the sweep's figures, settings and table on one HTML page.
 
-The sweeps themselves are computed by :mod:`uncertainty.sweeps`; this module draws
+The sweeps themselves are computed by :mod:`backhoe.families.sweeps`; this module draws
 them (every function returns matplotlib figures) and writes the page through the
 common builder of :mod:`reports.html`, with the table attached as CSV and JSON.
 """
@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from backhoe.families.sweeps import SweepResult
 from reports.html import HtmlPage, write_report_dir
 from robust.jsonio import to_jsonable
-from uncertainty.sweeps import SweepResult
 
 __all__ = ["sweep_figures", "write_sweep_report"]
 
@@ -30,7 +30,7 @@ def sweep_figures(res: SweepResult) -> list:
 
     Parameters
     ----------
-    res : uncertainty.SweepResult
+    res : backhoe.SweepResult
         A computed sweep.
 
     Returns
@@ -48,7 +48,7 @@ def write_sweep_report(res: SweepResult, out_dir) -> Path:
 
     Parameters
     ----------
-    res : uncertainty.SweepResult
+    res : backhoe.SweepResult
         A computed sweep.
     out_dir : path-like
         The report folder.

@@ -1,68 +1,36 @@
-"""Robust-control workbench for biodynamic feedthrough (BDFT) in haptic backhoe operation.
+"""The workbench's numerical core: LTI analysis, H-infinity synthesis, identification and export.
+
+The bottom layer of the workbench, generic over any LTI plant: nothing here knows the
+backhoe (:mod:`backhoe` builds the machine on it, as a user's own machine would).
 
 Public API, by area (import from here; module layout may change):
 
-* the paper's model: components (Eqns 3-5), human variants, the Figure 5 loop,
-  its calibration;
-* analysis: minimal-realisation poles, claims C1-C5, BDFT ratio and loop gain,
-  simulation;
-* synthesis: the generalized plant, H-infinity by LMIs (nominal and multi-model),
-  norms, the force-feedback plant;
-* implementation: device limits, order reduction, discretisation and export.
+* analysis: minimal-realisation poles (hidden modes kept), stability, frequency
+  responses, H-infinity and H2 norms;
+* synthesis: the generalized plant, H-infinity by LMIs (nominal and multi-model), the
+  solve wrapper;
+* implementation: order reduction, discretisation and export;
+* the workbench's errors.
 
-Subpackages: :mod:`robust.model` (components, humans, loop, device),
-:mod:`robust.analysis` (poles, claims, calibration, norms, reduction, simulation),
-:mod:`robust.synthesis` (generalized plants, LMI synthesis), :mod:`robust.sysid`
-(system identification); :mod:`robust.export` writes controller artifacts. This
-package is the bottom layer: families live in ``uncertainty``, designs in
-``designs``, reports in ``reports`` and the command line in ``bdft``, each
-importing only the layers below it.
+Subpackages: :mod:`robust.analysis` (poles, norms, realisation, reduction, pole regions,
+interval arithmetic, eigenvalue enclosures), :mod:`robust.synthesis` (generalized
+plants, LMI synthesis, Youla parametrisation, tuning), :mod:`robust.sysid` (spectra and
+rational fits of frequency responses); :mod:`robust.export` writes controller artifacts.
+Above it: uncertain systems in ``uncertainty``, the machine in ``backhoe``, designs in
+``designs``, reports in ``reports`` and the command line in ``bdft``, each importing only
+the layers below it.
 """
 
 from robust.lazy import lazy_exports
 from robust.version import __version__
 
 __all__ = [
-    # the paper's model
-    "K_PSF_NOMINAL",
-    "K_PSF_STABLE",
-    "ValveCylinderParams",
-    "StructureParams",
-    "PIParams",
-    "valve_cylinder",
-    "structure",
-    "pi_controller",
-    "position_scale",
-    "HumanModel",
-    "LiteralHuman",
-    "LiteralHumanParams",
-    "PhysicalHuman",
-    "PhysicalHumanParams",
-    "human_variant",
-    "BDFTLoop",
-    "LoopCalibration",
-    "DEFAULT_CALIBRATION",
-    "calibrate",
-    "CalibrationCandidate",
-    "CalibrationResult",
     # analysis
     "STABILITY_TOL",
     "PoleSet",
     "closed_loop_poles",
-    "loop_poles",
     "poles_stable",
-    "critical_k_psf",
     "frequency_response",
-    "bdft_ratio",
-    "bdft_loop_gain",
-    "CLAIM_TEXT",
-    "ClaimResult",
-    "evaluate_claims",
-    "ratio_study",
-    "SweptSine",
-    "TimeResponse",
-    "simulate",
-    "simulate_swept_sine",
     "MinimalRealization",
     "minimal_realization",
     # synthesis
@@ -79,14 +47,7 @@ __all__ = [
     "spectral_abscissa",
     "SolveResult",
     "solve_problem",
-    "ForceFeedbackWeights",
-    "force_feedback_plant",
-    "as_loop_controller",
-    "handle_units_per_m",
     # implementation
-    "DeviceLimits",
-    "ForceCheck",
-    "check_force",
     "ReducedModel",
     "balanced_truncation",
     "hankel_singular_values",
@@ -113,34 +74,18 @@ __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         "robust.analysis": (
-            "CLAIM_TEXT",
-            "K_PSF_STABLE",
-            "STABILITY_TOL",
-            "CalibrationCandidate",
-            "CalibrationResult",
-            "ClaimResult",
             "MinimalRealization",
             "PoleSet",
             "ReducedModel",
-            "SweptSine",
-            "TimeResponse",
+            "STABILITY_TOL",
             "balanced_truncation",
-            "bdft_loop_gain",
-            "bdft_ratio",
-            "calibrate",
             "closed_loop_poles",
-            "critical_k_psf",
-            "evaluate_claims",
             "frequency_response",
             "hankel_singular_values",
             "hinf_norm",
             "is_stable",
-            "loop_poles",
             "minimal_realization",
             "poles_stable",
-            "ratio_study",
-            "simulate",
-            "simulate_swept_sine",
             "spectral_abscissa",
         ),
         "robust.errors": (
@@ -160,43 +105,17 @@ __getattr__, __dir__ = lazy_exports(
             "load_artifact",
             "write_artifact",
         ),
-        "robust.model": (
-            "DEFAULT_CALIBRATION",
-            "K_PSF_NOMINAL",
-            "BDFTLoop",
-            "DeviceLimits",
-            "ForceCheck",
-            "HumanModel",
-            "LiteralHuman",
-            "LiteralHumanParams",
-            "LoopCalibration",
-            "PhysicalHuman",
-            "PhysicalHumanParams",
-            "PIParams",
-            "StructureParams",
-            "ValveCylinderParams",
-            "check_force",
-            "human_variant",
-            "pi_controller",
-            "position_scale",
-            "structure",
-            "valve_cylinder",
-        ),
         "robust.synthesis": (
-            "ForceFeedbackWeights",
             "GeneralizedPlant",
             "HinfResult",
             "LMISynthesisProblem",
             "MultiHinfResult",
             "SolveResult",
             "as_generalized_plant",
-            "as_loop_controller",
             "check_hinf_assumptions",
-            "force_feedback_plant",
             "hinfsyn_lmi",
             "hinfsyn_multi",
             "solve_problem",
         ),
-        "robust.synthesis.forcefb": ("handle_units_per_m",),
     },
 )

@@ -1,24 +1,16 @@
-"""Named choices and defaults of the model library that need no numerical library.
+"""Named defaults of the analysis layer that need no numerical library.
 
 The command line builds its options from these (choices, defaults, help texts) before it
 imports any numerical module, so that ``bdft --help`` answers without NumPy. Each is
 defined here once and re-exported by the module it belongs to:
-:data:`HUMAN_VARIANT_NAMES` by :mod:`robust.model.human`, :data:`POSTURES` and
-:data:`DEFAULT_POSTURE` by :mod:`robust.model.literature`, :data:`DAMPING_BAND_HZ` by
-:mod:`robust.analysis.stability` (and :mod:`uncertainty`).
+:data:`DAMPING_BAND_HZ` by :mod:`robust.analysis.stability` (and :mod:`uncertainty`). The
+machine's own named choices are :mod:`backhoe.constants`.
 
 This module imports nothing.
 """
 
-__all__ = ["HUMAN_VARIANT_NAMES", "POSTURES", "DEFAULT_POSTURE", "DAMPING_BAND_HZ"]
+__all__ = ["DAMPING_BAND_HZ"]
 
-#: Named nominal human variants (:func:`robust.model.human.human_variant`).
-HUMAN_VARIANT_NAMES = ("literal", "physical", "physical-no-backrest", "eqn5-fit")
-#: Named postures of the seated operator.
-POSTURES = ("backrest", "no-backrest")
-#: The paper's operator sits in the backhoe's seat, which has a backrest (its LifeMOD
-#: model, Figure 8, is "a human operator on the backhoe seat").
-DEFAULT_POSTURE = "backrest"
 #: The one default band (Hz) of the damping ratio, required (the specification's and the
 #: pole region's) and reported (validation, sweeps, design evaluations): from below the
 #: loop's low-frequency feedthrough mode (about 0.7 Hz) to above the structure's modes

@@ -146,7 +146,7 @@ class ControllerArtifact:
         :data:`SIGNAL_UNITS`), a controller of a user's own system has any names
         (python-control's ``u[0]``, ``y[0]`` too). The names are kept as they are; the
         BDFT loop checks its own where it is closed
-        (:meth:`robust.model.loop.BDFTLoop.system`).
+        (:meth:`backhoe.model.loop.BDFTLoop.system`).
     discrete : control.StateSpace
         Its Tustin discretisation (:func:`discretize`), same signals, sample time
         ``discrete.dt`` in s.

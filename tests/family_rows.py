@@ -18,7 +18,7 @@ def rows_with_valves(family, n: int, *, method: str, seed: int) -> np.ndarray:
 
     Parameters
     ----------
-    family : uncertainty.Family
+    family : backhoe.Family
     n : int
         Members.
     method : str

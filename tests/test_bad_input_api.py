@@ -12,40 +12,38 @@ import control as ct
 import numpy as np
 import pytest
 
-from bdft import main
-from robust.analysis.calibration import calibrate
-from robust.analysis.claims import ratio_study
-from robust.analysis.loops import critical_k_psf, frequency_response
-from robust.analysis.norms import hinf_norm, is_stable, sigma_max
-from robust.analysis.realization import minimal_realization
-from robust.analysis.reduction import balanced_truncation
-from robust.analysis.simulation import simulate
-from robust.analysis.stability import stability_bound
-from robust.errors import DataError, ModelStructureError, ParameterError
-from robust.model.anthropometry import segment_masses
-from robust.model.human import human_variant
-from robust.model.loop import BDFTLoop
-from robust.model.modal import modal_to_physical
-from robust.model.physical import physical_human_matrices
-from robust.sysid.experiment import simulate_response
-from robust.sysid.fit import coherence_threshold
-from robust.sysid.linear import levy_sk
-from robust.sysid.model_file import save_component_fit
-from uncertainty import (
+from backhoe import (
     Family,
-    SampleSet,
-    UncertainParameter,
     batched_poles,
     closed_loop_matrices,
     default_family,
     family_nominals,
     member_metrics,
-    sample,
-    validate_family,
 )
+from backhoe.analysis.calibration import calibrate
+from backhoe.analysis.claims import ratio_study
+from backhoe.analysis.loops import critical_k_psf
+from backhoe.analysis.simulation import simulate
+from backhoe.families.batched import loop_blocks
+from backhoe.families.sweeps import structure_frequency_sweep, workspace_sweep
+from backhoe.model.anthropometry import segment_masses
+from backhoe.model.human import human_variant
+from backhoe.model.loop import BDFTLoop
+from backhoe.model.modal import modal_to_physical
+from backhoe.model.physical import physical_human_matrices
+from backhoe.sysid.experiment import simulate_response
+from backhoe.sysid.fit import coherence_threshold
+from backhoe.sysid.model_file import save_component_fit
+from bdft import main
+from robust.analysis.loops import frequency_response
+from robust.analysis.norms import hinf_norm, is_stable, sigma_max
+from robust.analysis.realization import minimal_realization
+from robust.analysis.reduction import balanced_truncation
+from robust.analysis.stability import stability_bound
+from robust.errors import DataError, ModelStructureError, ParameterError
+from robust.sysid.linear import levy_sk
+from uncertainty import SampleSet, UncertainParameter, sample, validate_family
 from uncertainty import sampling as sampling_module
-from uncertainty.batched import loop_blocks
-from uncertainty.sweeps import structure_frequency_sweep, workspace_sweep
 
 PHYS = default_family("physical")
 LIT = default_family("literal")
@@ -217,7 +215,7 @@ MEMBER_CASES = [
     (
         "sweep-not-a-family",
         lambda: workspace_sweep("default", members=4),
-        r"family must be an uncertainty\.Family; got str",
+        r"family must be a backhoe\.Family; got str",
     ),
     (
         "sweep-negative-scale",

@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import backhoe.sysid.model_file
 import designs.registry
 import reports.designs
-import robust.sysid.model_file
 import uncertainty
+from backhoe import RANGES, default_family
+from backhoe.sysid import ChirpProtocol, paper_experiment
 from bdft import main
 from bdft.args import (
     BYTES_PER_BATCH_MEMBER,
@@ -31,8 +33,7 @@ from bdft.args import (
     max_members,
 )
 from reports.html import REPORT_MARKER
-from robust.sysid import ChirpProtocol, paper_experiment, save_experiment
-from uncertainty import RANGES, default_family
+from robust.sysid import save_experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -505,7 +506,7 @@ def test_identify_write_failure_leaves_no_output(tmp_path, capsys, chirp, monkey
     def boom(*a, **k):
         raise OSError("disk full")
 
-    monkeypatch.setattr(robust.sysid.model_file, "save_component_fit", boom)
+    monkeypatch.setattr(backhoe.sysid.model_file, "save_component_fit", boom)
     monkeypatch.setenv("BDFT_LOG_DIR", str(tmp_path))
     out = tmp_path / "out"
     assert main(_identify(chirp, "--save-model", str(tmp_path / "m.json"), out=out)) == 1

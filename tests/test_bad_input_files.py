@@ -23,6 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import robust.jsonio
+from backhoe.families.files import load_controller
+from backhoe.sysid.identify import identify_records
 from reports.html import REPORT_MARKER, HtmlPage, is_report_dir, write_report_dir
 from robust.errors import ArtifactError, DataError, ParameterError
 from robust.export import (
@@ -33,8 +35,6 @@ from robust.export import (
     write_artifact,
 )
 from robust.jsonio import atomic_write_group
-from robust.sysid.identify import identify_records
-from uncertainty.files import load_controller
 
 
 def _controller():
@@ -200,7 +200,7 @@ def test_load_artifact_names_the_bad_field(tmp_path, document, field, value, mat
     ids=["dt", "C", "outputs"],
 )
 def test_load_controller_reports_artifact_fields(tmp_path, document, field, value, match):
-    # uncertainty.files.load_controller reads artifacts through load_artifact
+    # backhoe.families.files.load_controller reads artifacts through load_artifact
     d = copy.deepcopy(document)
     _set(field, value)(d)
     path = tmp_path / "k.json"

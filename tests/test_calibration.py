@@ -9,6 +9,11 @@ import numpy as np
 import pytest
 import scipy.signal as sig
 
+from backhoe import default_family
+from backhoe.model.components import StructureParams, structure
+from backhoe.model.modal import modal_to_physical
+from backhoe.model.physical import physical_human_matrices
+from backhoe.model.wiring import connect
 from designs.calibration import (
     CAB_IDENTIFIED,
     IDENTIFIED,
@@ -31,11 +36,7 @@ from designs.calibration import (
 )
 from designs.scheduled import cancellation_gap
 from robust.errors import DataError, ParameterError
-from robust.model.components import StructureParams, structure
-from robust.model.modal import modal_to_physical
-from robust.model.physical import physical_human_matrices
-from robust.model.wiring import connect
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 FAM = default_family()
 
@@ -265,7 +266,7 @@ def test_record_is_reproducible_from_its_seed():
 
 
 def test_record_is_the_state_space_recursion_of_the_calibration_loop():
-    # the record's loop response (block-lifted, robust.analysis.simulation.lifted_response)
+    # the record's loop response (block-lifted, backhoe.analysis.simulation.lifted_response)
     # is scipy's step-by-step dlsim of the same discretised loop; noise-free so that the
     # encoder's rounding cannot flip a sample
     row = sample(FAM.parameters, 1, method="mc", seed=11).values[0]

@@ -4,12 +4,11 @@ import numpy as np
 import paper_formulas as pf
 import pytest
 
-from robust import (
+from backhoe import (
     DEFAULT_CALIBRATION,
     K_PSF_NOMINAL,
     K_PSF_STABLE,
     BDFTLoop,
-    InfeasibleError,
     LiteralHuman,
     bdft_ratio,
     calibrate,
@@ -17,6 +16,7 @@ from robust import (
     evaluate_claims,
     loop_poles,
 )
+from robust import InfeasibleError
 from robust.analysis.stability import unstable_mask
 
 CAL = DEFAULT_CALIBRATION
@@ -96,7 +96,7 @@ def test_bdft_ratio_matches_formula():
 
 
 def test_bdft_loop_gain_matches_formula():
-    from robust import bdft_loop_gain
+    from backhoe import bdft_loop_gain
 
     f = np.array([0.5, 1.0, 6.4])
     s = 2j * np.pi * f

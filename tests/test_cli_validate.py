@@ -6,10 +6,11 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.families.files import load_component_fit, load_controller
 from bdft import main
 from robust.jsonio import round_significant
-from uncertainty import default_family, sample, validate_family
-from uncertainty.files import load_component_fit, load_controller
+from uncertainty import sample, validate_family
 
 KEYS = {"samples", "seed", "method", "fraction_stable", "max_real_pole", "min_damping", "worst"}
 

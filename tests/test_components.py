@@ -5,10 +5,9 @@ import numpy as np
 import paper_formulas as pf
 import pytest
 
-from robust import (
+from backhoe import (
     LiteralHuman,
     LiteralHumanParams,
-    ParameterError,
     PIParams,
     StructureParams,
     ValveCylinderParams,
@@ -17,7 +16,8 @@ from robust import (
     structure,
     valve_cylinder,
 )
-from robust.model import components as comp
+from backhoe.model import components as comp
+from robust import ParameterError
 
 FREQS_HZ = np.array([0.2, 1.0, 4.7, 6.3, 12.0, 40.0])
 
@@ -208,12 +208,12 @@ def test_block_realisation_is_python_controls_to_the_bit(kind):
 
 @pytest.mark.parametrize("kind", ["valve_cylinder", "structure"])
 def test_the_blocks_one_definition_has_the_python_control_blocks_response(kind):
-    # robust.model.blocks (the batched, interval, uncertain-real and simulated evaluations)
+    # backhoe.model.blocks (the batched, interval, uncertain-real and simulated evaluations)
     # and the python-control member's SLICOT realisation of the transfer function: the same
     # response from 0.1 to 100 Hz on a fixed and 40 seeded parameter sets (measured: the
     # structure 3.1e-9 relative at worst, where its acceleration is a difference of terms
     # (w_i / w)^2 larger than itself; the valve 1.5e-13)
-    from robust.model.blocks import NUMPY, parameter_name, structure_block, valve_block
+    from backhoe.model.blocks import NUMPY, parameter_name, structure_block, valve_block
 
     rng = np.random.default_rng(11)
     fixed = {

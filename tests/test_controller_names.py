@@ -8,11 +8,11 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe.families.files import load_controller, load_system, match_controller
 from bdft import main
 from robust.errors import ArtifactError, ParameterError
 from robust.export import ControllerArtifact, discretize, load_artifact, write_artifact
 from uncertainty import sample, validate_family
-from uncertainty.files import load_controller, load_system, match_controller
 
 # a user's own system: two masses on a spring, force on mass 1 -> its position
 SYSTEM = """\

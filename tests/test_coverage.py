@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.model.literature import published_box
 from reports.coverage import coverage_figure, family_coverage
-from robust.model.literature import published_box
-from uncertainty import default_family, sample, validate_family
+from uncertainty import sample, validate_family
 
 
 @pytest.fixture(scope="module")

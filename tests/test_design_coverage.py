@@ -6,6 +6,8 @@ import pytest
 from scipy.linalg import block_diag
 
 import designs.coverage as coverage_module
+from backhoe import default_family
+from backhoe.model.device import DeviceLimits
 from designs.coverage import design_coverage, member_verdicts
 from designs.registry import get_design
 from designs.spec import (
@@ -17,8 +19,7 @@ from designs.spec import (
 from robust.analysis.loops import closed_loop_poles
 from robust.analysis.stability import damping_in_band
 from robust.errors import ParameterError
-from robust.model.device import DeviceLimits
-from uncertainty import default_family, sample
+from uncertainty import sample
 from uncertainty.randomized import failure_bound
 
 

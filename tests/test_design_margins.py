@@ -10,8 +10,9 @@ import pytest
 from shipped_runs import SAMPLES, SEED
 from shipped_runs import shipped_run as _run
 
-from robust.model.device import DeviceLimits
-from uncertainty import default_family, sample, validate_family
+from backhoe import default_family
+from backhoe.model.device import DeviceLimits
+from uncertainty import sample, validate_family
 from uncertainty.search import margin_upper_bound
 from uncertainty.testing import assert_robust_margin
 

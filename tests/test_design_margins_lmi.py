@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from shipped_runs import shipped_run as _run
 
+from backhoe import default_family
 from designs.spec import Specification, check_specification
-from uncertainty import default_family
 from uncertainty.search import scaled_bounds
 from uncertainty.testing import assert_robust_margin
 

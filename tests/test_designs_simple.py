@@ -1,12 +1,13 @@
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
 from designs.cancellation import cancellation_controller
 from designs.evaluate import evaluate_design, frequency_metrics, intended_motion
 from designs.virtual_damping import virtual_damping_controller
 from designs.workspace import design_workspace
-from robust.analysis.loops import loop_poles
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +78,7 @@ def test_intended_motion_is_seeded_and_scaled():
     # the noise through the intent filter, as control.forced_response computes it
     import control as ct
 
-    from robust.synthesis.forcefb import intent_filter
+    from backhoe.synthesis.forcefb import intent_filter
 
     w = np.random.default_rng(3).standard_normal(t.size)
     ref = np.ravel(ct.forced_response(intent_filter(2.0, 1.0), T=t, U=w).outputs)

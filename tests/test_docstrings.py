@@ -43,18 +43,23 @@ import pytest
 #: Packages whose ``__all__`` (and whose public modules' ``__all__``) are the public API.
 PACKAGES = (
     "robust",
-    "robust.model",
     "robust.analysis",
     "robust.synthesis",
     "robust.sysid",
     "uncertainty",
+    "backhoe",
+    "backhoe.model",
+    "backhoe.analysis",
+    "backhoe.synthesis",
+    "backhoe.sysid",
+    "backhoe.families",
     "designs",
     "reports",
 )
 
 #: Objects defined under these top-level packages are checked; re-exports of other
 #: libraries' objects are not ours to document.
-PROJECT_ROOTS = ("robust", "uncertainty", "designs", "reports", "bdft")
+PROJECT_ROOTS = ("robust", "uncertainty", "backhoe", "designs", "reports", "bdft")
 
 #: Sections whose entries document constructor parameters, per kind of object.
 FUNCTION_SECTIONS = ("Parameters",)

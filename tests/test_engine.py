@@ -11,6 +11,9 @@ import engine_tasks
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.families.batched import TASK_MEMBERS
+from backhoe.families.sweeps import frequency_damping_sweep
 from bdft import main
 from robust import engine
 from robust.engine import (
@@ -21,10 +24,8 @@ from robust.engine import (
     scheduler_address,
 )
 from robust.errors import BDFTError, ParameterError
-from uncertainty import default_family, margins, sample, validate_family
-from uncertainty.batched import TASK_MEMBERS
+from uncertainty import margins, sample, validate_family
 from uncertainty.margins import robust_margin
-from uncertainty.sweeps import frequency_damping_sweep
 
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")

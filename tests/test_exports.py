@@ -1,6 +1,6 @@
 """The packages' public names load on first use (:mod:`robust.lazy`) and all still resolve.
 
-``robust``, ``uncertainty``, ``designs`` and ``reports`` list their public names in
+``robust``, ``uncertainty``, ``backhoe``, ``designs`` and ``reports`` list their public names in
 ``__all__`` and import each from its module when it is first asked for, so that their
 light modules (the errors, the constants the command line's options need) import without
 the numerical stack. Checked here: every ``__all__`` name resolves through ``from PACKAGE
@@ -20,7 +20,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The packages whose public names are lazy.
-LAZY = ("robust", "uncertainty", "designs", "reports")
+LAZY = ("robust", "uncertainty", "backhoe", "designs", "reports")
 #: Modules importable without the numerical stack (what the command line's parsers use).
 LIGHT = (
     "robust",
@@ -31,6 +31,8 @@ LIGHT = (
     "robust.constants",
     "uncertainty",
     "uncertainty.constants",
+    "backhoe",
+    "backhoe.constants",
     "designs",
     "designs.constants",
     "reports",

@@ -1,6 +1,6 @@
 """LMI H-infinity synthesis on the workbench's force-feedback generalized plant.
 
-The plant (:func:`robust.synthesis.forcefb.force_feedback_plant`, 22 states) interconnects
+The plant (:func:`backhoe.synthesis.forcefb.force_feedback_plant`, 22 states) interconnects
 companion-form blocks whose state scales span many decades and has performance
 and measurement channels of very different sizes; with the ``eqn5-fit`` human it is
 open-loop unstable.  References are what python-control's Riccati ``hinfsyn`` (SLICOT
@@ -13,12 +13,12 @@ import control
 import numpy as np
 import pytest
 
-from robust import BDFTLoop, human_variant
+from backhoe import BDFTLoop, human_variant
+from backhoe.synthesis.forcefb import force_feedback_plant
 from robust.analysis.norms import hinf_norm
 from robust.analysis.stability import poles_stable, unstable_mask
 from robust.errors import AssumptionError
 from robust.synthesis.assumptions import check_hinf_assumptions
-from robust.synthesis.forcefb import force_feedback_plant
 from robust.synthesis.genplant import GeneralizedPlant
 from robust.synthesis.nominal import hinfsyn_lmi
 

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from numba_builds import outputs_here_and_generic, register
 
+from backhoe import default_family
+from backhoe.families.batched import closed_loop_matrices, interconnection, loop_blocks
 from robust.errors import ModelStructureError
-from uncertainty import default_family, sample
-from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
+from uncertainty import sample
 from uncertainty.closeloops import algebraic_cycle, close_loops
 
 
@@ -160,8 +161,9 @@ def test_broadcast_blocks_give_one_member():
 _HASH_SCRIPT = """
 import hashlib
 import numpy as np
-from uncertainty import default_family, sample
-from uncertainty.batched import closed_loop_matrices
+from backhoe import default_family
+from uncertainty import sample
+from backhoe.families.batched import closed_loop_matrices
 fam = default_family("physical")
 v = np.asarray(sample(fam.parameters, 500, seed=8).values)
 print(hashlib.sha256(closed_loop_matrices(fam, v).tobytes()).hexdigest())

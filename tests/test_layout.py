@@ -16,7 +16,7 @@ import pathlib
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-PACKAGES = ("robust", "uncertainty", "designs", "reports", "bdft")
+PACKAGES = ("robust", "uncertainty", "backhoe", "designs", "reports", "bdft")
 #: Packages whose modules import project modules inside functions (the command line: its
 #: parsers and ``--help`` are built without the numerical layers).
 LAZY_IMPORTS = ("bdft",)
@@ -36,7 +36,7 @@ def _module_name(path: pathlib.Path) -> str:
 
 
 def _package_of(module: str) -> str:
-    """The package a module belongs to: ``robust.model.loop`` -> ``robust.model``."""
+    """The package a module belongs to: ``backhoe.model.loop`` -> ``backhoe.model``."""
     return module.rsplit(".", 1)[0] if "." in module else module
 
 

@@ -8,8 +8,9 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family, family_uss
 from robust.errors import ParameterError
-from uncertainty import default_family, family_uss, lft_form, ureal, uss
+from uncertainty import lft_form, ureal, uss
 
 
 def _members_agree(system, n=5, seed=0, rtol=1e-12, reduce=True):

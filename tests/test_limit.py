@@ -10,13 +10,14 @@ import scipy.linalg as sla
 from family_rows import rows_with_valves
 
 import designs.limit as limit
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
+from backhoe.synthesis.forcefb import intent_filter
 from bdft import main
 from designs.spec import Specification, check_specification
-from robust.analysis.loops import loop_poles
 from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
 from robust.errors import InfeasibleError, ParameterError
 from robust.jsonio import round_significant
-from robust.synthesis.forcefb import intent_filter
 from robust.synthesis.youla import (
     LimitProblem,
     affine_maps,
@@ -33,7 +34,6 @@ from robust.synthesis.youla import (
     realise_controller,
     stabilising_gain,
 )
-from uncertainty import default_family
 
 
 @pytest.fixture(scope="module")

@@ -3,14 +3,8 @@ import numpy as np
 import paper_formulas as pf
 import pytest
 
-from robust import (
-    DEFAULT_CALIBRATION,
-    BDFTLoop,
-    LoopCalibration,
-    ModelStructureError,
-    ParameterError,
-    minimal_realization,
-)
+from backhoe import DEFAULT_CALIBRATION, BDFTLoop, LoopCalibration
+from robust import ModelStructureError, ParameterError, minimal_realization
 
 FREQS_HZ = np.array([0.1, 0.5, 1.0, 2.0, 6.0, 6.4, 15.0])
 CAL = DEFAULT_CALIBRATION
@@ -165,9 +159,9 @@ def test_literal_loop_has_two_hidden_modes_at_origin():
 def test_blocks_shared_read_only_and_the_same_loop_as_fresh_blocks():
     # a loop's blocks (all but the controller) are one system per parameter set, read-only;
     # the loop assembled from them is exactly the one from freshly built blocks
-    from robust.model.components import pi_controller, structure, valve_cylinder
-    from robust.model.wiring import connect
-    from uncertainty import default_family
+    from backhoe import default_family
+    from backhoe.model.components import pi_controller, structure, valve_cylinder
+    from backhoe.model.wiring import connect
 
     fam = default_family()
     row = fam.nominal_values()

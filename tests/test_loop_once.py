@@ -6,18 +6,11 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import closed_loop_matrices, default_family, family_uss
+from backhoe.families.enclosure import closed_loop_enclosure
 from robust.errors import ParameterError
-from uncertainty import (
-    Region,
-    closed_loop_matrices,
-    default_family,
-    family_uss,
-    sample,
-    validate_family,
-    worst_member,
-)
+from uncertainty import Region, sample, validate_family, worst_member
 from uncertainty.boxcert import certify_box
-from uncertainty.enclosure import closed_loop_enclosure
 from uncertainty.search import scaled_bounds
 
 # each valve parameter of Eqn 3 away from its nominal, in its own direction
@@ -81,8 +74,8 @@ def test_recalled_blocks_give_the_enclosures_of_fresh_ones_to_the_bit():
     # a parent box, its halves in a human and in a structure parameter, and the parent again:
     # the assembly that recalls the blocks of recent boxes gives each enclosure exactly as a
     # new assembly (no memory) does, and builds a block only for parameters it has not seen
-    from uncertainty import loop as loopmod
-    from uncertainty.enclosure import _Assembly
+    from backhoe.families import loop as loopmod
+    from backhoe.families.enclosure import _Assembly
 
     fam = default_family("physical")
     K = _controller("f")
@@ -127,19 +120,19 @@ def test_recalled_blocks_give_the_enclosures_of_fresh_ones_to_the_bit():
 
 
 def test_parameter_names_are_spelled_in_the_model_module_only():
-    # every evaluation reads a block's parameters through robust.model.blocks: no other
+    # every evaluation reads a block's parameters through backhoe.model.blocks: no other
     # source file spells a parameter's name in a string or a docstring's literal (attribute
     # access such as `family.struct.k_s` or `valve.k_vc` is not a name, and is allowed)
     import re
     from pathlib import Path
 
-    from robust.model.blocks import BLOCK_FIELDS, parameter_name
+    from backhoe.model.blocks import BLOCK_FIELDS, parameter_name
 
     names = sorted({parameter_name(b, f) for b, fields in BLOCK_FIELDS.items() for f in fields})
     pattern = re.compile(r"[\"'`](" + "|".join(re.escape(n) for n in names) + r")\b")
     root = Path(__file__).resolve().parents[1]
     found = []
-    for package in ("robust", "uncertainty", "designs", "reports", "bdft"):
+    for package in ("robust", "uncertainty", "backhoe", "designs", "reports", "bdft"):
         for path in sorted((root / package).rglob("*.py")):
             if path.name == "blocks.py" and path.parent.name == "model":
                 continue
@@ -148,7 +141,7 @@ def test_parameter_names_are_spelled_in_the_model_module_only():
                     found.append(f"{path.relative_to(root)}:{k}: {line.strip()}")
     assert not found, "\n".join(found)
     # and the model module does spell them
-    text = (root / "robust" / "model" / "blocks.py").read_text()
+    text = (root / "backhoe" / "model" / "blocks.py").read_text()
     assert "_PREFIX" in text and all(f in text for f in BLOCK_FIELDS["valve"])
 
 

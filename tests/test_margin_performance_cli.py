@@ -1,5 +1,5 @@
 """``bdft margin --gamma``: robust performance from the command line, of a user's system and of
-the BDFT family's loop through its ports (:func:`uncertainty.family_uss`)."""
+the BDFT family's loop through its ports (:func:`backhoe.family_uss`)."""
 
 import json
 
@@ -7,8 +7,8 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family, family_uss
 from bdft import main
-from uncertainty import default_family, family_uss
 
 # the first-order lag 1 / (s + a), a in [0.5, 3.5] about 2: its gain stays below 1 while
 # a > 1, so the box's low end reaches the bound at the scale 2/3 (derived by hand)

@@ -14,12 +14,13 @@ import json
 import numpy as np
 import pytest
 
+from backhoe import default_family, member_metrics
+from backhoe.families.batched import closed_loop_matrices
+from backhoe.families.enclosure import closed_loop_enclosure
 from robust.analysis.intervals import Interval, norm2_bound
 from robust.errors import ParameterError
-from uncertainty import default_family, member_metrics, sample
-from uncertainty.batched import closed_loop_matrices
+from uncertainty import sample
 from uncertainty.boxcert import certify_box, certify_interval_matrix
-from uncertainty.enclosure import closed_loop_enclosure
 from uncertainty.margins import margin_lower_bound
 from uncertainty.region import Region
 from uncertainty.search import margin_upper_bound, scaled_bounds

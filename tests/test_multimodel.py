@@ -6,6 +6,8 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.analysis.sampled import sampled_data_check
 from designs.multimodel import (
     _eigen_gradients,
     _omega,
@@ -15,10 +17,9 @@ from designs.multimodel import (
     tune_spectral_abscissa,
 )
 from designs.virtual_damping import virtual_damping_controller
-from robust.analysis.sampled import sampled_data_check
 from robust.errors import ModelStructureError, ParameterError
 from robust.export import discretize
-from uncertainty import default_family, sample
+from uncertainty import sample
 
 
 @pytest.fixture(scope="module")

@@ -151,8 +151,8 @@ def test_badly_scaled_realization_gives_the_same_norm():
     # interconnection whose states span many decades.  The transfer function, hence the norm,
     # does not depend on the realization; the Hamiltonian test must not lose the
     # imaginary-axis crossings (it used to return a value below the grid's lower bound).
-    from robust import BDFTLoop, human_variant
-    from robust.synthesis.forcefb import force_feedback_plant
+    from backhoe import BDFTLoop, human_variant
+    from backhoe.synthesis.forcefb import force_feedback_plant
     from robust.synthesis.nominal import hinfsyn_lmi
 
     gp = force_feedback_plant(BDFTLoop(human=human_variant("physical")))

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from backhoe.families.family import MODEL_PARAMETERS, Family
+from backhoe.families.family_ranges import default_family
+from backhoe.model.literature import published_box
 from robust.errors import ParameterError
-from robust.model.literature import published_box
-from uncertainty.family import MODEL_PARAMETERS, Family
-from uncertainty.family_ranges import default_family
 from uncertainty.parameters import UncertainParameter
 
 

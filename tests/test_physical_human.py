@@ -7,10 +7,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust.errors import ParameterError
-from robust.model._human_fit_data import FIT_RESULT
-from robust.model.human import HumanModel, human_variant
-from robust.model.human_fit import (
+from backhoe.model._human_fit_data import FIT_RESULT
+from backhoe.model.human import HumanModel, human_variant
+from backhoe.model.human_fit import (
     BOX_FIT_NAMES,
     FIT_BAND_HZ,
     chain_response,
@@ -19,8 +18,8 @@ from robust.model.human_fit import (
     fit_frequencies,
     fit_in_box,
 )
-from robust.model.literature import DEFAULT_POSTURE, published_box
-from robust.model.physical import (
+from backhoe.model.literature import DEFAULT_POSTURE, published_box
+from backhoe.model.physical import (
     EQN5_FIT,
     PhysicalHuman,
     PhysicalHumanParams,
@@ -28,6 +27,7 @@ from robust.model.physical import (
     nominal_params,
     segment_masses,
 )
+from robust.errors import ParameterError
 
 
 def test_variant_is_a_human_model_with_force_port():
@@ -199,7 +199,7 @@ def test_box_fit_reproduces_stored_result(posture):
 
 
 def test_handle_offset_scales_only_the_arm_by_the_arm_geometry():
-    from robust.model.arm import ArmGeometry
+    from backhoe.model.arm import ArmGeometry
 
     h = PhysicalHuman()
     g = ArmGeometry()

@@ -13,17 +13,18 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
+from backhoe.model.device import DeviceLimits
+from backhoe.synthesis.forcefb import synthesis_member
 from designs.evaluate import output_ratio
 from designs.hinf_nominal import design_hinf_nominal
 from designs.spec import Specification, check_specification, rms_force
 from designs.virtual_damping import virtual_damping_controller
-from robust.analysis.loops import loop_poles
 from robust.analysis.norms import h2_norm
 from robust.analysis.region import EVERY_FREQUENCY_HZ, Region
 from robust.engine import nested_jobs
 from robust.errors import InfeasibleError, ModelStructureError, ParameterError
-from robust.model.device import DeviceLimits
-from robust.synthesis.forcefb import synthesis_member
 from robust.synthesis.pk import (
     _Affine,
     _analyse_hinf,
@@ -44,7 +45,6 @@ from robust.synthesis.pk import (
 from robust.synthesis.region import sym
 from robust.synthesis.solve import DEFAULT_SOLVERS, deterministic_solvers, solve_problem
 from robust.synthesis.tuning import _Terms, minimax_start, region_start, tune_members
-from uncertainty import default_family
 from uncertainty.search import scaled_bounds
 
 REGION = Region(decay_rate=0.1, min_damping=0.1, band_hz=EVERY_FREQUENCY_HZ)

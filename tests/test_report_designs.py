@@ -5,11 +5,11 @@ import operator
 
 import pytest
 
+from backhoe import default_family
 from designs.limit import design_set, limit_coverage_of, limit_map
 from reports.designs import run_all_designs, run_designs_with, verdict, write_design_report
 from reports.limit import limit_conclusions
 from robust.jsonio import to_jsonable
-from uncertainty import default_family
 from uncertainty.randomized import coverage_consistent
 
 RUNS = dict(samples=200, seed=0, names=["workspace", "hinf-nominal"], coverage_samples=60)

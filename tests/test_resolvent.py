@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from numba_builds import outputs_here_and_generic, register
 
+from backhoe import default_family
 from robust.analysis.loops import frequency_response, resolvent_times
 from robust.analysis.resolvent import resolvent_solve, siso_responses
-from uncertainty import default_family
 
 
 def _lapack(A, b, c, Bb, Cb, w):

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
 from designs.cancellation import cancellation_controller
 from designs.hinf_nominal import design_hinf_nominal
 from designs.robust_lmi import (
@@ -29,12 +31,10 @@ from designs.robust_lmi import (
     maximise_margin,
 )
 from designs.spec import Specification, check_specification
-from robust.analysis.loops import loop_poles
 from robust.analysis.reduction import balanced_truncation
 from robust.cache import CACHE_ENV, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
-from uncertainty import default_family
 from uncertainty.margins import margin_lower_bound
 from uncertainty.search import scaled_bounds
 
@@ -184,7 +184,7 @@ def test_same_seed_same_controller_under_one_and_two_blas_threads(design):
         """
         import json, numpy as np
         from designs.robust_lmi import RobustOptions, maximise_margin
-        from uncertainty import default_family
+        from backhoe import default_family
         o = RobustOptions(ladder=(0.005,), rounds=2, bisection=0, margin_boxes=20, spec_samples=4)
         d = maximise_margin(default_family(), options=o)
         w = 2 * np.pi * np.geomspace(0.1, 20, 40)
@@ -346,9 +346,9 @@ def test_the_handle_force_start_is_slicots_balanced_truncation(hinf_nominal, sta
 
 
 def test_the_model_refuses_to_load_without_slicot():
-    # (``import robust`` alone is light since its names load on first use: the model's
+    # (``import backhoe`` alone is light since its names load on first use: the model's
     # names are what need slycot)
-    code = "import sys; sys.modules['slycot'] = None; from robust import BDFTLoop"
+    code = "import sys; sys.modules['slycot'] = None; from backhoe import BDFTLoop"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode != 0
     assert "the workbench needs slycot" in r.stderr and "pip install slycot" in r.stderr

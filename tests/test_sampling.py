@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from backhoe.families.family_ranges import default_family
 from robust.errors import ParameterError
-from uncertainty.family_ranges import default_family
 from uncertainty.sampling import METHODS, sample
 
 PARAMS = default_family("physical").parameters
@@ -81,7 +81,8 @@ def test_bad_requests_raise(kw, match):
 
 
 def test_sample_takes_a_uss_a_family_or_any_iterable_of_parameters():
-    from uncertainty import default_family, ureal, uss
+    from backhoe import default_family
+    from uncertainty import ureal, uss
 
     k = ureal("k", 1.0, 0.5, 2.0)
     m = ureal("m", 1.0, 0.8, 1.5)

@@ -15,11 +15,9 @@ import pytest
 from numba_builds import outputs_here_and_generic, register
 from scipy.integrate import solve_ivp
 
-from designs.cancellation import cancellation_controller
-from designs.evaluate import INTENT_FRACTION, intended_motion
-from designs.virtual_damping import virtual_damping_controller
-from robust.analysis.sampled import open_plant
-from robust.analysis.saturation import (
+from backhoe import default_family
+from backhoe.analysis.sampled import open_plant
+from backhoe.analysis.saturation import (
     _contiguous,
     _hydraulic_steps,
     _ramp_discretisation,
@@ -27,13 +25,15 @@ from robust.analysis.saturation import (
     _valve_cylinder_cascade,
     saturated_response,
 )
-from robust.analysis.simulation import simulate
+from backhoe.analysis.simulation import simulate
+from backhoe.model.components import HydraulicLimits, ValveCylinderParams, valve_cylinder
+from backhoe.model.device import DeviceLimits
+from backhoe.model.loop import BDFTLoop
+from designs.cancellation import cancellation_controller
+from designs.evaluate import INTENT_FRACTION, intended_motion
+from designs.virtual_damping import virtual_damping_controller
 from robust.errors import ModelStructureError, ParameterError
 from robust.export import discretize
-from robust.model.components import HydraulicLimits, ValveCylinderParams, valve_cylinder
-from robust.model.device import DeviceLimits
-from robust.model.loop import BDFTLoop
-from uncertainty import default_family
 
 T = np.arange(0.0, 10.0, 1e-3)
 
@@ -503,7 +503,7 @@ def test_compiled_hydraulic_steps_match_numpy_products(delayed):
 _HASH_SCRIPT = """
 import hashlib
 import numpy as np
-from robust.analysis.saturation import _hydraulic_steps, _steps
+from backhoe.analysis.saturation import _hydraulic_steps, _steps
 rng = np.random.default_rng(5)
 h = hashlib.sha256()
 for delayed in (False, True):

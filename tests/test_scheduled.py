@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from family_rows import rows_with_valves
 
+from backhoe import default_family, member_metrics
 from bdft import main
 from designs.calibration import CAB_IDENTIFIED, IDENTIFIED, operator_row
 from designs.cancellation import cancellation_controller
@@ -28,7 +29,6 @@ from designs.scheduled import (
 )
 from designs.spec import CONSTRAINTS, Specification, check_specification
 from robust.errors import ParameterError
-from uncertainty import default_family, member_metrics
 
 FAM = default_family()
 

@@ -2,16 +2,16 @@ import numpy as np
 import pytest
 import scipy.signal as ss
 
-from robust import (
+from backhoe import (
     DEFAULT_CALIBRATION,
     K_PSF_STABLE,
     BDFTLoop,
-    ParameterError,
     SweptSine,
     simulate,
     simulate_swept_sine,
 )
-from robust.analysis.simulation import foh_response, lifted_response
+from backhoe.analysis.simulation import foh_response, lifted_response
+from robust import ParameterError
 
 CAL = DEFAULT_CALIBRATION
 

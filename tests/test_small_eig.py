@@ -8,10 +8,10 @@ import pytest
 from numba_builds import outputs_here_and_generic, register
 from scipy.optimize import linear_sum_assignment
 
+from backhoe.families.batched import closed_loop_matrices
+from backhoe.families.family_ranges import default_family
 from robust.analysis import small_eig
 from robust.analysis.small_eig import LANES, eigvals_stack
-from uncertainty.batched import closed_loop_matrices
-from uncertainty.family_ranges import default_family
 from uncertainty.sampling import sample
 
 

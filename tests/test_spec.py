@@ -8,6 +8,10 @@ import numpy as np
 import pytest
 import scipy.signal as sig
 
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
+from backhoe.analysis.simulation import simulate
+from backhoe.model.device import DeviceLimits
 from designs.effort import member_effort, noisy_loop, rms_responses, sensor_intensities
 from designs.evaluate import (
     INTENT_FRACTION,
@@ -24,12 +28,9 @@ from designs.spec import (
     rms_force,
 )
 from designs.virtual_damping import virtual_damping_controller
-from robust.analysis.loops import loop_poles
-from robust.analysis.simulation import simulate
 from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, in_band
 from robust.errors import ModelStructureError, ParameterError
-from robust.model.device import DeviceLimits
-from uncertainty import default_family, sample, validate_family
+from uncertainty import sample, validate_family
 from uncertainty.region import Region
 
 

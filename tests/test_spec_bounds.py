@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 
 import designs.limit as limit
+from backhoe import default_family
+from backhoe.analysis.loops import loop_poles
 from designs.evaluate import output_ratio
 from designs.spec import Specification, check_specification
 from robust.analysis.bounds import bound_ratio, crossing_frequencies, siso_response
-from robust.analysis.loops import loop_poles
 from robust.synthesis.youla import (
     LimitProblem,
     of_affine_maps,
     of_controller,
     pole_basis,
 )
-from uncertainty import default_family
 
 OLD_TRACKING = np.geomspace(0.05, 2.0, 80)
 OLD_FEEDTHROUGH = np.linspace(5.0, 7.5, 60)

@@ -6,11 +6,16 @@ import json
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.families.sweeps import (
+    frequency_damping_sweep,
+    structure_frequency_sweep,
+    workspace_sweep,
+)
 from bdft import main
 from robust.errors import ParameterError
-from uncertainty import default_family, validate_family
+from uncertainty import validate_family
 from uncertainty.sampling import SampleSet, sample
-from uncertainty.sweeps import frequency_damping_sweep, structure_frequency_sweep, workspace_sweep
 
 
 def test_workspace_sweep_rows_equal_direct_validation():

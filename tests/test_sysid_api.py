@@ -1,4 +1,4 @@
-"""The public API of robust.sysid documents itself.
+"""The public APIs of robust.sysid and backhoe.sysid document themselves.
 
 Every public name has a docstring naming its arguments.
 """
@@ -7,18 +7,20 @@ import inspect
 
 import pytest
 
+from backhoe import sysid as machine_sysid
 from robust import sysid
 
 PUBLIC = [
-    n
-    for n in sysid.__all__
-    if inspect.isfunction(getattr(sysid, n)) or inspect.isclass(getattr(sysid, n))
+    (mod, n)
+    for mod in (sysid, machine_sysid)
+    for n in mod.__all__
+    if inspect.isfunction(getattr(mod, n)) or inspect.isclass(getattr(mod, n))
 ]
 
 
-@pytest.mark.parametrize("name", PUBLIC, ids=PUBLIC)
-def test_public_name_documents_its_arguments(name):
-    obj = getattr(sysid, name)
+@pytest.mark.parametrize("mod,name", PUBLIC, ids=[f"{m.__name__}.{n}" for m, n in PUBLIC])
+def test_public_name_documents_its_arguments(mod, name):
+    obj = getattr(mod, name)
     doc = inspect.getdoc(obj)
     assert doc, f"{name} has no docstring"
     if inspect.isfunction(obj):

@@ -7,10 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from backhoe import BDFTLoop, LiteralHuman, LiteralHumanParams, StructureParams, ValveCylinderParams
+from backhoe.sysid import ChirpProtocol, load_component_fit, paper_experiment
 from bdft import main
-from robust import BDFTLoop, LiteralHuman, LiteralHumanParams, StructureParams, ValveCylinderParams
 from robust.jsonio import round_significant
-from robust.sysid import ChirpProtocol, load_component_fit, paper_experiment, save_experiment
+from robust.sysid import save_experiment
 
 TRUTH = {
     "valve": ValveCylinderParams(),

@@ -4,16 +4,17 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust import ModelStructureError, ParameterError, structure
-from robust.sysid import (
+from backhoe import structure
+from backhoe.sysid import (
     ENGINE_TONES_HZ,
     ChirpProtocol,
     MeasurementNoise,
     chirp_excitation,
-    estimate_frequency_response,
     paper_experiment,
     simulate_experiment,
 )
+from robust import ModelStructureError, ParameterError
+from robust.sysid import estimate_frequency_response
 
 
 def test_protocol_defaults_are_the_papers():
@@ -129,8 +130,8 @@ def test_mimo_system_needs_a_named_path():
 
 def test_path_of_the_closed_loop_is_identified_as_its_transfer_function():
     # any model of the workbench: the BDFT loop (stabilised by a doubled workspace), u -> y
-    from robust import BDFTLoop
-    from robust.sysid import select_path
+    from backhoe import BDFTLoop
+    from backhoe.sysid import select_path
 
     loop = BDFTLoop().with_workspace_factor(2.0).system()
     proto = ChirpProtocol(n_records=3, duration=20.0, f0_hz=0.2, f1_hz=30.0, tail_s=8.0)
@@ -144,8 +145,8 @@ def test_path_of_the_closed_loop_is_identified_as_its_transfer_function():
 
 def test_valve_experiment_runs_the_loop_with_the_true_valve():
     # y must be the closed loop's output with the true valve, and e its valve command
-    from robust import ValveCylinderParams, pi_controller, valve_cylinder
-    from robust.model.loop import DEFAULT_CALIBRATION
+    from backhoe import ValveCylinderParams, pi_controller, valve_cylinder
+    from backhoe.model.loop import DEFAULT_CALIBRATION
 
     truth = ValveCylinderParams(k_vc=20.0, p1=150.0, wn_hz=3.0, zeta=0.3)
     p = ChirpProtocol(n_records=1, duration=6.0, f0_hz=0.5)

@@ -5,18 +5,17 @@ import json
 import numpy as np
 import pytest
 
-from robust import ArtifactError, DataError, ParameterError, StructureParams
-from robust.sysid import (
+from backhoe import StructureParams
+from backhoe.sysid import (
     ChirpProtocol,
     identify_file,
-    load_channels,
     load_component_fit,
     paper_experiment,
     read_component_fit,
     save_component_fit,
-    save_experiment,
-    select_channels,
 )
+from robust import ArtifactError, DataError, ParameterError
+from robust.sysid import load_channels, save_experiment, select_channels
 
 FS = 1000.0
 
@@ -151,7 +150,8 @@ def test_missing_file_and_bad_suffix(tmp_path):
 # --- component-fit files ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def structure_fit(experiment):
-    from robust.sysid import estimate_frequency_response, fit_frequency_response
+    from backhoe.sysid import fit_frequency_response
+    from robust.sysid import estimate_frequency_response
 
     est = estimate_frequency_response(experiment.u, experiment.y, experiment.fs)
     return fit_frequency_response(est, "structure", (2.0, 15.0))
@@ -227,7 +227,8 @@ def test_component_fit_unreadable(tmp_path):
 
 
 def test_rational_fit_cannot_be_saved_as_component(tmp_path, experiment):
-    from robust.sysid import estimate_frequency_response, fit_frequency_response
+    from backhoe.sysid import fit_frequency_response
+    from robust.sysid import estimate_frequency_response
 
     est = estimate_frequency_response(experiment.u, experiment.y, experiment.fs)
     fit = fit_frequency_response(est, "4/4", (2.0, 15.0))

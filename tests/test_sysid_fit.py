@@ -6,28 +6,26 @@ import control as ct
 import numpy as np
 import pytest
 
-from robust import (
-    InfeasibleError,
+from backhoe import (
     LiteralHuman,
     LiteralHumanParams,
-    ParameterError,
     StructureParams,
     ValveCylinderParams,
     structure,
     valve_cylinder,
 )
-from robust.sysid import (
+from backhoe.sysid import (
     ChirpProtocol,
-    FrequencyResponseEstimate,
     RationalParams,
     coherence_threshold,
-    estimate_frequency_response,
     fit_frequency_response,
     form_system,
     levy_sk,
     paper_experiment,
     parse_form,
 )
+from robust import InfeasibleError, ParameterError
+from robust.sysid import FrequencyResponseEstimate, estimate_frequency_response
 
 TRUTH = {
     "valve": ValveCylinderParams(),

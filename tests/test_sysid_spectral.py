@@ -5,14 +5,13 @@ import numpy as np
 import pytest
 import scipy.signal as sps
 
-from robust import DataError, ParameterError, structure
+from backhoe import structure
+from backhoe.sysid import ChirpProtocol, simulate_experiment, simulate_response
+from robust import DataError, ParameterError
 from robust.sysid import (
-    ChirpProtocol,
     effective_averages,
     estimate_frequency_response,
     estimate_frequency_responses,
-    simulate_experiment,
-    simulate_response,
     spectral,
 )
 

@@ -13,6 +13,7 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family
 from designs.response import deviation_checks
 from designs.spec import Specification
 from designs.tracking_performance import (
@@ -21,7 +22,7 @@ from designs.tracking_performance import (
     tracking_performance,
 )
 from robust.analysis.bounds import bound_ratio
-from uncertainty import default_family, scaled_bounds
+from uncertainty import scaled_bounds
 
 SPEC = Specification()
 #: A workspace 22 times the paper's: the uncompensated loop tracks within the bound on its

@@ -6,13 +6,14 @@ import control as ct
 import numpy as np
 import pytest
 
+from backhoe import default_family
+from backhoe.families.batched import closed_loop_matrices, interconnection, loop_blocks
+from backhoe.families.valueset import ValueSetLoop
 from robust.errors import ParameterError
-from uncertainty import Region, default_family, robust_margin
-from uncertainty.batched import closed_loop_matrices, interconnection, loop_blocks
+from uncertainty import Region, robust_margin
 from uncertainty.enclosure import _loop
 from uncertainty.margins import _perron_bound, margin_lower_bound
 from uncertainty.search import _scaled_t, _to_values, worst_member
-from uncertainty.valueset import ValueSetLoop
 
 
 @pytest.fixture(scope="module")

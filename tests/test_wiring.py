@@ -12,11 +12,11 @@ import control as ct
 import numpy as np
 import pytest
 
-import robust.model.wiring as wiring
+import backhoe.model.wiring as wiring
+from backhoe import closed_loop_matrices, default_family
+from backhoe.model.wiring import CONTROLLER_FORCE, connect, expand, figure5_junctions
+from backhoe.synthesis.forcefb import as_plant_controller, force_feedback_plant
 from robust.errors import ModelStructureError
-from robust.model.wiring import CONTROLLER_FORCE, connect, expand, figure5_junctions
-from robust.synthesis.forcefb import as_plant_controller, force_feedback_plant
-from uncertainty import closed_loop_matrices, default_family
 
 
 @pytest.fixture(scope="module")

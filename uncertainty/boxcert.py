@@ -40,8 +40,7 @@ from robust.analysis.intervals import Interval, norm2_bound
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError
 from robust.synthesis.solve import solve_problem
-from uncertainty.enclosure import _loop, _Unbounded, loop_region
-from uncertainty.family import Family
+from uncertainty.enclosure import MarginFamily, _loop, _Unbounded, loop_region
 from uncertainty.region import Region
 from uncertainty.search import _to_values
 from uncertainty.uss import USS
@@ -276,7 +275,7 @@ def _rectangles_in_region(res: dict, region: Region) -> np.ndarray:
 
 
 def certify_box(
-    family: Family | USS,
+    family: MarginFamily | USS,
     lo,
     hi,
     *,
@@ -293,7 +292,7 @@ def certify_box(
     enclosed in a rectangle by :func:`robust.analysis.eigen_enclosure.enclose_eigenvalues`.
     The box is certified when the rectangles are disjoint (so they hold every eigenvalue)
     and each lies in the region. Independent check: ``spot_checks`` seeded members of the
-    box are assembled by :func:`uncertainty.batched.closed_loop_matrices` and their
+    box are assembled by :func:`backhoe.families.batched.closed_loop_matrices` and their
     eigenvalues (numpy) must lie in the rectangles; a miss raises :class:`BDFTError`.
 
     Parameters

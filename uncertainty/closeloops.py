@@ -27,9 +27,31 @@ import numba
 import numpy as np
 
 from robust.errors import ModelStructureError
-from robust.model.wiring import algebraic_cycle
 
 __all__ = ["close_loops", "algebraic_cycle"]
+
+
+def algebraic_cycle(pattern: np.ndarray) -> bool:
+    """Whether a square sparsity pattern's graph has a cycle (some matrix with it is not
+    nilpotent).
+
+    Parameters
+    ----------
+    pattern : ndarray of bool, shape (p, p)
+        Where ``D M`` can be nonzero.
+
+    Returns
+    -------
+    bool
+        False when every matrix with this pattern is nilpotent.
+    """
+    P = np.asarray(pattern, bool).astype(np.int64)
+    Q = P.copy()
+    for _ in range(P.shape[0]):
+        if not Q.any():
+            return False
+        Q = np.minimum(Q @ P, 1)
+    return bool(Q.any())
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")

@@ -91,14 +91,7 @@ from robust.engine import map_tasks, scheduler_address
 from robust.errors import BDFTError, ParameterError
 from uncertainty.boxcert import _box_task, _boxes_task, certify_box, certify_interval_matrix
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
-from uncertainty.enclosure import (
-    _FamilyLoop,
-    _loop,
-    _SystemLoop,
-    closed_loop_enclosure,
-    loop_region,
-)
-from uncertainty.family import Family
+from uncertainty.enclosure import MarginFamily, _loop, loop_region
 from uncertainty.lft import lft_form
 from uncertainty.mucover import G_MAX, mu_cover
 from uncertainty.region import EVERY_FREQUENCY_HZ, MarginResult, Region
@@ -115,13 +108,11 @@ from uncertainty.search import (
     worst_member,
 )
 from uncertainty.uss import USS, uss
-from uncertainty.valueset import ValueSetLoop, certify_scale_valueset
 
 __all__ = [
     "Region",
     "MarginResult",
     "scaled_bounds",
-    "closed_loop_enclosure",
     "certify_interval_matrix",
     "certify_box",
     "DEFAULT_BOXES",
@@ -155,14 +146,12 @@ def _perron_bound(enc) -> float:
 
 
 def _valueset_scale(loop, k, max_boxes, seed=0):
-    """:func:`uncertainty.valueset.certify_scale_valueset` at scale ``k``, the nominal's
+    """:func:`backhoe.families.valueset.certify_scale_valueset` at scale ``k``, the nominal's
     stability first and seeded members of a certified box re-checked (numpy eigenvalues)."""
     lo_t, hi_t = _scaled_t(loop, k)
     centre = loop.matrices(_to_values(loop, (lo_t + hi_t) / 2)[None])[0]
     if np.linalg.eigvals(centre).real.max() >= 0:
         return False, {"cells": 0, "centre_violates": True}
-    if getattr(loop, "_valueset", None) is None:
-        loop._valueset = ValueSetLoop(loop.family)
     enc = loop.enclosure(_to_values(loop, lo_t), _to_values(loop, hi_t), False)
     # rounded up to two significant digits: the cells do not hinge on the eigen-solver's
     # last digits
@@ -178,9 +167,7 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
             v[j], t[j] = _local_worst(loop, lo_t, hi_t, t[j], Region())
         return (t[j], float(v[j])) if v[j] > 0 else None
 
-    ok, st = certify_scale_valueset(
-        loop._valueset, lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX, probe
-    )
+    ok, st = loop.certify_valueset(lo_t, hi_t, w_max, max_boxes * VALUESET_CELLS_PER_BOX, probe)
     if "unstable" in st:
         row = _to_values(loop, st.pop("unstable")[None])[0]
         st["unstable_member"] = [float(x) for x in row]
@@ -198,6 +185,13 @@ def _valueset_scale(loop, k, max_boxes, seed=0):
     return ok, dict(st, w_max=w_max)
 
 
+def _valueset_why_not(loop, region) -> str:
+    """Why the value-set route does not apply to ``loop`` and ``region`` ('' where it does):
+    the loop says (a family's open loop may qualify, an uncertain system's never)."""
+    why_not = getattr(loop, "valueset_why_not", None)
+    return "needs a family without a compensator" if why_not is None else why_not(region)
+
+
 def _resolve_method(loop, region, method: str) -> str:
     """``auto``: the value-set route for a family's open loop and the open left half-plane
     (where it applies); mu for an uncertain system's loop and for a family's loop closed by
@@ -207,18 +201,9 @@ def _resolve_method(loop, region, method: str) -> str:
     if method != "auto":
         return method
     mu_region = region.min_damping == 0 or tuple(region.band_hz) == EVERY_FREQUENCY_HZ
-    if mu_region and (
-        isinstance(loop, _SystemLoop)
-        or (isinstance(loop, _FamilyLoop) and loop.controller is not None)
-    ):
+    if mu_region and getattr(loop, "prefers_mu", False):
         return "mu"
-    if (
-        isinstance(loop, _FamilyLoop)
-        and loop.controller is None
-        and region.decay_rate == 0
-        and region.min_damping == 0
-        and ValueSetLoop.applies(loop.family)
-    ):
+    if not _valueset_why_not(loop, region):
         return "valueset"
     return "eigenvalues"
 
@@ -353,7 +338,7 @@ def _certify_scale(loop, k, region, max_boxes, deadline, method, jobs=1, schedul
 
 
 def margin_lower_bound(
-    family: Family | USS,
+    family: MarginFamily | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,
@@ -401,12 +386,12 @@ def margin_lower_bound(
         ``"eigenvalues"`` (verified eigenvalue enclosures over sub-boxes, see
         :func:`certify_box`), ``"lyapunov"`` (a quadratic Lyapunov certificate of the
         interval matrix, :func:`certify_interval_matrix`; decay rate only) or
-        ``"valueset"`` (zero exclusion on value sets, :mod:`uncertainty.valueset`: a family
+        ``"valueset"`` (zero exclusion on value sets, :mod:`backhoe.families.valueset`: a family
         of the physical human without a compensator, the open left half-plane; its budget
         is :data:`VALUESET_CELLS_PER_BOX` cells per box of ``max_boxes``) or ``"mu"`` (the
         state matrix as an LFT over the scaled box, an uncertain system's or the family's
         loop built from the same blocks over uncertain reals
-        (:func:`uncertainty.loop.family_uss`), the mixed-mu upper bound below 1 at every
+        (:func:`backhoe.families.loop.family_uss`), the mixed-mu upper bound below 1 at every
         frequency, :mod:`uncertainty.mucover`; a decay rate, and a damping ratio of every
         pole by the cone's rotation; ``max_boxes`` caps the frequencies of one scale). The
         method used is the certificate's ``"method"``.
@@ -436,16 +421,7 @@ def margin_lower_bound(
         region = Region(decay_rate=region.decay_rate)
     method = _resolve_method(loop, region, method)
     if method == "valueset":
-        why = (
-            "needs a family without a compensator"
-            if not isinstance(loop, _FamilyLoop) or loop.controller is not None
-            else ValueSetLoop.why_not(loop.family)
-            or (
-                "certifies the open left half-plane only"
-                if region.decay_rate > 0 or region.min_damping > 0
-                else ""
-            )
-        )
+        why = _valueset_why_not(loop, region)
         if why:
             raise ParameterError(f"margin_lower_bound: method 'valueset' {why}")
     if method == "mu":
@@ -553,7 +529,7 @@ _LOWER_TEXT = {
 
 
 def robust_margin(
-    family: Family | USS,
+    family: MarginFamily | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,

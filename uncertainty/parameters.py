@@ -18,7 +18,12 @@ from scipy import stats
 from robust.checks import POSITIVE, Spec, check_array, check_scalar
 from robust.errors import ParameterError
 
-__all__ = ["DISTRIBUTIONS", "UncertainParameter"]
+__all__ = ["BOUNDS_RTOL", "DISTRIBUTIONS", "UncertainParameter"]
+
+#: Relative tolerance of the bounds check of member values: a value within
+#: ``BOUNDS_RTOL * max(|low|, |high|)`` of the family's range counts as inside it (values
+#: rebuilt from rounded text or as ``scale * nominal`` land a few ulps outside).
+BOUNDS_RTOL = 1e-9
 
 #: Supported distributions.
 DISTRIBUTIONS = ("uniform", "loguniform", "truncnormal")
@@ -32,7 +37,7 @@ class UncertainParameter:
     Parameters
     ----------
     name : str
-        Dotted name (for a model parameter, :func:`robust.model.blocks.parameter_name`);
+        Dotted name (for a model parameter, :func:`backhoe.model.blocks.parameter_name`);
         used in reports and as the key of
         worst-case parameters.
     nominal : float

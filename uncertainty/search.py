@@ -34,8 +34,7 @@ from scipy.stats import qmc
 
 from robust.analysis.stability import STABILITY_TOL, in_band
 from robust.errors import ParameterError
-from uncertainty.enclosure import _loop, loop_region
-from uncertainty.family import Family
+from uncertainty.enclosure import MarginFamily, _loop, loop_region
 from uncertainty.region import Region
 from uncertainty.uss import USS
 
@@ -218,7 +217,7 @@ def _local_worst(loop, lo_t, hi_t, t0, region) -> tuple[float, np.ndarray]:
 
 
 def worst_member(
-    family: Family | USS,
+    family: MarginFamily | USS,
     k: float,
     *,
     controller: ct.StateSpace | None = None,
@@ -269,7 +268,7 @@ def worst_member(
 
 
 def margin_upper_bound(
-    family: Family | USS,
+    family: MarginFamily | USS,
     *,
     controller: ct.StateSpace | None = None,
     region: Region | None = None,

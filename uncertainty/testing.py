@@ -57,7 +57,7 @@ def assert_robust_margin(
 
     Parameters
     ----------
-    system : uncertainty.Family or uncertainty.USS
+    system : backhoe.Family or uncertainty.USS
         The family, or an uncertain system (:func:`uncertainty.uss`).
     at_least : float
         Required margin: the scale of the parameters' box about the nominal (1 = the whole

@@ -1,17 +1,14 @@
-"""Validation of a family's members: closed-loop pole metrics of every member, chunk by chunk.
+"""Validation of an uncertain system's members: closed-loop pole metrics of every member.
 
-:func:`validate_family` and :func:`member_metrics` take the closed-loop state matrices of
-:mod:`uncertainty.batched` chunk by chunk, so memory stays bounded, and their eigenvalues by
-the compiled loop of :func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's to
-rounding); each member's largest real part and smallest damping ratio in a band make the
-family's :class:`ValidationResult`. An uncertain system (:func:`uncertainty.uss`) is
-validated the same way through its own state matrices.
-
-Bad members: every member is checked once, vectorised, before any pole is computed
-(:meth:`uncertainty.family.Family.check_members`, :data:`CHECK_ROWS` rows per pass), so a
-bad member costs no work. ``chunk`` is capped by :data:`MAX_CHUNK_BYTES`; with ``jobs`` or
-a Dask scheduler the members are validated in tasks of
-:data:`~uncertainty.batched.TASK_MEMBERS`, with the same result bit for bit.
+:func:`validate_family` takes the members' closed-loop state matrices chunk by chunk, so
+memory stays bounded, and their eigenvalues by the compiled loop of
+:func:`robust.analysis.small_eig.eigvals_stack` (LAPACK's to rounding); each member's
+largest real part and smallest damping ratio in a band make the :class:`ValidationResult`.
+It dispatches on its first argument's type (:func:`functools.singledispatch`): an uncertain
+system (:func:`uncertainty.uss`) is validated here through its own state matrices; a
+machine's family registers its own batched matrices (the BDFT family's are registered by
+:mod:`backhoe.families.validation`, with its parallel engines). ``chunk`` is capped by
+:data:`MAX_CHUNK_BYTES`.
 """
 
 from __future__ import annotations
@@ -25,13 +22,11 @@ import control as ct
 import numpy as np
 
 from robust.analysis.small_eig import eigvals_stack
-from robust.analysis.stability import DAMPING_BAND_HZ, damping_in_band, stability_bound
+from robust.analysis.stability import damping_in_band, stability_bound
 from robust.checks import FINITE, check_callable, check_int, check_scalar
-from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError
-from uncertainty.batched import TASK_MEMBERS, _check_family, _closed_loop
 from uncertainty.constants import DEFAULT_CHUNK
-from uncertainty.family import BOUNDS_RTOL, Family
+from uncertainty.parameters import BOUNDS_RTOL
 from uncertainty.region import EVERY_FREQUENCY_HZ
 from uncertainty.sampling import SampleSet
 from uncertainty.uss import USS
@@ -41,9 +36,7 @@ __all__ = [
     "DEFAULT_CHUNK",
     "ValidationResult",
     "validate_family",
-    "member_metrics",
     "MAX_CHUNK_BYTES",
-    "CHECK_ROWS",
 ]
 
 #: A member is stable when every closed-loop pole has real part below this, rad/s
@@ -55,9 +48,6 @@ STABILITY_THRESHOLD = stability_bound(0.0)
 #: larger ``chunk`` is reduced to fit, so a huge ``chunk`` never allocates more than this
 #: (chunking does not change any result).
 MAX_CHUNK_BYTES = 2**30
-#: Rows checked per pass by :meth:`uncertainty.family.Family.check_members` before any pole is
-#: computed (bounded memory for the check of millions of members).
-CHECK_ROWS = 1_000_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,12 +123,29 @@ class ValidationResult:
         return d
 
 
-def _member_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]:
+def member_pole_metrics(poles: np.ndarray, band_hz) -> tuple[np.ndarray, np.ndarray]:
+    """Each member's largest real part and smallest damping ratio in ``band_hz``.
+
+    Parameters
+    ----------
+    poles : ndarray, shape (N, n)
+        The members' closed-loop poles.
+    band_hz : (float, float)
+        The band of the damping ratio, Hz.
+    """
     return poles.real.max(axis=1), damping_in_band(poles, band_hz)
 
 
-def _check_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[float, float]]:
-    """Validate ``chunk``, ``band_hz`` and ``progress`` of a batched call."""
+def check_batch_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[float, float]]:
+    """``chunk``, ``band_hz`` and ``progress`` of a batched call, checked.
+
+    Parameters
+    ----------
+    where : str
+        The caller's name, for error messages.
+    chunk, band_hz, progress
+        As for :func:`validate_family`.
+    """
     chunk = check_int(f"{where}: chunk", chunk, low=1)
     try:
         lo, hi = band_hz
@@ -156,123 +163,9 @@ def _check_options(where: str, chunk, band_hz, progress) -> tuple[int, tuple[flo
     return chunk, (lo, hi)
 
 
-def _memory_chunk(family: Family, controller, chunk: int) -> int:
-    """``chunk`` reduced so that one chunk's matrices stay within :data:`MAX_CHUNK_BYTES`."""
-    n = 1 + 4 + 4 + (4 if family.human == "physical" else 2)
-    if isinstance(controller, ct.StateSpace):
-        n += int(controller.nstates)
-    return max(1, min(chunk, MAX_CHUNK_BYTES // (40 * n * n)))
-
-
-def _check_all(family: Family, values, check_bounds: bool, where: str) -> np.ndarray:
-    """Check every member, :data:`CHECK_ROWS` rows per pass, before any pole is computed."""
-    if not (isinstance(values, np.ndarray) and values.ndim == 2 and values.dtype.kind in "iuf"):
-        return family.check_members(values, check_bounds=check_bounds, where=where)
-    v = np.asarray(values, float)
-    for start in range(0, max(1, v.shape[0]), CHECK_ROWS):
-        family.check_members(
-            v[start : start + CHECK_ROWS],
-            check_bounds=check_bounds,
-            row_offset=start,
-            where=where,
-        )
-    return v
-
-
-def member_metrics(
-    family: Family,
-    values: np.ndarray,
-    *,
-    controller: ct.StateSpace | None = None,
-    chunk: int = DEFAULT_CHUNK,
-    band_hz: tuple[float, float] = DAMPING_BAND_HZ,
-    progress: Callable[[int], None] | None = None,
-    check_bounds: bool = True,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Per-member largest real part and smallest in-band damping ratio, chunk by chunk.
-
-    Every member is checked (:meth:`uncertainty.family.Family.check_members`) before
-    any pole is computed.
-
-    Parameters
-    ----------
-    family : Family
-        The family the members belong to.
-    values : ndarray, shape (N, d)
-        Uncertain-parameter values (columns in ``family.names`` order).
-    controller, chunk, band_hz, progress, check_bounds
-        As for :func:`validate_family`.
-
-    Returns
-    -------
-    max_real : ndarray, shape (N,)
-        Largest real part of each member's closed-loop poles, 1/s.
-    min_damping : ndarray, shape (N,)
-        Smallest damping ratio of each member's poles in ``band_hz`` (``inf`` if none).
-    nstates : int
-        Closed-loop order.
-
-    Raises
-    ------
-    ParameterError
-        If a member is non-finite, non-physical or (with ``check_bounds``) outside the
-        family's bounds (the message names the row and the parameter), ``chunk`` is not
-        a positive integer, ``band_hz`` is not ``0 <= low < high`` or ``progress`` is not
-        callable.
-    """
-    _check_family(family, "member_metrics")
-    chunk, band_hz = _check_options("member_metrics", chunk, band_hz, progress)
-    values = _check_all(family, values, check_bounds, "member_metrics")
-    return _metrics(family, values, controller, chunk, band_hz, progress)
-
-
-def _metrics(family, values, controller, chunk, band_hz, progress):
-    """:func:`member_metrics` of checked values and options."""
-    chunk = _memory_chunk(family, controller, chunk)
-    N = values.shape[0]
-    max_real = np.empty(N)
-    min_damp = np.empty(N)
-    nstates = 0
-    for start in range(0, N, chunk):
-        stop = min(N, start + chunk)
-        Acl = _closed_loop(family, values[start:stop], controller)
-        nstates = Acl.shape[-1]
-        poles = eigvals_stack(Acl)
-        del Acl
-        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, band_hz)
-        if progress is not None:
-            progress(stop - start)
-    return max_real, min_damp, int(nstates)
-
-
-def _metrics_task(family, controller, chunk, band_hz, values):
-    """One task of a parallel validation: the metrics of a slice of checked members."""
-    return _metrics(family, values, controller, chunk, band_hz, None)
-
-
-def _distributed_metrics(family, values, controller, chunk, band_hz, progress, jobs, scheduler):
-    """:func:`_metrics` in tasks of :data:`TASK_MEMBERS` members on the chosen engine."""
-    jobs = check_int("validate_family: jobs", jobs, low=1)
-    N = values.shape[0]
-    starts = list(range(0, N, TASK_MEMBERS))
-    slices = [values[a : a + TASK_MEMBERS] for a in starts]
-    sizes = [len(v) for v in slices]
-    done = (lambda i: progress(sizes[i])) if progress is not None else None
-    parts = map_tasks(
-        functools.partial(_metrics_task, family, controller, chunk, band_hz),
-        slices,
-        jobs=jobs,
-        scheduler=scheduler,
-        progress=done,
-        threads=True,
-    )
-    max_real = np.concatenate([p[0] for p in parts])
-    min_damp = np.concatenate([p[1] for p in parts])
-    return max_real, min_damp, parts[0][2]
-
-
+@functools.singledispatch
 def validate_family(
-    family: Family | USS,
+    family,
     samples: SampleSet,
     *,
     controller: ct.StateSpace | None = None,
@@ -286,15 +179,17 @@ def validate_family(
 ) -> ValidationResult:
     """Closed-loop poles of every member of ``samples``, and the family metrics.
 
-    Member values must be finite and physical and lie within the family's bounds
-    (:meth:`uncertainty.family.Family.check_members`); every member is checked,
+    Member values must be finite (a family's: physical too) and lie within the bounds
+    (within :data:`~uncertainty.parameters.BOUNDS_RTOL`); every member is checked,
     vectorised, before any pole is computed, so a bad member costs no work.
 
     Parameters
     ----------
-    family : Family or USS
-        The family the members belong to, or an uncertain system
-        (:func:`uncertainty.uss`; its members are the values of its uncertain reals).
+    family : USS or a registered family
+        An uncertain system (:func:`uncertainty.uss`; its members are the values of its
+        uncertain reals), or a family whose type is registered with this single-dispatch
+        function (``validate_family.register``: the BDFT family, :class:`backhoe.Family`,
+        by :mod:`backhoe.families.validation`).
     samples : SampleSet
         Members; its names must equal ``family.names`` (a system's: the names of
         ``system.parameters``, in any order).
@@ -342,60 +237,30 @@ def validate_family(
     ModelStructureError
         For an invalid controller, an ill-posed loop or non-finite poles.
     """
-    if isinstance(family, USS):
-        band_hz = EVERY_FREQUENCY_HZ if band_hz is None else band_hz
-        return _validate_system(
-            family, samples, controller, chunk, band_hz, stability_threshold, progress, check_bounds
-        )  # (small systems: in this process)
-    band_hz = DAMPING_BAND_HZ if band_hz is None else band_hz
-    _check_family(family, "validate_family")
-    if not isinstance(samples, SampleSet):
-        raise ParameterError(
-            f"validate_family: samples must be an uncertainty.SampleSet; "
-            f"got {type(samples).__name__}"
-        )
-    if tuple(samples.names) != family.names:
-        raise ParameterError(
-            f"validate_family: sample names {list(samples.names)} do not match the family's "
-            f"{list(family.names)}"
-        )
-    chunk, (lo, hi) = _check_options("validate_family", chunk, band_hz, progress)
-    stability_threshold = check_scalar(
-        "validate_family: stability_threshold", stability_threshold, FINITE
-    )
-    N = len(samples)
-    if N == 0:
-        raise ParameterError("validate_family: samples holds no members; got 0 rows")
-    values = _check_all(family, samples.values, check_bounds, "validate_family")
-    if jobs == 1 and scheduler_address(scheduler) is None:
-        max_real, min_damp, nstates = _metrics(
-            family, values, controller, chunk, (lo, hi), progress
-        )
-    else:
-        max_real, min_damp, nstates = _distributed_metrics(
-            family, values, controller, chunk, (lo, hi), progress, jobs, scheduler
-        )
-    if not np.all(np.isfinite(max_real)):
-        raise ModelStructureError(
-            "non-finite closed-loop poles for some members; check parameter ranges"
-        )
-    return _result(
-        samples,
-        max_real,
-        min_damp,
-        stability_threshold,
-        (lo, hi),
-        nstates,
-        0 if controller is None else int(controller.nstates),
-        family.human,
-        family.k_psf,
+    raise ParameterError(
+        "validate_family: expected an uncertain system (uncertainty.uss) or a family whose "
+        f"type is registered with uncertainty.validate_family; got {type(family).__name__}"
     )
 
 
-def _validate_system(
-    system, samples, controller, chunk, band_hz, threshold, progress, check_bounds
+@validate_family.register
+def _(
+    system: USS,
+    samples,
+    *,
+    controller=None,
+    chunk: int = DEFAULT_CHUNK,
+    band_hz=None,
+    stability_threshold: float = STABILITY_THRESHOLD,
+    progress=None,
+    check_bounds: bool = True,
+    jobs: int = 1,
+    scheduler=None,
 ):
-    """:func:`validate_family` of an uncertain system (closed with ``controller``)."""
+    # validate_family of an uncertain system (closed with ``controller``; small systems: in
+    # this process, whatever ``jobs`` and ``scheduler``)
+    band_hz = EVERY_FREQUENCY_HZ if band_hz is None else band_hz
+    threshold = stability_threshold
     where = "validate_family"
     if not isinstance(samples, SampleSet):
         raise ParameterError(
@@ -407,7 +272,7 @@ def _validate_system(
             f"{where}: sample names {list(samples.names)} do not match the system's "
             f"parameters {list(names)}"
         )
-    chunk, (lo, hi) = _check_options(where, chunk, band_hz, progress)
+    chunk, (lo, hi) = check_batch_options(where, chunk, band_hz, progress)
     threshold = check_scalar(f"{where}: stability_threshold", threshold, FINITE)
     # the columns in the system's order (a sample of the same parameters in another order,
     # e.g. of the transfer function the system realises, is the same members)
@@ -439,17 +304,37 @@ def _validate_system(
     for start in range(0, N, chunk):
         stop = min(N, start + chunk)
         poles = eigvals_stack(closed.state_matrices(values[start:stop]))
-        max_real[start:stop], min_damp[start:stop] = _member_metrics(poles, (lo, hi))
+        max_real[start:stop], min_damp[start:stop] = member_pole_metrics(poles, (lo, hi))
         if progress is not None:
             progress(stop - start)
     if not np.all(np.isfinite(max_real)):
         raise ModelStructureError(f"{where}: non-finite closed-loop poles for some members")
     ctrl_states = 0 if controller is None else int(ct.ss(controller).nstates)
-    return _result(samples, max_real, min_damp, threshold, (lo, hi), n, ctrl_states, None, None)
+    return validation_result(
+        samples, max_real, min_damp, threshold, (lo, hi), n, ctrl_states, None, None
+    )
 
 
-def _result(samples, max_real, min_damp, threshold, band, nstates, ctrl_states, human, k_psf):
-    """The :class:`ValidationResult` of per-member metrics."""
+def validation_result(
+    samples, max_real, min_damp, threshold, band, nstates, ctrl_states, human, k_psf
+) -> ValidationResult:
+    """The :class:`ValidationResult` of per-member metrics.
+
+    Parameters
+    ----------
+    samples : SampleSet
+        The members.
+    max_real, min_damp : ndarray, shape (N,)
+        Per-member largest real part and smallest in-band damping ratio (made read-only).
+    threshold : float
+        The stability threshold, 1/s.
+    band : (float, float)
+        The damping band, Hz.
+    nstates, ctrl_states : int
+        Closed-loop and controller orders.
+    human, k_psf : str or None, float or None
+        A family's human variant and position scale factor (None for a system).
+    """
     N = len(max_real)
     stable = max_real < threshold
     worst = int(np.argmax(max_real))

@@ -20,12 +20,6 @@ from robust.synthesis.assumptions import (
     check_stabilisable,
 )
 from robust.synthesis.d22 import D22Removal
-from robust.synthesis.forcefb import (
-    ForceFeedbackWeights,
-    as_loop_controller,
-    force_feedback_plant,
-    synthesis_member,
-)
 from robust.synthesis.genplant import GeneralizedPlant, as_generalized_plant
 from robust.synthesis.multi import MultiHinfResult, hinfsyn_multi
 from robust.synthesis.nominal import HinfResult, LMISynthesisProblem, hinfsyn_lmi
@@ -37,9 +31,6 @@ from robust.synthesis.solve import SolveResult, solve_problem
 from robust.synthesis.tuning import minimax_start, region_start, slp_minimise, tune_members
 
 __all__ = [
-    "ForceFeedbackWeights",
-    "as_loop_controller",
-    "force_feedback_plant",
     "GeneralizedPlant",
     "as_generalized_plant",
     "HinfResult",
@@ -55,7 +46,6 @@ __all__ = [
     "D22Removal",
     "SolveResult",
     "solve_problem",
-    "synthesis_member",
     "SynthesisMember",
     "MultiObjectiveResult",
     "pksyn_multi",

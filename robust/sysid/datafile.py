@@ -345,7 +345,7 @@ def _check_time(t: np.ndarray, fs: float, k: int, n: int) -> None:
 
 
 def save_experiment(experiment, path: str | os.PathLike, *, source: str = "") -> Path:
-    """Write an :class:`~robust.sysid.experiment.Experiment` as CSV or ``.mat``, atomically.
+    """Write an :class:`~backhoe.sysid.experiment.Experiment` as CSV or ``.mat``, atomically.
 
     The format follows the suffix of ``path``.
 

@@ -298,7 +298,21 @@ def default_nperseg(record_lengths: Sequence[int]) -> int:
     return int(min(shortest, max(256, shortest // 4)))
 
 
-def _as_records(name: str, x) -> list[np.ndarray]:
+def as_records(name: str, x) -> list[np.ndarray]:
+    """A signal's records as a list of 1-D float arrays.
+
+    Parameters
+    ----------
+    name : str
+        The signal's name, for error messages.
+    x : array_like or sequence of array_like
+        One record (1-D), records x samples (2-D), or a sequence of records of any lengths.
+
+    Raises
+    ------
+    DataError
+        If ``x`` is not one of those shapes.
+    """
     if (
         isinstance(x, np.ndarray)
         or not isinstance(x, Sequence)
@@ -417,10 +431,10 @@ def estimate_frequency_responses(
         As :func:`estimate_frequency_response`, for any output.
     """
     fs = check_scalar("fs", fs, POSITIVE)
-    us = _as_records("input", u)
+    us = as_records("input", u)
     if isinstance(outputs, (str, bytes)) or not isinstance(outputs, Sequence) or not outputs:
         raise ParameterError("outputs must be a non-empty sequence of output records")
-    yss = [_as_records("output", y) for y in outputs]
+    yss = [as_records("output", y) for y in outputs]
     for ys in yss:
         if len(us) != len(ys):
             raise DataError(

@@ -1,0 +1,23 @@
+"""Named choices and defaults of the machine and its families that need no numerical library.
+
+The command line builds its options from these (choices, defaults, help texts) before it
+imports any numerical module, so that ``bdft --help`` answers without NumPy. Each is
+defined here once and re-exported by the module it belongs to:
+:data:`HUMAN_VARIANT_NAMES` by :mod:`backhoe.model.human`, :data:`POSTURES` and
+:data:`DEFAULT_POSTURE` by :mod:`backhoe.model.literature`, :data:`RANGES` by
+:mod:`backhoe.families.family` (and :mod:`backhoe`).
+
+This module imports nothing.
+"""
+
+__all__ = ["HUMAN_VARIANT_NAMES", "POSTURES", "DEFAULT_POSTURE", "RANGES"]
+
+#: Named nominal human variants (:func:`backhoe.model.human.human_variant`).
+HUMAN_VARIANT_NAMES = ("literal", "physical", "physical-no-backrest", "eqn5-fit")
+#: Named postures of the seated operator.
+POSTURES = ("backrest", "no-backrest")
+#: The paper's operator sits in the backhoe's seat, which has a backrest (its LifeMOD
+#: model, Figure 8, is "a human operator on the backhoe seat").
+DEFAULT_POSTURE = "backrest"
+#: Ranges a default family can span: the published ones, or the labelled stress variant.
+RANGES = ("published", "stress")

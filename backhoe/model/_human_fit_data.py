@@ -1,0 +1,72 @@
+"""Stored result of :func:`backhoe.model.human_fit.run_fit` (generated; do not edit by hand).
+
+Regenerate with ``python -m backhoe.model.human_fit --write``.
+"""
+
+FIT_RESULT = {
+    "literature": {
+        "backrest": {
+            "at_bounds": ["zeta_arm", "zeta_trunk"],
+            "body_mass": 75.0,
+            "err_db_max": 10.745369252646897,
+            "err_db_rms": 6.161171190988133,
+            "err_deg_max": 105.65316293633596,
+            "err_deg_rms": 62.02143201438087,
+            "f_arm_hz": 1.0695753221134503,
+            "f_trunk_hz": 2.459779664577141,
+            "h_gain": 28.005007755684417,
+            "m_arm": 1.0533187203440624,
+            "m_trunk": 47.1,
+            "zeta_arm": 0.15000000000000002,
+            "zeta_trunk": 0.49999999999999994,
+        },
+        "no-backrest": {
+            "at_bounds": ["m_arm", "zeta_trunk"],
+            "body_mass": 75.0,
+            "err_db_max": 11.171468313845,
+            "err_db_rms": 6.227186428965542,
+            "err_deg_max": 105.62290297574957,
+            "err_deg_rms": 62.264447365574554,
+            "f_arm_hz": 1.9275145978073578,
+            "f_trunk_hz": 1.0800605621359365,
+            "h_gain": 28.27388925577107,
+            "m_arm": 2.9999999999999996,
+            "m_trunk": 47.1,
+            "zeta_arm": 0.44376701387315076,
+            "zeta_trunk": 0.20000000000000004,
+        },
+    },
+    "settings": {
+        "band_hz": [1.0, 10.0],
+        "body_mass_kg": 75.0,
+        "c_bounds": [1.0, 3000.0],
+        "k_bounds": [10.0, 100000.0],
+        "n_freq": 120,
+        "n_starts": 24,
+        "n_starts_3dof": 96,
+        "n_starts_box": 32,
+        "seed": 20240,
+    },
+    "three_dof": {
+        "at_bounds": ["c2"],
+        "dampings": [120.24243747239096, 2.1789658440311364, 1.0],
+        "err_db_max": 8.558431815192174,
+        "err_db_rms": 3.7093666086818238,
+        "err_deg_max": 176.60639428110784,
+        "err_deg_rms": 81.5593743415171,
+        "gain": 18.48563675511194,
+        "masses": [47.1, 2.1, 1.65],
+        "stiffnesses": [8040.906044908811, 258.48195310553933, 191.04441973677945],
+    },
+    "two_dof": {
+        "at_bounds": [],
+        "dampings": [184.76467564344875, 3.2982496629746647],
+        "err_db_max": 11.626891326415677,
+        "err_db_rms": 4.906337156121325,
+        "err_deg_max": 116.7137844086182,
+        "err_deg_rms": 71.31186611141172,
+        "gain": 24.326150501467225,
+        "masses": [47.1, 3.7499999999999996],
+        "stiffnesses": [10343.219326430035, 207.52028696455173],
+    },
+}
