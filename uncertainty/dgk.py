@@ -105,7 +105,7 @@ from robust.errors import (
 )
 from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import GeneralizedPlant
-from uncertainty.dgk_scalings import G_DESIGN_MAX, _abcd, _fit_all, _identity, _Scalings
+from uncertainty.dgk_scalings import G_DESIGN_MAX, _abcd, _fit_all, _identity, _Plant, _Scalings
 from uncertainty.dgk_scalings import _GFit as _GFit
 from uncertainty.lft import lft_form
 from uncertainty.mu import _upper
@@ -191,17 +191,6 @@ class MusynResult:
 
 
 # -- the LFT plant -----------------------------------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class _Plant:
-    """The LFT of ``P`` as a generalized plant, the perfomance block padded square."""
-
-    gp: GeneralizedPlant
-    R: int  # uncertainty channels
-    s: int  # size of the (square) performance block
-    true_blocks: tuple
-    form: object
-
-
 def _check_inputs(P, nmeas, ncon, method, max_iter, orders, frequencies):
     if not isinstance(P, USS):
         raise ModelStructureError(

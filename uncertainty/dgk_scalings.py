@@ -14,20 +14,28 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING
 
 import control as ct
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from robust.errors import VerificationError
+from robust.synthesis.genplant import GeneralizedPlant
 from uncertainty.mucover import G_MAX, _response
-
-if TYPE_CHECKING:
-    from uncertainty.dgk import _Plant
 
 #: Nothing public: the fits are :func:`uncertainty.dgk.musyn`'s own.
 __all__: list[str] = []
+
+
+@dataclasses.dataclass(frozen=True)
+class _Plant:
+    """The LFT of ``P`` as a generalized plant, the performance block padded square."""
+
+    gp: GeneralizedPlant
+    R: int  # uncertainty channels
+    s: int  # size of the (square) performance block
+    true_blocks: tuple
+    form: object
 
 
 #: Scaled-G bound of the design scalings (``|G_i| <= G_MAX D_i``), that of the mu cover.
