@@ -3,18 +3,21 @@
 The margin sees an uncertain system (:mod:`uncertainty.uss`, closed with a controller) or
 a parametric family of a machine through one small interface, the *margin loop*:
 
-* ``parameters`` and ``names``: the uncertain parameters (each with ``nominal``,
-  ``lower``, ``upper``, ``distribution``) and their names, in the columns' order;
+* ``parameters`` and ``names``: the uncertain parameters
+  (:class:`~uncertainty.parameters.UncertainParameter`) and their names, in the columns'
+  order;
 * ``matrices(rows)``: the closed-loop state matrices of members (rows of values), batched;
 * ``enclosure(lo, hi, derivatives)``: an interval (or interval-gradient) matrix holding
   the state matrix of every member of a box, raising ``_Unbounded`` where a divisor's
   range holds 0;
 * ``recheck(row)``: the poles of one member by an independent evaluation (or None);
-* ``system``: the loop as an uncertain system, whose LFT the mu route takes;
 * ``default_band_hz``: the damping band a region leaves to the default;
-* ``prefers_mu``: whether ``method="auto"`` takes mu (a decay rate, damping of every pole);
-* ``valueset_why_not(region)``: why the value-set route does not apply ("" where it does),
-  and ``certify_valueset(...)`` where it does.
+
+and where a route needs them: ``system``, the loop as an uncertain system, whose LFT the
+mu route takes; ``prefers_mu``, whether ``method="auto"`` takes mu (a decay rate, damping
+of every pole; False when absent); ``valueset_why_not(region)``, why the value-set route
+does not apply ("" where it does; absent: it does not), and ``certify_valueset(...)``
+where it does. ``tests/test_plugin_family.py`` registers a family of its own.
 
 :func:`margin_loop` builds it, by single dispatch on the analysed object's type:
 ``_SystemLoop`` here evaluates an uncertain system's one state matrix; a machine's family
