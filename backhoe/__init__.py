@@ -26,6 +26,7 @@ Public API (import from here; module layout may change):
 from robust.lazy import lazy_exports
 
 __all__ = [
+    "DAMPING_BAND_HZ",
     "BDFTLoop",
     "CLAIM_TEXT",
     "CalibrationCandidate",
@@ -111,7 +112,10 @@ __getattr__, __dir__ = lazy_exports(
             "simulate",
             "simulate_swept_sine",
         ),
-        "backhoe.constants": ("RANGES",),
+        "backhoe.constants": (
+            "DAMPING_BAND_HZ",
+            "RANGES",
+        ),
         "backhoe.families.batched": (
             "batched_poles",
             "closed_loop_matrices",

@@ -11,7 +11,7 @@ package fixes OpenBLAS's and NumPy's kernels before NumPy is imported,
 
 Options are checked before any work by one argument layer, :mod:`bdft.args`.
 Building the parser and parsing need no numerical library: the options' choices and
-defaults come from modules that import nothing (:mod:`robust.constants`,
+defaults come from modules that import nothing (:mod:`backhoe.constants`,
 :mod:`uncertainty.constants`, :mod:`designs.constants`), and each command module imports
 the layers that do the work (NumPy, SciPy, python-control, CVXPY, Matplotlib) in the
 functions that run the command, so ``bdft --help``, ``bdft COMMAND --help`` and argument

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from backhoe.constants import DEFAULT_POSTURE, POSTURES, RANGES
+from backhoe.constants import DAMPING_BAND_HZ, DEFAULT_POSTURE, POSTURES, RANGES
 from bdft.args import (
     UsageError,
     batch,
@@ -18,7 +18,6 @@ from bdft.args import (
     seed,
 )
 from bdft.common import add_jobs_argument, add_scheduler_argument, print_json
-from robust.constants import DAMPING_BAND_HZ
 from uncertainty.constants import DEFAULT_CHUNK
 
 __all__ = [

@@ -74,7 +74,7 @@ class DesignEvaluation:
         Largest real part of any member's closed-loop pole, rad/s.
     min_damping : float
         Smallest damping ratio of the members' poles in the damping band
-        (:data:`robust.analysis.stability.DAMPING_BAND_HZ`; ``inf`` if no pole lies in it).
+        (:data:`backhoe.constants.DAMPING_BAND_HZ`; ``inf`` if no pole lies in it).
     worst : dict
         Parameters (name -> value) of the member with the largest real part.
     suppression_db : float

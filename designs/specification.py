@@ -19,6 +19,7 @@ import math
 import control as ct
 import numpy as np
 
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.model.components import K_PSF_NOMINAL
 from backhoe.model.device import DeviceLimits
 from designs.effort import Noise
@@ -29,7 +30,6 @@ from designs.response import (
     default_tracking_weight,
     weight_system,
 )
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.checks import (
     FINITE,
     NONNEGATIVE,

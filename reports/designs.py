@@ -7,6 +7,7 @@ import json
 import math
 
 from backhoe import default_family
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.model.components import StructureParams
 from backhoe.model.device import DeviceLimits
 from designs.evaluate import INTENT_FRACTION
@@ -23,7 +24,6 @@ from reports.design_sections import (
     _tradeoff_section,
 )
 from reports.html import HtmlPage, write_report_dir
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.jsonio import to_jsonable
 
 __all__ = ["run_all_designs", "run_designs_with", "verdict", "write_design_report"]

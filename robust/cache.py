@@ -53,7 +53,7 @@ __all__ = [
 #: Environment variable naming the cache folder.
 CACHE_ENV = "BDFT_CACHE_DIR"
 #: The packages whose source makes up the code version.
-PACKAGES = ("robust", "uncertainty", "designs", "reports")
+PACKAGES = ("robust", "uncertainty", "backhoe", "designs", "reports")
 #: Libraries whose versions make up the code version.
 LIBRARIES = ("numpy", "scipy", "control", "cvxpy", "clarabel", "slycot")
 

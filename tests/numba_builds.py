@@ -60,7 +60,7 @@ def _run(env=None) -> dict:
 
 
 _ROOT = Path(__file__).resolve().parent.parent
-_PACKAGES = ("robust", "uncertainty", "designs", "bdft")
+_PACKAGES = ("robust", "uncertainty", "backhoe", "designs", "bdft")
 
 
 def _generic_cache_dir() -> Path:

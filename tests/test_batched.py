@@ -7,9 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import linear_sum_assignment
 
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.families.batched import batched_poles, closed_loop_matrices
 from backhoe.families.family_ranges import default_family
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import ModelStructureError, ParameterError
 from uncertainty.sampling import sample
 from uncertainty.validation import validate_family

@@ -28,7 +28,6 @@ LIGHT = (
     "robust.version",
     "robust.engine",
     "robust.lazy",
-    "robust.constants",
     "uncertainty",
     "uncertainty.constants",
     "backhoe",

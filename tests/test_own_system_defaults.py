@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from backhoe import default_family
+from backhoe.constants import DAMPING_BAND_HZ
 from bdft import main
-from uncertainty import DAMPING_BAND_HZ, Region, sample, ureal, uss, validate_family, worst_member
+from uncertainty import Region, sample, ureal, uss, validate_family, worst_member
 from uncertainty.region import EVERY_FREQUENCY_HZ
 
 # a lightly damped mode at 1 rad/s (0.16 Hz, below the BDFT band) and a well-damped one at

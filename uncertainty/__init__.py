@@ -14,8 +14,7 @@ Public API (import from here; module layout may change):
   :data:`BOUNDS_RTOL` (the tolerance of a member's bounds check);
 * sampling: :func:`sample`, :class:`SampleSet`, :data:`METHODS`, :data:`MAX_SAMPLE_BYTES`
   and :func:`max_members` (the largest sample drawn at once);
-* batched validation: :func:`validate_family`, :class:`ValidationResult`,
-  :data:`DAMPING_BAND_HZ` (the one default damping band, also the pole region's);
+* batched validation: :func:`validate_family`, :class:`ValidationResult`;
 * uncertain reals and expressions: :func:`ureal`, :class:`UExpr`, :func:`umatrix`,
   :func:`evaluate_matrix`; uncertain state-space systems: :func:`uss`, :class:`USS`,
   :func:`interconnect` (by signal names); uncertain transfer functions: :func:`tf`
@@ -84,7 +83,6 @@ __all__ = [
     "sample",
     "MAX_SAMPLE_BYTES",
     "max_members",
-    "DAMPING_BAND_HZ",
 ]
 
 # the names above, each imported from its module on first use (robust.lazy)
@@ -92,7 +90,6 @@ __getattr__, __dir__ = lazy_exports(
     __name__,
     {
         "robust.analysis.region": ("Region",),
-        "robust.constants": ("DAMPING_BAND_HZ",),
         "uncertainty.dgk": (
             "MusynResult",
             "musyn",

@@ -21,12 +21,12 @@ import control as ct
 import numpy as np
 
 from backhoe.analysis.loops import loop_poles
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.families.batched import closed_loop_matrices
 from backhoe.families.family import Family
 from backhoe.families.loop import INTERVALS, LoopAssembly, family_uss, fixed_parameters
 from backhoe.families.valueset import ValueSetLoop, certify_scale_valueset
 from robust.analysis.intervals import Gradient, Interval
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.errors import BDFTError
 from uncertainty.enclosure import box_variables, margin_loop
 from uncertainty.uss import USS

@@ -21,11 +21,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.families.batched import TASK_MEMBERS
 from backhoe.families.family import Family
 from backhoe.families.validation import member_metrics
 from backhoe.model.blocks import parameter_name
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.checks import check_callable, check_int
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ParameterError

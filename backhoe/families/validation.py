@@ -24,10 +24,10 @@ from collections.abc import Callable
 import control as ct
 import numpy as np
 
+from backhoe.constants import DAMPING_BAND_HZ
 from backhoe.families.batched import TASK_MEMBERS, _check_family, _closed_loop
 from backhoe.families.family import Family
 from robust.analysis.small_eig import eigvals_stack
-from robust.analysis.stability import DAMPING_BAND_HZ
 from robust.checks import FINITE, check_int, check_scalar
 from robust.engine import map_tasks, scheduler_address
 from robust.errors import ModelStructureError, ParameterError

@@ -141,7 +141,7 @@ class LiteralHuman:
         }
 
 
-# HUMAN_VARIANT_NAMES, the names human_variant knows, is defined in robust.constants (the
+# HUMAN_VARIANT_NAMES, the names human_variant knows, is defined in backhoe.constants (the
 # command line reads it without this module's libraries)
 
 

@@ -70,7 +70,7 @@ __all__ = [
 ]
 
 # POSTURES and DEFAULT_POSTURE (the backhoe's seat, with its backrest) are defined in
-# robust.constants (the command line reads them without this module's libraries)
+# backhoe.constants (the command line reads them without this module's libraries)
 #: The modal parameters of the physical human, in the order families list them.
 MODAL_NAMES = ("body_mass", "m_arm", "f_arm_hz", "zeta_arm", "f_trunk_hz", "zeta_trunk")
 

@@ -40,7 +40,7 @@ __all__ = ["Region", "EVERY_FREQUENCY_HZ"]
 
 #: Every pole, whatever its frequency: the damping band of a user's own system by default
 #: and the one synthesis enforces (the BDFT family's default is
-#: :data:`robust.analysis.stability.DAMPING_BAND_HZ`).
+#: :data:`backhoe.constants.DAMPING_BAND_HZ`).
 EVERY_FREQUENCY_HZ = (0.0, math.inf)
 
 
@@ -60,7 +60,7 @@ class Region:
         The band of the damping requirement, Hz (``high`` may be ``inf``). None (default):
         the default band of what is analysed, set by the margin functions
         (:meth:`with_default_band`): the BDFT band
-        (:data:`robust.analysis.stability.DAMPING_BAND_HZ`, 0.5-10 Hz) for the BDFT
+        (:data:`backhoe.constants.DAMPING_BAND_HZ`, 0.5-10 Hz) for the BDFT
         family, every frequency (:data:`EVERY_FREQUENCY_HZ`) for a user's own system.
         Synthesis enforces the damping at every frequency whatever the band
         (:meth:`everywhere`; module notes).

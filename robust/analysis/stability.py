@@ -19,11 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from robust.checks import NONNEGATIVE, check_scalar
-from robust.constants import DAMPING_BAND_HZ
 
 __all__ = [
     "STABILITY_TOL",
-    "DAMPING_BAND_HZ",
     "stable_mask",
     "unstable_mask",
     "poles_stable",
@@ -34,8 +32,6 @@ __all__ = [
 
 #: Half-width of the marginal band around the imaginary axis, rad/s.
 STABILITY_TOL = 1e-9
-# DAMPING_BAND_HZ, the one default band of the damping ratio, is defined in robust.constants
-# (the command line reads it without NumPy)
 
 
 def stability_bound(margin: float = 0.0) -> float:
@@ -91,7 +87,7 @@ def poles_stable(poles, *, margin: float = 0.0) -> bool:
     return bool(np.all(stable_mask(poles, margin=margin)))
 
 
-def in_band(poles, band_hz=DAMPING_BAND_HZ) -> np.ndarray:
+def in_band(poles, band_hz) -> np.ndarray:
     """Boolean mask of the poles whose frequency ``|Im p| / (2 pi)`` lies in ``band_hz``.
 
     Parameters
@@ -105,7 +101,7 @@ def in_band(poles, band_hz=DAMPING_BAND_HZ) -> np.ndarray:
     return (f >= band_hz[0]) & (f <= band_hz[1])
 
 
-def damping_in_band(poles, band_hz=DAMPING_BAND_HZ) -> np.ndarray:
+def damping_in_band(poles, band_hz) -> np.ndarray:
     """Smallest damping ratio ``-Re p / |p|`` of the poles in ``band_hz``, along the last axis.
 
     Parameters
