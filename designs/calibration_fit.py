@@ -28,7 +28,10 @@ def _coords(theta, log=LOG_AXES):
 
 
 def _values(z, log=LOG_AXES):
-    return np.where(log, np.exp(np.where(log, z, 0.0)), z)
+    # a logarithm beyond about 709 is a value beyond the floats: inf, on purpose (the edge
+    # of an error region that the data do not bound), so NumPy's overflow warning is quiet
+    with np.errstate(over="ignore"):
+        return np.where(log, np.exp(np.where(log, z, 0.0)), z)
 
 
 def _local_fit(resid, jacobian, z0, zlo, zhi):

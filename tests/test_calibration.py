@@ -493,3 +493,14 @@ def test_the_local_fit_is_the_bounded_methods_minimum_inside_and_on_the_box():
     assert ref.active_mask[2] == -1
     np.testing.assert_array_equal(got.x, ref.x)
     assert got.x[2] == pytest.approx(zlo[2], abs=1e-12)
+
+
+def test_a_logarithm_beyond_the_floats_is_an_unbounded_edge_without_a_warning():
+    # an error region's edge beyond exp(709) is inf on purpose; the user sees no
+    # RuntimeWarning from it (bdft report printed NumPy's overflow warning)
+    from designs.calibration_fit import _values
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        v = _values(np.array([800.0, 0.1, -800.0, 0.2]))
+    assert np.isinf(v[0]) and v[1] == 0.1 and v[2] == 0.0 and v[3] == 0.2
