@@ -125,6 +125,14 @@ def test_the_registered_family_validates_member_by_member_as_the_system():
     assert mine.fraction_stable == ref.fraction_stable == 1.0
 
 
+def test_a_route_the_registered_loop_cannot_take_is_refused_by_name():
+    # no uncertain system for mu, no value sets: each named, before any work
+    with pytest.raises(ParameterError, match="method 'mu' needs the loop as an uncertain system"):
+        robust_margin(SpringFamily(), region=REGION, method="mu")
+    with pytest.raises(ParameterError, match="method 'valueset' needs the BDFT family's open"):
+        robust_margin(SpringFamily(), region=REGION, method="valueset")
+
+
 def test_an_unregistered_family_is_refused_by_name():
     class Unknown:
         parameters = ()

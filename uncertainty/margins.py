@@ -431,6 +431,11 @@ def margin_lower_bound(
             if region.min_damping > 0 and tuple(region.band_hz) != EVERY_FREQUENCY_HZ
             else ""
         )
+        if not why and not hasattr(loop, "system"):
+            why = (
+                f"needs the loop as an uncertain system (a 'system' attribute), which "
+                f"{type(loop).__name__} does not give"
+            )
         if why:
             raise ParameterError(f"margin_lower_bound: method 'mu' {why}")
     step = progress or (lambda msg: None)
