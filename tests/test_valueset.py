@@ -11,7 +11,7 @@ from backhoe.families.batched import closed_loop_matrices, interconnection, loop
 from backhoe.families.valueset import ValueSetLoop
 from robust.errors import ParameterError
 from uncertainty import Region, robust_margin
-from uncertainty.enclosure import _loop
+from uncertainty.enclosure import margin_loop
 from uncertainty.margins import _perron_bound, margin_lower_bound
 from uncertainty.search import _scaled_t, _to_values, worst_member
 
@@ -27,7 +27,7 @@ def vloop(family):
 
 
 def _members(family, k, n, seed):
-    loop = _loop(family, None)
+    loop = margin_loop(family, None)
     lo_t, hi_t = _scaled_t(loop, k)
     T = lo_t + np.random.default_rng(seed).random((n, len(lo_t))) * (hi_t - lo_t)
     return T, _to_values(loop, T)
@@ -98,7 +98,7 @@ def test_cells_enclose_every_sampled_member_and_frequency(family, vloop, k):
     # frequencies drawn inside each cell have their loop gain, computed independently from
     # the blocks, inside the cell's log-polar rectangle and zonotope
     rng = np.random.default_rng(11)
-    loop = _loop(family, None)
+    loop = margin_loop(family, None)
     lo_t, hi_t = _scaled_t(loop, k)
     n_cells, d = 6, len(lo_t)
     a = lo_t + rng.random((n_cells, d)) * (hi_t - lo_t)
@@ -126,7 +126,7 @@ def test_cells_enclose_every_sampled_member_and_frequency(family, vloop, k):
 
 
 def test_perron_bound_covers_every_member_eigenvalue(family):
-    loop = _loop(family, None)
+    loop = margin_loop(family, None)
     lo_t, hi_t = _scaled_t(loop, 0.5)
     w_max = _perron_bound(loop.enclosure(_to_values(loop, lo_t), _to_values(loop, hi_t), False))
     _, rows = _members(family, 0.5, 200, seed=5)

@@ -40,7 +40,7 @@ from robust.analysis.intervals import Interval, norm2_bound
 from robust.analysis.stability import STABILITY_TOL
 from robust.errors import BDFTError
 from robust.synthesis.solve import solve_problem
-from uncertainty.enclosure import MarginFamily, _loop, _Unbounded, loop_region
+from uncertainty.enclosure import MarginFamily, _Unbounded, loop_region, margin_loop
 from uncertainty.region import Region
 from uncertainty.search import _to_values
 from uncertainty.uss import USS
@@ -321,7 +321,7 @@ def certify_box(
         (the parameter whose range moves the eigenvalues most, relative to their distance
         to the region's boundary), ``reason``.
     """
-    loop = _loop(family, controller)
+    loop = margin_loop(family, controller)
     logs = np.array([p.distribution == "loguniform" for p in loop.parameters])
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     lo_t = np.where(logs, np.log(np.where(logs, lo, 1.0)), lo)

@@ -163,11 +163,6 @@ def _(system: USS, controller=None):
     return _SystemLoop(system, controller)
 
 
-def _loop(system, controller):
-    """:func:`margin_loop` (the name the margin modules use)."""
-    return margin_loop(system, controller)
-
-
 def loop_region(loop, region: Region | None) -> Region:
     """``region`` (default: the open left half-plane) with the loop's default damping band
     where it leaves the band to the default: the loop's own (0.5-10 Hz for the BDFT family's

@@ -91,7 +91,7 @@ from robust.engine import map_tasks, scheduler_address
 from robust.errors import BDFTError, ParameterError
 from uncertainty.boxcert import _box_task, _boxes_task, certify_box, certify_interval_matrix
 from uncertainty.constants import DEFAULT_BOXES, LOWER_METHODS
-from uncertainty.enclosure import MarginFamily, _loop, loop_region
+from uncertainty.enclosure import MarginFamily, loop_region, margin_loop
 from uncertainty.lft import lft_form
 from uncertainty.mucover import G_MAX, mu_cover
 from uncertainty.region import EVERY_FREQUENCY_HZ, MarginResult, Region
@@ -415,7 +415,7 @@ def margin_lower_bound(
     if method not in LOWER_METHODS:
         raise ParameterError(f"method: expected one of {LOWER_METHODS}; got {method!r}")
     jobs = check_int("margin_lower_bound: jobs", jobs, low=1)
-    loop = _loop(family, controller)
+    loop = margin_loop(family, controller)
     region = loop_region(loop, region)
     if method == "lyapunov":
         region = Region(decay_rate=region.decay_rate)
@@ -597,7 +597,7 @@ def robust_margin(
     >>> round(res.lower, 3), round(res.upper, 4), round(res.critical["parameters"]["c"], 4)
     (0.485, 0.5005, 0.5996)
     """
-    loop = _loop(family, controller)
+    loop = margin_loop(family, controller)
     region = loop_region(loop, region)
     t0 = time.perf_counter()
     upper, critical, search = margin_upper_bound(

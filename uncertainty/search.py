@@ -34,7 +34,7 @@ from scipy.stats import qmc
 
 from robust.analysis.stability import STABILITY_TOL, in_band
 from robust.errors import ParameterError
-from uncertainty.enclosure import MarginFamily, _loop, loop_region
+from uncertainty.enclosure import MarginFamily, loop_region, margin_loop
 from uncertainty.region import Region
 from uncertainty.uss import USS
 
@@ -129,7 +129,7 @@ def scaled_bounds(family, k: float) -> tuple[np.ndarray, np.ndarray]:
     """
     if not (math.isfinite(k) and k >= 0):
         raise ParameterError(f"scale k must be a finite value >= 0; got {k!r}")
-    loop = _loop(family, None)
+    loop = margin_loop(family, None)
     lo_t, hi_t = _scaled_t(loop, k)
     return _to_values(loop, lo_t), _to_values(loop, hi_t)
 
@@ -256,7 +256,7 @@ def worst_member(
     """
     if not (math.isfinite(k) and k >= 0):
         raise ParameterError(f"worst_member: k must be a finite scale >= 0; got {k!r}")
-    loop = _loop(family, controller)
+    loop = margin_loop(family, controller)
     return _worst_in_box(
         loop,
         float(k),
@@ -313,7 +313,7 @@ def margin_upper_bound(
     search : dict
         Settings and the bisection history.
     """
-    loop = _loop(family, controller)
+    loop = margin_loop(family, controller)
     region = loop_region(loop, region)
     step = progress or (lambda msg: None)
     history = []
