@@ -10,12 +10,15 @@ Prints, for the default family:
 2. :func:`designs.coverage.member_verdicts` (one :func:`designs.spec.check_specification`
    per member, no peak-force simulation on failing members) on ``--members`` seeded
    Monte Carlo members for the cancellation (no force) and the nominal H-infinity design
-   (handle force): time per member and the fraction meeting the specification;
+   (handle force): time per member and the fraction meeting the specification; with
+   ``--artifacts DIR`` also every controller artifact of a ``bdft report``'s artifacts
+   folder (most of their members are stable and checked in full, unlike those two
+   designs', which the screen settles);
 3. the peak resident memory of the process.
 
 Usage::
 
-    python benchmarks/bench_spec.py [--members 200] [--repeat 50]
+    python benchmarks/bench_spec.py [--members 200] [--repeat 50] [--artifacts DIR]
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import argparse
 import resource
 import time
 import warnings
+from pathlib import Path
 
 import control as ct
 import numpy as np
@@ -33,6 +37,8 @@ from backhoe.model.wiring import connect
 from designs.cancellation import cancellation_controller
 from designs.coverage import member_verdicts
 from designs.hinf_nominal import design_hinf_nominal
+from robust.errors import ArtifactError
+from robust.export import load_artifact
 from uncertainty import sample
 
 
@@ -40,6 +46,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--members", type=int, default=200)
     ap.add_argument("--repeat", type=int, default=50)
+    ap.add_argument(
+        "--artifacts", default=None, help="a bdft report's artifacts folder (its *.json)"
+    )
     args = ap.parse_args()
     fam = default_family()
     nominal = fam.member(fam.nominal_values())
@@ -72,12 +81,19 @@ def main() -> None:
 
     rows = sample(fam.parameters, args.members, method="mc", seed=5).values
     print(f"member_verdicts on {args.members} members (seed 5), one process")
-    for label, K in (("cancellation", Kc), ("hinf-nominal", Kh)):
+    designs = [("cancellation", Kc), ("hinf-nominal", Kh)]
+    if args.artifacts:
+        for path in sorted(Path(args.artifacts).glob("*.json")):
+            try:
+                designs.append((path.stem, load_artifact(path).continuous))
+            except ArtifactError:
+                continue  # (a bank of controllers, not one)
+    for label, K in designs:
         t = time.perf_counter()
         v = member_verdicts(fam, rows, K)
         dt = time.perf_counter() - t
         print(
-            f"  {label:14s} {1e3 * dt / args.members:7.1f} ms per member, "
+            f"  {label:20s} {1e3 * dt / args.members:7.1f} ms per member, "
             f"specification holds on {v.holds.mean():.3f}"
         )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

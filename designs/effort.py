@@ -29,13 +29,13 @@ import math
 
 import control as ct
 import numpy as np
-import scipy.linalg as sla
 
 from backhoe.model.components import REALISATIONS_KEPT
 from backhoe.model.loop import BDFTLoop
 from backhoe.model.wiring import Junction, connect, renamed
 from backhoe.synthesis.forcefb import intent_filter
 from robust.analysis.bounds import siso_response
+from robust.analysis.lyapunov import lyapunov_solver
 from robust.analysis.norms import h2_norm
 from robust.analysis.realization import minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, validate_fields
@@ -133,7 +133,7 @@ def sensor_intensities(loop: BDFTLoop, sensors, noise: Noise) -> tuple[np.ndarra
     return var, var / SERVO_RATE_HZ
 
 
-def noisy_loop(loop: BDFTLoop, controller, outputs) -> ct.StateSpace:
+def noisy_loop(loop: BDFTLoop, controller, outputs, *, checked: bool = False) -> ct.StateSpace:
     """The member's loop with ``controller``, noise added to each signal it measures.
 
     Inputs ``u`` then ``n_<s>`` for each measured signal ``s`` (in the controller's input
@@ -147,13 +147,17 @@ def noisy_loop(loop: BDFTLoop, controller, outputs) -> ct.StateSpace:
         The compensator (loop convention); ``None``: the loop alone.
     outputs : sequence of str
         Loop signals to output (``y``, ``e``, ``f``, ``r_corr``, ...).
+    checked : bool
+        The controller's signals were checked against the loop's convention already (its
+        closed loop was built): skip that check.
     """
     if controller is None:
         return loop.system(bdft=True, outputs=list(outputs))
     outs = list(controller.output_labels)
     blocks = loop.blocks(bdft=True, reference_correction="r_corr" in outs)
-    # validate the controller against the loop's convention, as a closed loop would
-    loop.blocks(bdft=True, controller=controller)
+    if not checked:
+        # validate the controller against the loop's convention, as a closed loop would
+        loop.blocks(bdft=True, controller=controller)
     meas = list(controller.input_labels)
     blocks.append(renamed(controller, {s: f"{s}_m" for s in meas}))
     for s in meas:
@@ -249,28 +253,40 @@ def rms_responses(
         One RMS per output (``inf`` where the loop is unstable or a white noise reaches an
         output without filtering and no sample variance applies).
     """
+    return _rms_cases(sys, amplitude, bandwidth_hz, noise, variances, [(operator, sensors)])[0]
+
+
+def _rms_cases(
+    sys: ct.StateSpace, amplitude: float, bandwidth_hz: float, noise: Noise, variances, cases
+) -> list:
+    """:func:`rms_responses` for each ``(operator, sensors)`` of ``cases``, from one Schur form
+    of the loop cascaded with the operator's filter (each the bits of its own call)."""
     A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
     n = A.shape[0]
     if n and np.max(np.linalg.eigvals(A).real) >= 0:
-        return np.full(C.shape[0], math.inf)
+        return [np.full(C.shape[0], math.inf) for _ in cases]
     Ao, Bo, Co = operator_filter(bandwidth_hz, amplitude, noise)
     no = Ao.shape[0]
     p = B.shape[1] - 1
     inten = np.asarray(variances, float) / SERVO_RATE_HZ
     # states (loop, operator filter); inputs (two unit white noises, the sensor noises)
     Aa = np.block([[A, B[:, [0]] @ Co], [np.zeros((no, n)), Ao]])
-    Ba = np.zeros((n + no, 2 + p))
-    if operator:
-        Ba[n:, :2] = Bo
-    if sensors and p:
-        Ba[:n, 2:] = B[:, 1:] * np.sqrt(inten)[None, :]
     Ca = np.hstack([C, D[:, [0]] @ Co])
-    P = sla.solve_continuous_lyapunov(Aa, -Ba @ Ba.T)
-    var = np.diag(Ca @ P @ Ca.T).copy()
-    if sensors and p:
-        # a measurement passed straight through: its sample variance
-        var += (D[:, 1:] ** 2) @ np.asarray(variances, float)
-    return np.sqrt(np.maximum(var, 0.0))
+    solver = lyapunov_solver(Aa)
+    out = []
+    for operator, sensors in cases:
+        Ba = np.zeros((n + no, 2 + p))
+        if operator:
+            Ba[n:, :2] = Bo
+        if sensors and p:
+            Ba[:n, 2:] = B[:, 1:] * np.sqrt(inten)[None, :]
+        P = solver.solve(-Ba @ Ba.T)
+        var = np.diag(Ca @ P @ Ca.T).copy()
+        if sensors and p:
+            # a measurement passed straight through: its sample variance
+            var += (D[:, 1:] ** 2) @ np.asarray(variances, float)
+        out.append(np.sqrt(np.maximum(var, 0.0)))
+    return out
 
 
 def operator_spectrum(omega, amplitude: float, bandwidth_hz: float, noise: Noise) -> np.ndarray:
@@ -321,7 +337,42 @@ def cylinder_filters(loop: BDFTLoop) -> tuple:
     return out
 
 
-def member_effort(loop: BDFTLoop, controller, spec, amplitude: float) -> tuple:
+@functools.lru_cache(maxsize=16)
+def _minimal_matrices(key: tuple) -> tuple:
+    """The minimal realisation's ``(A, B, C, D)`` of a controller given as
+    :func:`_matrices_key` (read-only; every member checked with one controller shares it)."""
+    A, B, C, D = (np.frombuffer(b, float).reshape(shape) for b, shape in key)
+    mr = minimal_realization(A, B, C, D)
+    out = tuple(np.array(m, float) for m in (mr.A, mr.B, mr.C, mr.D))
+    for m in out:
+        m.setflags(write=False)
+    return out
+
+
+def _matrices_key(sys: ct.StateSpace) -> tuple:
+    """The bytes and shapes of ``sys``'s ``A, B, C, D`` (a key equal for equal matrices)."""
+    mats = (np.ascontiguousarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
+    return tuple((m.tobytes(), m.shape) for m in mats)
+
+
+def _minimal_controller(controller: ct.StateSpace) -> ct.StateSpace:
+    """``controller``'s minimal realisation with its signal names (made once per controller
+    and reused while the same matrices come back)."""
+    A, B, C, D = _minimal_matrices(_matrices_key(controller))
+    return ct.ss(
+        A.copy(),
+        B.copy(),
+        C.copy(),
+        D.copy(),
+        inputs=list(controller.input_labels),
+        outputs=list(controller.output_labels),
+        name=controller.name,
+    )
+
+
+def member_effort(
+    loop: BDFTLoop, controller, spec, amplitude: float, *, checked: bool = False
+) -> tuple:
     """Continuous force, noise and reference-effort figures of one stable member.
 
     Parameters
@@ -332,6 +383,8 @@ def member_effort(loop: BDFTLoop, controller, spec, amplitude: float) -> tuple:
     spec : Specification
     amplitude : float
         Intended-motion amplitude, handle units.
+    checked : bool
+        ``controller`` fits the loop's convention (its closed loop was built already).
 
     Returns
     -------
@@ -351,18 +404,9 @@ def member_effort(loop: BDFTLoop, controller, spec, amplitude: float) -> tuple:
     if controller.nstates:
         # the controller's minimal realisation: a state wired to nothing is no mode of the
         # loop's signals (the check's poles drop it too)
-        mr = minimal_realization(controller.A, controller.B, controller.C, controller.D)
-        controller = ct.ss(
-            mr.A,
-            mr.B,
-            mr.C,
-            mr.D,
-            inputs=list(controller.input_labels),
-            outputs=list(controller.output_labels),
-            name=controller.name,
-        )
+        controller = _minimal_controller(controller)
     outs = list(controller.output_labels)
-    sys = noisy_loop(loop, controller, ["y", *outs])
+    sys = noisy_loop(loop, controller, ["y", *outs], checked=checked)
     var, _ = sensor_intensities(loop, controller.input_labels, spec.noise)
     return effort_utilisations(sys, outs, loop, spec, amplitude, var)
 
@@ -394,8 +438,9 @@ def effort_utilisations(
     """
     outs = list(actuators)
     bw = spec.intent_bandwidth_hz
-    total = rms_responses(sys, amplitude, bw, spec.noise, var)
-    noise_only = rms_responses(sys, amplitude, bw, spec.noise, var, operator=False)
+    total, noise_only = _rms_cases(
+        sys, amplitude, bw, spec.noise, var, [(True, True), (False, True)]
+    )
     lim_y = spec.noise_cylinder_mm * 1e-3 * loop.cylinder_units_per_m()
     util_noise = noise_only[0] / lim_y
     rms_f = 0.0

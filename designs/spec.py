@@ -331,7 +331,7 @@ def check_specification(
         tracking[i], freqs[0, i] = tr.value, tr.frequency_hz
         amplification[i], freqs[1, i] = fb.value, fb.frequency_hz
         amplitude[i] = m.intended_amplitude(limits, spec.intent_fraction)
-        rms_f, noise[i], effort[i] = member_effort(m, controller, spec, amplitude[i])
+        rms_f, noise[i], effort[i] = member_effort(m, controller, spec, amplitude[i], checked=True)
         if has_force:
             rms[i] = rms_f
 

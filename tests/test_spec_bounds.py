@@ -20,6 +20,7 @@ from backhoe.analysis.loops import loop_poles
 from designs.evaluate import output_ratio
 from designs.spec import Specification, check_specification
 from robust.analysis.bounds import bound_ratio, crossing_frequencies, siso_response
+from robust.errors import ModelStructureError
 from robust.synthesis.youla import (
     LimitProblem,
     of_affine_maps,
@@ -209,3 +210,26 @@ def test_responses_in_modal_and_schur_form_against_direct_solves():
             [(C @ np.linalg.solve(1j * x * np.eye(A.shape[0]) - A, B))[0, 0] + D[0, 0] for x in w]
         )
         np.testing.assert_allclose(siso_response(sys, w), ref, rtol=1e-9)
+
+
+def test_bound_ratio_of_matrices_reused_and_changed_in_place():
+    """A system given as matrices is prepared once per content (the checks of a member share
+    it): the same answer as the python-control system, and arrays changed in place are seen
+    as the new system, not as the one prepared before."""
+    G = ct.ss(ct.tf([1.0], [1.0, 0.2, 25.0]))
+    B = ct.ss(ct.tf([0.1], [1.0]))
+    mats = tuple(np.array(m, float) for m in (G.A, G.B, G.C, G.D))
+    bmats = tuple(np.array(m, float) for m in (B.A, B.B, B.C, B.D))
+    ref = bound_ratio(G, [B])
+    first = bound_ratio(mats, [bmats])
+    again = bound_ratio(mats, [bmats])
+    assert first == again
+    assert first.value == pytest.approx(ref.value, rel=1e-12)
+    # twice the gain: twice the ratio, from the same arrays
+    mats[2][...] *= 2.0
+    doubled = bound_ratio(mats, [bmats])
+    assert doubled.value == pytest.approx(2.0 * ref.value, rel=1e-9)
+    # a non-finite entry is refused by name, as it was before it was prepared
+    mats[0][0, 0] = np.nan
+    with pytest.raises(ModelStructureError, match="G.A contains 1 non-finite"):
+        bound_ratio(mats, [bmats])

@@ -32,6 +32,7 @@ could hide a violation.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numba
@@ -254,10 +255,47 @@ class BoundRatio:
         return bool(self.upper <= 1.0)
 
 
+def _key(sys) -> tuple | None:
+    """The bytes and shapes of a system given as ``(A, B, C, D)`` (``None`` for anything
+    else: a python-control system is checked as one each time)."""
+    if not (isinstance(sys, tuple) and len(sys) == 4):
+        return None
+    mats = sys
+    try:
+        arrs = [np.ascontiguousarray(m, float) for m in mats]
+    except (TypeError, ValueError):
+        return None
+    return tuple((a.tobytes(), a.shape) for a in arrs)
+
+
+@functools.lru_cache(maxsize=64)
+def _prepared_by_key(name: str, key: tuple) -> tuple:
+    mats = tuple(np.frombuffer(b, float).reshape(shape) for b, shape in key)
+    abcd = _siso(name, mats)
+    return abcd, _Response(abcd)
+
+
+def _prepared(name: str, sys) -> tuple:
+    """``(A, B, C, D)`` of a checked, balanced SISO system and its :class:`_Response`, made
+    once for equal matrices: a check evaluates one map against several bounds and bands, and
+    every member against the same weights."""
+    key = _key(sys)
+    if key is None:
+        abcd = _siso(name, sys)
+        return abcd, _Response(abcd)
+    try:
+        return _prepared_by_key(name, key)
+    except (ModelStructureError, ParameterError):
+        raise
+    except (TypeError, ValueError):
+        abcd = _siso(name, sys)
+        return abcd, _Response(abcd)
+
+
 class _Ratio:
     def __init__(self, g, bounds):
-        self.g = _Response(g)
-        self.bs = [_Response(b) for b in bounds]
+        self.g = g
+        self.bs = list(bounds)
 
     def __call__(self, w) -> np.ndarray:
         w = np.asarray(w, float).reshape(-1)
@@ -358,11 +396,12 @@ def bound_ratio(
         raise ParameterError(f"bound_ratio: band_hz must satisfy 0 <= low < high; got {band_hz!r}")
     if not (0.0 < rtol <= 0.1):
         raise ParameterError(f"bound_ratio: rtol must be in (0, 0.1]; got {rtol!r}")
-    g = _siso("G", G)
-    bs = [_siso(f"bounds[{i}]", b) for i, b in enumerate(bounds)]
-    if not bs:
+    g, g_response = _prepared("G", G)
+    prepared = [_prepared(f"bounds[{i}]", b) for i, b in enumerate(bounds)]
+    if not prepared:
         raise ParameterError("bound_ratio: bounds must hold at least one system; got none")
-    ratio = _Ratio(g, bs)
+    bs = [abcd for abcd, _ in prepared]
+    ratio = _Ratio(g_response, [r for _, r in prepared])
     wlo, whi = 2 * math.pi * lo, 2 * math.pi * hi
     poles = np.concatenate([ratio.g.poles] + [b.poles for b in ratio.bs])
     mags = np.abs(poles[np.abs(poles) > 0])
