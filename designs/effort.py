@@ -37,7 +37,7 @@ from backhoe.synthesis.forcefb import intent_filter
 from robust.analysis.bounds import siso_response
 from robust.analysis.lyapunov import lyapunov_solver
 from robust.analysis.norms import h2_norm
-from robust.analysis.realization import minimal_realization
+from robust.analysis.realization import matrices_key, minimal_realization
 from robust.checks import NONNEGATIVE, POSITIVE, validate_fields
 from robust.errors import ModelStructureError
 
@@ -339,8 +339,9 @@ def cylinder_filters(loop: BDFTLoop) -> tuple:
 
 @functools.lru_cache(maxsize=16)
 def _minimal_matrices(key: tuple) -> tuple:
-    """The minimal realisation's ``(A, B, C, D)`` of a controller given as
-    :func:`_matrices_key` (read-only; every member checked with one controller shares it)."""
+    """The minimal realisation's ``(A, B, C, D)`` of a controller given by its
+    :func:`robust.analysis.realization.matrices_key` (read-only; every member checked with
+    one controller shares it)."""
     A, B, C, D = (np.frombuffer(b, float).reshape(shape) for b, shape in key)
     mr = minimal_realization(A, B, C, D)
     out = tuple(np.array(m, float) for m in (mr.A, mr.B, mr.C, mr.D))
@@ -349,16 +350,12 @@ def _minimal_matrices(key: tuple) -> tuple:
     return out
 
 
-def _matrices_key(sys: ct.StateSpace) -> tuple:
-    """The bytes and shapes of ``sys``'s ``A, B, C, D`` (a key equal for equal matrices)."""
-    mats = (np.ascontiguousarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return tuple((m.tobytes(), m.shape) for m in mats)
-
-
 def _minimal_controller(controller: ct.StateSpace) -> ct.StateSpace:
     """``controller``'s minimal realisation with its signal names (made once per controller
     and reused while the same matrices come back)."""
-    A, B, C, D = _minimal_matrices(_matrices_key(controller))
+    A, B, C, D = _minimal_matrices(
+        matrices_key((controller.A, controller.B, controller.C, controller.D))
+    )
     return ct.ss(
         A.copy(),
         B.copy(),

@@ -40,6 +40,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from robust.analysis.norms import _balance_states
+from robust.analysis.realization import matrices_key
 from robust.checks import check_abcd, check_state_space
 from robust.errors import ModelStructureError, ParameterError
 
@@ -255,19 +256,6 @@ class BoundRatio:
         return bool(self.upper <= 1.0)
 
 
-def _key(sys) -> tuple | None:
-    """The bytes and shapes of a system given as ``(A, B, C, D)`` (``None`` for anything
-    else: a python-control system is checked as one each time)."""
-    if not (isinstance(sys, tuple) and len(sys) == 4):
-        return None
-    mats = sys
-    try:
-        arrs = [np.ascontiguousarray(m, float) for m in mats]
-    except (TypeError, ValueError):
-        return None
-    return tuple((a.tobytes(), a.shape) for a in arrs)
-
-
 @functools.lru_cache(maxsize=64)
 def _prepared_by_key(name: str, key: tuple) -> tuple:
     mats = tuple(np.frombuffer(b, float).reshape(shape) for b, shape in key)
@@ -277,19 +265,18 @@ def _prepared_by_key(name: str, key: tuple) -> tuple:
 
 def _prepared(name: str, sys) -> tuple:
     """``(A, B, C, D)`` of a checked, balanced SISO system and its :class:`_Response`, made
-    once for equal matrices: a check evaluates one map against several bounds and bands, and
-    every member against the same weights."""
-    key = _key(sys)
-    if key is None:
-        abcd = _siso(name, sys)
-        return abcd, _Response(abcd)
-    try:
-        return _prepared_by_key(name, key)
-    except (ModelStructureError, ParameterError):
-        raise
-    except (TypeError, ValueError):
-        abcd = _siso(name, sys)
-        return abcd, _Response(abcd)
+    once for equal matrices given as a tuple (:func:`matrices_key`): a check evaluates one map
+    against several bounds and bands, and every member against the same weights. A
+    python-control system is checked as one each time."""
+    if isinstance(sys, tuple) and len(sys) == 4:
+        try:
+            key = matrices_key(sys)
+        except (TypeError, ValueError):
+            key = None  # (checked below, where the error names the matrix)
+        if key is not None:
+            return _prepared_by_key(name, key)
+    abcd = _siso(name, sys)
+    return abcd, _Response(abcd)
 
 
 class _Ratio:

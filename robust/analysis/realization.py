@@ -28,7 +28,7 @@ import scipy.linalg as sla
 
 from robust.checks import POSITIVE, check_abcd, check_scalar
 
-__all__ = ["MinimalRealization", "minimal_realization", "controllable_part"]
+__all__ = ["MinimalRealization", "minimal_realization", "controllable_part", "matrices_key"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,3 +188,28 @@ def minimal_realization(A, B, C, D, *, rtol: float = 1e-9) -> MinimalRealization
         n_uncontrollable=len(rem_c),
         n_unobservable=len(rem_o),
     )
+
+
+def matrices_key(mats) -> tuple:
+    """A hashable key equal for equal matrices: each one's float64 bytes and shape.
+
+    For caches of work on a system that callers hand over again and again (every member
+    checked against one controller or one weight): a key of the contents, so that arrays
+    changed in place are a new key.
+
+    Parameters
+    ----------
+    mats : sequence of array_like
+        The matrices (e.g. ``A, B, C, D``).
+
+    Returns
+    -------
+    tuple of (bytes, tuple)
+
+    Raises
+    ------
+    TypeError, ValueError
+        If a matrix cannot be read as a float array (numpy's own errors).
+    """
+    arrs = [np.ascontiguousarray(m, float) for m in mats]
+    return tuple((a.tobytes(), a.shape) for a in arrs)
