@@ -25,6 +25,7 @@ from designs import (
     hinf_nominal,
     hinf_robust,
     hinf_robust_corr,
+    mu_synthesis,
     robust_lmi,
     virtual_damping,
     workspace,
@@ -57,6 +58,7 @@ DESIGNS: dict[str, Design] = {
         robust_lmi.DESIGN,
         robust_lmi.DESIGN_CYLINDER,
         robust_lmi.DESIGN_WORKSPACE_FORCE,
+        mu_synthesis.DESIGN,
     )
 }
 

@@ -20,6 +20,7 @@ __all__ = ["run_all_designs", "run_designs_with"]
 #: The designs that take minutes (robust synthesis), started first when designs run in
 #: parallel.
 _LONG_DESIGNS = (
+    "musyn",
     "hinf-robust-lmi",
     "workspace2-hinf-lmi",
     "cylinder-lmi",

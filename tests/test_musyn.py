@@ -103,7 +103,9 @@ def _dkpy_dk(P):
             K = ct.ss(*out[1:5])
             return K, P.lft(K), float(out[0]), {}
 
-    plant = dgk_module._lft_plant(P, 1, 1).gp.sys  # the padded LFT plant, blocks 1 + 2x2
+    # the padded LFT plant, blocks 1 + 2x2, its measurement and control in musyn's units
+    lft_plant = dgk_module._lft_plant(P, 1, 1)
+    plant = lft_plant.gp.sys
     it = dkpy.DkIterAutoOrder(
         controller_synthesis=Sb10adBisection(),
         structured_singular_value=dkpy.SsvLmiBisection(n_jobs=None, bisection_rtol=1e-3),
@@ -118,7 +120,7 @@ def _dkpy_dk(P):
         K, _, _, _, _ = it.synthesize(
             plant, 1, 1, LD_GRID, [dkpy.ComplexFullBlock(1, 1), dkpy.ComplexFullBlock(2, 2)]
         )
-    return K
+    return dgk_module._given_units(lft_plant, K)  # back in P's units, as musyn's own
 
 
 def test_dk_converges_and_its_bounds_agree(ld_dk):

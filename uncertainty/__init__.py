@@ -32,7 +32,8 @@ Public API (import from here; module layout may change):
   :func:`robust_performance`, :class:`PerformanceResult`, :func:`performance_system`,
   :func:`certify_performance`, :func:`worst_performance`;
 * mu-synthesis of an uncertain generalized plant by D-K or D-G-K iteration, its peak mu
-  certified at every frequency: :func:`musyn`, :class:`MusynResult`.
+  certified at every frequency: :func:`musyn`, :class:`MusynResult`; that certificate for
+  any controller: :func:`certified_mu_peak`.
 """
 
 from robust.lazy import lazy_exports
@@ -76,6 +77,7 @@ __all__ = [
     "worst_performance",
     "MusynResult",
     "musyn",
+    "certified_mu_peak",
     "DISTRIBUTIONS",
     "UncertainParameter",
     "METHODS",
@@ -92,6 +94,7 @@ __getattr__, __dir__ = lazy_exports(
         "robust.analysis.region": ("Region",),
         "uncertainty.dgk": (
             "MusynResult",
+            "certified_mu_peak",
             "musyn",
         ),
         "uncertainty.enclosure": ("margin_loop",),

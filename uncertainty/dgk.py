@@ -105,15 +105,23 @@ from robust.errors import (
 )
 from robust.synthesis.assumptions import check_hinf_assumptions
 from robust.synthesis.genplant import GeneralizedPlant
-from uncertainty.dgk_scalings import G_DESIGN_MAX, _abcd, _fit_all, _identity, _Plant, _Scalings
+from uncertainty.dgk_scalings import (
+    G_DESIGN_MAX,
+    _abcd,
+    _DFit,
+    _fit_all,
+    _identity,
+    _Plant,
+    _Scalings,
+)
 from uncertainty.dgk_scalings import _GFit as _GFit
 from uncertainty.lft import lft_form
-from uncertainty.mu import _upper
+from uncertainty.mu import _balance, _upper
 from uncertainty.mucover import MAX_FREQUENCIES, _response, _start_bound, mu_cover
 from uncertainty.synthesis import UncertainPlant
 from uncertainty.uss import USS
 
-__all__ = ["MusynResult", "musyn", "METHODS", "DEFAULT_ORDERS"]
+__all__ = ["MusynResult", "musyn", "certified_mu_peak", "METHODS", "DEFAULT_ORDERS"]
 
 #: The iterations: ``"dgk"`` (D and G scalings on real parameters) and ``"dk"`` (every
 #: uncertainty channel treated as a complex scalar, D scalings only).
@@ -151,7 +159,10 @@ class MusynResult:
         designed-for mu at every frequency), ``mu_peak_design`` (grid peak of the mu the
         iteration minimises), ``mu_peak_grid`` (the true structure's), ``orders`` (``D`` and
         ``G`` fit orders), ``fit_peak`` (the fitted scalings' peak bound on the grid for the
-        previous closed loop), ``controller_order``, ``seconds``.
+        previous closed loop), ``controller_order``, ``seconds``; the first iterate also
+        ``start`` (``"identity"``: the unscaled plant; ``"balanced"``: constant scalings
+        from Osborne's balancing of the open loop, where SLICOT found no verified controller
+        for the unscaled plant).
     method : str
         ``"D-K"`` or ``"D-G-K"``.
     best_iteration : int
@@ -163,6 +174,10 @@ class MusynResult:
     certificate : dict
         The cover at ``mu_peak_certified`` (its frequencies and intervals) and the ladder of
         bounds tried (``tried``).
+    stopped : str
+        Why the iteration ended: ``"converged"`` (the grid peak improved by less than
+        :data:`IMPROVE_RTOL` twice in a row), ``"max_iter"``, or the message of a scaled
+        K-step that found no verified controller (the iterates before it are kept).
     """
 
     controller: ct.StateSpace
@@ -174,6 +189,7 @@ class MusynResult:
     frequencies: np.ndarray
     blocks: tuple
     certificate: dict
+    stopped: str = "max_iter"
 
     def __str__(self) -> str:
         h = self.history[self.best_iteration]
@@ -241,6 +257,15 @@ def _lft_plant(P: USS, nmeas: int, ncon: int) -> _Plant:
     D = np.hstack([D[:, : R + nw], np.zeros((D.shape[0], s - nw)), D[:, R + nw :]])
     C = np.vstack([C[: R + nz], np.zeros((s - nz, n)), C[R + nz :]])
     D = np.vstack([D[: R + nz], np.zeros((s - nz, D.shape[1])), D[R + nz :]])
+    # measurements and controls in units where D21's rows and D12's columns have norm 1:
+    # an encoder's noise beside a large feedthrough of the uncertainty channels would
+    # otherwise read as a rank-deficient D21 (the synthesis' rank tests are relative)
+    y_scale = _unit_scales(D[R + s :, : R + s], axis=1)
+    u_scale = _unit_scales(D[: R + s, R + s :], axis=0)
+    C[R + s :] *= y_scale[:, None]
+    D[R + s :] *= y_scale[:, None]
+    B[:, R + s :] *= u_scale[None, :]
+    D[:, R + s :] *= u_scale[None, :]
     sys = ct.ss(
         A,
         B,
@@ -255,7 +280,22 @@ def _lft_plant(P: USS, nmeas: int, ncon: int) -> _Plant:
     )
     gp = GeneralizedPlant.from_counts(sys, nmeas=nmeas, ncon=ncon)
     true_blocks = tuple((r, "real") for _, r in form.blocks) + ((s, "complex"),)
-    return _Plant(gp, R, s, true_blocks, form)
+    return _Plant(gp, R, s, true_blocks, form, y_scale=y_scale, u_scale=u_scale)
+
+
+def _unit_scales(block: np.ndarray, axis: int) -> np.ndarray:
+    """``1 / norm`` of each row (``axis=1``) or column (``axis=0``), 1 where that is 0."""
+    norms = np.linalg.norm(block, axis=axis)
+    return np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+
+
+def _given_units(plant: _Plant, K: ct.StateSpace) -> ct.StateSpace:
+    """The controller of the plant as given from ``K`` of the scaled ``plant.gp``
+    (measurements ``y_scale * y``, controls ``u = u_scale * u'``):
+    ``diag(u_scale) K diag(y_scale)``."""
+    A, B, C, D = _abcd(K)
+    sy, su = plant.y_scale, plant.u_scale
+    return ct.ss(A, B * sy[None, :], su[:, None] * C, su[:, None] * D * sy[None, :])
 
 
 def _default_frequencies(plant: _Plant) -> np.ndarray:
@@ -458,10 +498,78 @@ def _certify(cl, blocks, start: float, deadline: float):
     return math.inf, dict(res, tried=tried)
 
 
-def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iterates):
+def _balanced_start(plant: _Plant, freqs) -> _Scalings:
+    """Constant ``D`` scalings of the first K-step: Osborne's balancing of the open loop.
+
+    The uncertainty channels of a physical model can differ in size by orders of magnitude
+    (a stiffness in N/m beside a damping ratio); an H-infinity synthesis on the unscaled
+    plant then weighs a few channels only and its central controller is ill-conditioned.
+    At each frequency of the grid the open loop's map from ``[w_Delta; w]`` to
+    ``[z_Delta; z]`` is balanced by :func:`uncertainty.mu._balance` (every channel its own
+    group, the performance block one group); each channel's scale relative to the
+    performance block's, its median over the grid in log, is its constant ``d_i`` (the
+    scaling the D-K iteration would start from were its first iterate the open loop).
+    Any positive constants are valid D scalings, so this only chooses where the iteration
+    starts.
+    """
+    R, s = plant.R, plant.s
+    if R < 1:
+        return _identity(R)
+    sys = plant.gp.sys
+    A, B, C, D = _abcd(sys)
+    B1, C1, D11 = B[:, : R + s], C[: R + s], D[: R + s, : R + s]
+    blocks = tuple((1, "complex") for _ in range(R)) + ((s, "complex"),)
+    logs = []
+    for w in freqs:
+        try:
+            Mw = _response(A, B1, C1, D11, float(w))
+        except np.linalg.LinAlgError:  # a pole of the open loop on the grid
+            continue
+        if not np.isfinite(Mw).all():
+            continue
+        sc = _balance(Mw, blocks)
+        logs.append(np.log(sc[:R]) - np.log(sc[R]))
+    if not logs:
+        return _identity(R)
+    d = np.exp(np.median(np.array(logs), axis=0))
+    return _Scalings(
+        tuple(_DFit.constant(float(x)) for x in d),
+        tuple(_GFit(np.zeros(0), np.zeros(0)) for _ in range(R)),
+    )
+
+
+def _first_k_step(plant: _Plant, freqs, where: str):
+    """``(K, beta, start)``: the first synthesis, from the unscaled plant and from
+    :func:`_balanced_start`'s constant scalings, the one with the lower ``beta`` kept (both
+    bound the designed-for mu at every frequency; a channel far out of scale leaves the
+    unscaled synthesis weighing it alone, while on a well-scaled plant balancing can only
+    move the start); ``start`` says which (``"identity"`` or ``"balanced"``). Raises the
+    unscaled synthesis' error where neither finds a verified controller."""
+    found = []
+    error = None
+    for label, sc in (
+        ("identity", _identity(plant.R)),
+        ("balanced", _balanced_start(plant, freqs)),
+    ):
+        try:
+            K, beta = _k_step(
+                plant, sc, 1.0, where if label == "identity" else f"{where}, balanced"
+            )
+        except (VerificationError, InfeasibleError) as exc:
+            error = error or exc
+            continue
+        found.append((beta, label, K))
+    if not found:
+        raise error
+    beta, label, K = min(found, key=lambda x: x[0])
+    return K, beta, label
+
+
+def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iterates) -> str:
     """Iterations of one kind (``"D-K"``: complex channels, ``G = 0``; ``"D-G-K"``) appended
     to ``history`` and ``iterates``, from the last iterate (none: an unscaled synthesis),
-    until the grid peak improves by less than :data:`IMPROVE_RTOL` twice in a row."""
+    until the grid peak improves by less than :data:`IMPROVE_RTOL` twice in a row; returns
+    why it stopped (:attr:`MusynResult.stopped`)."""
     real = step == "D-G-K"
     kind = "real" if real else "complex"
     blocks = tuple((1, kind) for _ in range(plant.R)) + ((plant.s, "complex"),)
@@ -476,7 +584,14 @@ def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iter
         where = f"K-step of iteration {it} ({step})"
         if iterates:
             sc, beta0 = _fit_all(freqs, Ds, Gs, mu_d, plant, cl, orders, real)
-        K, gamma = _k_step(plant, sc, beta0, where)
+            try:
+                K, gamma = _k_step(plant, sc, beta0, where)
+            except (VerificationError, InfeasibleError) as exc:
+                # a scaled synthesis SLICOT cannot solve to a verified norm (an
+                # ill-conditioned scaled plant): the iterates so far stand
+                return str(exc)
+        else:
+            K, gamma, start = _first_k_step(plant, freqs, where)
         cl = plant.gp.closed_loop(K)
         if not is_stable(cl):  # pragma: no cover - _k_step checks it
             raise VerificationError(f"musyn: {where}: the closed loop is not stable")
@@ -494,11 +609,14 @@ def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iter
                 "seconds": time.perf_counter() - t0,
             }
         )
+        if it == 0:
+            history[-1]["start"] = start
         iterates.append((K, cl))
         stale = stale + 1 if mu_d.max() > best * (1 - IMPROVE_RTOL) else 0
         best = min(best, float(mu_d.max()))
         if stale >= 2:
-            break
+            return "converged"
+    return "max_iter"
 
 
 def musyn(
@@ -600,7 +718,9 @@ def musyn(
     freqs = _default_frequencies(plant) if frequencies is None else frequencies
     history: list = []
     iterates: list = []
-    _phase(plant, freqs, orders, max_iter, "D-G-K" if method == "dgk" else "D-K", history, iterates)
+    stopped = _phase(
+        plant, freqs, orders, max_iter, "D-G-K" if method == "dgk" else "D-K", history, iterates
+    )
     ibest = int(np.argmin([h["mu_peak_design"] for h in history]))
     K, cl = iterates[ibest][:2]
     t0 = time.perf_counter()
@@ -609,7 +729,7 @@ def musyn(
     )
     certificate["seconds"] = time.perf_counter() - t0
     return MusynResult(
-        controller=K,
+        controller=_given_units(plant, K),
         mu_peak_grid=history[ibest]["mu_peak_grid"],
         mu_peak_certified=float(cert),
         history=tuple(history),
@@ -618,4 +738,80 @@ def musyn(
         frequencies=freqs,
         blocks=plant.true_blocks,
         certificate=certificate,
+        stopped=stopped,
     )
+
+
+def certified_mu_peak(
+    P: USS,
+    K: ct.StateSpace,
+    nmeas: int,
+    ncon: int,
+    *,
+    start: float,
+    time_limit_s: float = 300.0,
+) -> tuple[float, dict]:
+    """The certified peak of the robust-performance mu of ``P`` closed by any ``K``.
+
+    What :func:`musyn` reports of its own controller, for another one (a reduced
+    controller, one from another method): the LFT closed loop ``M_K`` of ``P`` with ``u = K
+    y`` (the lower LFT, as :func:`control.hinfsyn`) in the true structure (the uncertain
+    reals as repeated real scalars, a full complex performance block), and the least ``b``
+    of the ladder from ``start`` at which :func:`uncertainty.mucover.mu_cover` certifies
+    ``mu(M_K(jw)) < b`` at every frequency (module notes): every member with
+    ``|delta_i| <= 1 / b`` is stable with weighted closed-loop norm below ``b``.
+
+    Parameters
+    ----------
+    P : USS
+        Generalized plant, as :func:`musyn` takes it.
+    K : control.StateSpace
+        Controller, ``nmeas`` inputs and ``ncon`` outputs.
+    nmeas, ncon : int
+        Numbers of measurements and controls (the last outputs and inputs of ``P``).
+    start : float
+        The ladder's first bound (> 0), e.g. a grid estimate of the peak.
+    time_limit_s : float
+        Wall-clock limit of the certificate, s.
+
+    Returns
+    -------
+    (float, dict)
+        The certified bound (``inf`` if none was found in time) and the cover's record
+        (``tried``: the ladder; ``seconds``).
+
+    Raises
+    ------
+    robust.errors.ModelStructureError
+        If ``K``'s size does not match ``nmeas`` and ``ncon``.
+    robust.errors.ParameterError
+        If ``start`` or ``time_limit_s`` is not a positive finite number.
+    robust.errors.VerificationError
+        If ``K`` does not stabilise the nominal closed loop.
+    """
+    _check_inputs(P, nmeas, ncon, "dk", 0, DEFAULT_ORDERS, None)
+    if not (isinstance(K, ct.StateSpace) and (K.ninputs, K.noutputs) == (nmeas, ncon)):
+        raise ModelStructureError(
+            f"certified_mu_peak: K must be a control.StateSpace with {nmeas} inputs and "
+            f"{ncon} outputs; got {getattr(K, 'ninputs', None)} inputs and "
+            f"{getattr(K, 'noutputs', None)} outputs ({type(K).__name__})"
+        )
+    for name, value in (("start", start), ("time_limit_s", time_limit_s)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(f"certified_mu_peak: {name} must be > 0; got {value!r}")
+    plant = _lft_plant(P, int(nmeas), int(ncon))
+    A, B, C, D = _abcd(K)  # in the scaled plant's units (the inverse of _given_units)
+    sy, su = plant.y_scale, plant.u_scale
+    Ks = ct.ss(A, B / sy[None, :], C / su[:, None], D / su[:, None] / sy[None, :])
+    cl = plant.gp.closed_loop(Ks)
+    if not is_stable(cl):
+        raise VerificationError(
+            "certified_mu_peak: K does not stabilise the nominal closed loop of P"
+        )
+    t0 = time.perf_counter()
+    # _certify's first rung is its start times 1 + CERT_RTOL
+    b, record = _certify(
+        cl, plant.true_blocks, float(start) / (1 + CERT_RTOL), t0 + float(time_limit_s)
+    )
+    record["seconds"] = time.perf_counter() - t0
+    return float(b), record

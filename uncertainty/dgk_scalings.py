@@ -36,6 +36,10 @@ class _Plant:
     s: int  # size of the (square) performance block
     true_blocks: tuple
     form: object
+    #: ``gp`` measures ``y_scale * y`` and its controls are ``u = u_scale * u'``: the
+    #: controller of the plant as given is ``diag(u_scale) K diag(y_scale)`` for ``K`` of ``gp``
+    y_scale: np.ndarray | None = None
+    u_scale: np.ndarray | None = None
 
 
 #: Scaled-G bound of the design scalings (``|G_i| <= G_MAX D_i``), that of the mu cover.

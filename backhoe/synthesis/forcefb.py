@@ -48,6 +48,7 @@ from robust.synthesis.pk_members import ResponseBound, SynthesisMember
 __all__ = [
     "ForceFeedbackWeights",
     "force_feedback_plant",
+    "weighting_blocks",
     "handle_units_per_m",
     "intent_filter",
     "as_loop_controller",
@@ -190,12 +191,49 @@ def force_feedback_plant(
         raise ModelStructureError(
             f"force feedback needs a human with a force port; {loop.human.variant!r} has none"
         )
-    upm = loop.handle_units_per_m()
     amp = loop.intended_amplitude(lim, wts.intent_fraction)  # handle units
-    y_scale = loop.k_psf * amp  # intended cylinder motion amplitude
     # the Figure 5 loop with the human's force input f (and r_corr) left open
+    blocks = loop.blocks(bdft=True, reference_correction=reference_correction)
+    weighting, w, u, z, y = weighting_blocks(loop, wts, lim, amp, reference_correction)
+    # the intent filter's states first, then the loop's, then the weights' (the order the
+    # shipped designs were synthesised in: their tuning follows the state coordinates)
+    blocks = weighting[:1] + blocks + weighting[1:]
+    sys = _balanced(connect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant"))
+    return GeneralizedPlant.from_system(sys, w=w, u=u, z=z, y=y)
+
+
+def weighting_blocks(
+    loop: BDFTLoop,
+    wts: ForceFeedbackWeights,
+    lim: DeviceLimits,
+    amp: float,
+    reference_correction: bool = False,
+):
+    """The blocks :func:`force_feedback_plant` puts around the Figure 5 loop.
+
+    Parameters
+    ----------
+    loop : BDFTLoop
+        The member that gives the units (handle units per metre, ``K_PSF``) and the
+        BDFT-free reference ``y_ref``.
+    wts : ForceFeedbackWeights
+        The weights.
+    lim : DeviceLimits
+        The device (peak force, encoder resolution).
+    amp : float
+        The intended-motion amplitude, handle units.
+    reference_correction : bool
+        Whether ``r_corr`` is a control input (penalised by ``z_r``).
+
+    Returns
+    -------
+    (list, list, list, list, list)
+        The blocks (the intent filter first, then ``y_ref``, tracking and force weights,
+        sensors with their noise) and the partition ``w, u, z, y`` by signal names.
+    """
+    upm = loop.handle_units_per_m()
+    y_scale = loop.k_psf * amp  # intended cylinder motion amplitude
     blocks = [intent_filter(wts.intent_bandwidth_hz, amp)]
-    blocks += loop.blocks(bdft=True, reference_correction=reference_correction)
     ref = loop.system(bdft=False, outputs=["y"])
     blocks.append(
         ct.ss(ref.A, ref.B, ref.C, ref.D, inputs="u", outputs="y_ref", name="y_reference")
@@ -221,9 +259,7 @@ def force_feedback_plant(
         blocks.append(_static(wts.correction_weight / y_scale, "r_corr", "z_r", "W_r"))
         z.append("z_r")
         u.append("r_corr")
-    w, y = ["w_u", "n_x", "n_c"], ["x_m", "c_m"]
-    sys = _balanced(connect(blocks, inputs=w + u, outputs=z + y, name="force_feedback_plant"))
-    return GeneralizedPlant.from_system(sys, w=w, u=u, z=z, y=y)
+    return blocks, ["w_u", "n_x", "n_c"], u, z, ["x_m", "c_m"]
 
 
 def _balanced(sys: ct.StateSpace) -> ct.StateSpace:
