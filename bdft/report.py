@@ -148,14 +148,14 @@ def run(args) -> int:
         standard error.
     """
     from backhoe import default_family
-    from designs.registry import design_names
+    from designs.registry import report_design_names
     from designs.robust_lmi_tradeoff import tradeoff_point, tradeoff_tasks
     from reports.coverage import family_coverage
     from reports.designs import run_designs_with, write_design_report
     from robust.cache import lookup, store
     from robust.jsonio import atomic_write_json
 
-    designs = set(design_names())
+    designs = set(report_design_names())
 
     def progress(msg):
         name = msg[: -len(" done")] if msg.endswith(" done") else msg
@@ -165,7 +165,7 @@ def run(args) -> int:
     use_cache = not args.no_cache
     out = check_report_dir("--out", args.out)
     art_dir = Path(args.out).with_name(out.name + "-artifacts")
-    check_artifact_targets("--out", art_dir, [*design_names(), SCHEDULED])
+    check_artifact_targets("--out", art_dir, [*report_design_names(), SCHEDULED])
     # the trade-off's points (each a robust LMI design), the achievable-limit map and the
     # per-operator design share the designs' pool of processes (what the cache holds is not
     # run again)

@@ -43,7 +43,7 @@ from robust.export import ControllerArtifact, discretize, write_artifact
 from uncertainty import sample, validate_family
 from uncertainty.margins import robust_margin
 
-__all__ = ["DESIGNS", "design_names", "get_design", "run_design"]
+__all__ = ["DESIGNS", "design_names", "report_design_names", "get_design", "run_design"]
 
 #: The shipped designs, in the order reports list them.
 DESIGNS: dict[str, Design] = {
@@ -72,6 +72,17 @@ def design_names() -> list[str]:
         The keys of :data:`DESIGNS`.
     """
     return list(DESIGNS)
+
+
+def report_design_names() -> list[str]:
+    """Names of the designs ``bdft report`` runs, in report order (the others run on demand).
+
+    Returns
+    -------
+    list of str
+        The keys of :data:`DESIGNS` whose :attr:`~designs.result.Design.in_report` is set.
+    """
+    return [name for name, d in DESIGNS.items() if d.in_report]
 
 
 def get_design(name: str) -> Design:

@@ -300,8 +300,12 @@ class Design:
         (an :class:`backhoe.Family`), tuned or checked on ``samples`` (an
         :class:`uncertainty.SampleSet`), within ``limits`` (a
         :class:`backhoe.model.device.DeviceLimits`).
+    in_report : bool
+        Whether ``bdft report`` runs it (a design that takes tens of minutes runs on
+        demand, ``bdft design NAME``).
     """
 
     name: str
     description: str
     build: Callable
+    in_report: bool = True

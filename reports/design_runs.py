@@ -10,7 +10,8 @@ scheduling of the work is kept here, apart from the page that
 
 from __future__ import annotations
 
-from designs import design_names, run_design
+from designs import run_design
+from designs.registry import report_design_names
 from robust.engine import map_tasks
 from robust.errors import BDFTError
 
@@ -123,7 +124,7 @@ def run_designs_with(
     extra : list
         The results of ``extra_tasks``, in order (an exception they raise is raised).
     """
-    names = list(names or design_names())
+    names = list(names or report_design_names())
     extra_tasks = list(extra_tasks)
     options = dict(
         samples=samples,

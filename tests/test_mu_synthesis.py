@@ -117,3 +117,11 @@ def test_certified_mu_peak_bad_input(small):
     # the measurement is minus the position: this gain is a negative stiffness of 50 N/m
     with pytest.raises(VerificationError, match="does not stabilise"):
         certified_mu_peak(_plant(), ct.ss([], [], [], [[-50.0]]), 1, 1, start=1.0)
+
+
+def test_musyn_is_registered_and_runs_on_demand_only():
+    from designs.registry import design_names, get_design, report_design_names
+
+    assert get_design("musyn").in_report is False
+    assert "musyn" in design_names() and "musyn" not in report_design_names()
+    assert report_design_names() == [n for n in design_names() if n != "musyn"]
