@@ -161,8 +161,8 @@ class MusynResult:
         ``G`` fit orders), ``fit_peak`` (the fitted scalings' peak bound on the grid for the
         previous closed loop), ``controller_order``, ``seconds``; the first iterate also
         ``start`` (``"identity"``: the unscaled plant; ``"balanced"``: constant scalings
-        from Osborne's balancing of the open loop, where SLICOT found no verified controller
-        for the unscaled plant).
+        from Osborne's balancing of the open loop; the one whose synthesis reached the
+        lower bound).
     method : str
         ``"D-K"`` or ``"D-G-K"``.
     best_iteration : int
@@ -289,12 +289,15 @@ def _unit_scales(block: np.ndarray, axis: int) -> np.ndarray:
     return np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
 
 
-def _given_units(plant: _Plant, K: ct.StateSpace) -> ct.StateSpace:
+def _given_units(plant: _Plant, K: ct.StateSpace, *, inverse: bool = False) -> ct.StateSpace:
     """The controller of the plant as given from ``K`` of the scaled ``plant.gp``
     (measurements ``y_scale * y``, controls ``u = u_scale * u'``):
-    ``diag(u_scale) K diag(y_scale)``."""
+    ``diag(u_scale) K diag(y_scale)``; with ``inverse``, the scaled plant's from the given
+    plant's ``K``."""
     A, B, C, D = _abcd(K)
     sy, su = plant.y_scale, plant.u_scale
+    if inverse:
+        sy, su = 1.0 / sy, 1.0 / su
     return ct.ss(A, B * sy[None, :], su[:, None] * C, su[:, None] * D * sy[None, :])
 
 
@@ -590,6 +593,7 @@ def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iter
                 # a scaled synthesis SLICOT cannot solve to a verified norm (an
                 # ill-conditioned scaled plant): the iterates so far stand
                 return str(exc)
+            start = None
         else:
             K, gamma, start = _first_k_step(plant, freqs, where)
         cl = plant.gp.closed_loop(K)
@@ -609,7 +613,7 @@ def _phase(plant: _Plant, freqs, orders, max_iter: int, step: str, history, iter
                 "seconds": time.perf_counter() - t0,
             }
         )
-        if it == 0:
+        if start is not None:
             history[-1]["start"] = start
         iterates.append((K, cl))
         stale = stale + 1 if mu_d.max() > best * (1 - IMPROVE_RTOL) else 0
@@ -800,10 +804,7 @@ def certified_mu_peak(
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise ParameterError(f"certified_mu_peak: {name} must be > 0; got {value!r}")
     plant = _lft_plant(P, int(nmeas), int(ncon))
-    A, B, C, D = _abcd(K)  # in the scaled plant's units (the inverse of _given_units)
-    sy, su = plant.y_scale, plant.u_scale
-    Ks = ct.ss(A, B / sy[None, :], C / su[:, None], D / su[:, None] / sy[None, :])
-    cl = plant.gp.closed_loop(Ks)
+    cl = plant.gp.closed_loop(_given_units(plant, K, inverse=True))
     if not is_stable(cl):
         raise VerificationError(
             "certified_mu_peak: K does not stabilise the nominal closed loop of P"
