@@ -90,13 +90,13 @@ def register(sub) -> None:
         "--method",
         choices=LOWER_METHODS,
         default="auto",
-        help="lower-bound certificate: 'auto' (default: zero exclusion on value sets for the "
-        "family's open loop and the region 'lhp', mu for a --system or a --controller unless "
-        "damping is asked in a band only, else the eigenvalue enclosures), "
-        "'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic Lyapunov LMI "
-        "per sub-box), 'valueset', or 'mu' (the loop's state matrix as an LFT, the family's or "
-        "a --system's, mixed mu below 1 at every frequency; a decay rate and damping of every "
-        "pole; --max-boxes caps its frequencies)",
+        help="lower-bound certificate: 'auto' (default: mu for a --system or a --controller, "
+        "zero exclusion on value sets for the family's open loop and the region 'lhp', else "
+        "mu), 'eigenvalues' (verified eigenvalue enclosures), 'lyapunov' (a quadratic "
+        "Lyapunov LMI per sub-box), 'valueset', or 'mu' (the loop's state matrix as an LFT, "
+        "the family's or a --system's, mixed mu below 1 on every edge of the region: the "
+        "decay line, the damping cone's edges, and for damping in a band the band's edges; "
+        "--max-boxes caps its frequencies)",
     )
     p.add_argument(
         "--search-seed",

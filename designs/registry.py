@@ -40,6 +40,7 @@ from robust.cache import cached, caching
 from robust.engine import nested_jobs
 from robust.errors import ParameterError
 from robust.export import ControllerArtifact, discretize, write_artifact
+from robust.synthesis.solve import deterministic_solvers
 from uncertainty import sample, validate_family
 from uncertainty.margins import robust_margin
 
@@ -257,18 +258,22 @@ def run_design(
     }
 
     def compute():
-        return _build_design(
-            name,
-            samples,
-            seed,
-            method,
-            lim,
-            held_out,
-            margin_boxes,
-            coverage_samples,
-            n_jobs,
-            progress,
-        )
+        # one BLAS thread and one Clarabel thread for the whole design, as in the report's
+        # worker processes: a saturated run's last digits depend on the BLAS's thread count,
+        # so without it `bdft report --jobs 1` and `--jobs 2` differed in them
+        with deterministic_solvers():
+            return _build_design(
+                name,
+                samples,
+                seed,
+                method,
+                lim,
+                held_out,
+                margin_boxes,
+                coverage_samples,
+                n_jobs,
+                progress,
+            )
 
     with caching(cache):  # (and its steps: the robust LMI ladders' rungs)
         (result, art), _ = cached("design", inputs, compute, enabled=cache)

@@ -90,8 +90,12 @@ def test_damping_region():
     region = Region(min_damping=0.3, band_hz=(0.1, 10.0))
     res = robust_margin(_second_order(2 * z * w, w**2), region=region)
     _check(res, 2 / 3)
-    # mu maps no damping cone: the automatic method takes the eigenvalue enclosures
-    assert res.certificate["method"] == "eigenvalues"
+    # the automatic method takes mu (the cone's edge over the band, and the band's edges)
+    assert res.certificate["method"] == "mu"
+    # the eigenvalue enclosures certify the band's region itself
+    eig = robust_margin(_second_order(2 * z * w, w**2), region=region, method="eigenvalues")
+    _check(eig, 2 / 3)
+    assert eig.certificate["method"] == "eigenvalues"
 
 
 def test_uncertain_plant_closed_by_a_python_control_controller():
@@ -184,11 +188,29 @@ def test_the_mu_route_certifies_a_decay_rate_margin():
     assert "main loop theorem" in str(err.value)
 
 
-def test_the_mu_route_says_where_it_does_not_apply():
-    c = ureal("c", 1.0, 0.2, 3.0)
-    G = uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]])
-    with pytest.raises(ParameterError, match="method 'mu' maps the damping cone at every"):
-        robust_margin(G, region=Region(min_damping=0.2, band_hz=(0.5, 10.0)), method="mu")
+@pytest.mark.parametrize(
+    "f_hz, low_hz, high_hz, edge_hz",
+    [(12.0, 8.0, 16.0, 10.0), (0.3, 0.1, 0.7, 0.5)],
+    ids=["from-above", "from-below"],
+)
+def test_the_mu_route_certifies_damping_asked_in_a_band(f_hz, low_hz, high_hz, edge_hz):
+    # s^2 + 2 z w s + w^2 with z = 0.05 and w/(2 pi) in [low, high] Hz about f: damping 0.1
+    # asked in 0.5-10 Hz only. The centre's poles lie outside the band, less damped than
+    # it asks; a member breaks the region when its damped frequency w sqrt(1 - z^2) reaches
+    # the band's edge (by the band's edge |Im s| = w0, not by the cone): w = edge / sqrt(1 -
+    # z^2), at the scale |w - f| / (f - low) (or high - f). The cone of every pole would
+    # certify nothing (the centre is outside it).
+    z = 0.05
+    w = ureal("w", 2 * math.pi * f_hz, 2 * math.pi * low_hz, 2 * math.pi * high_hz)
+    region = Region(min_damping=0.1, band_hz=(0.5, 10.0))
+    crossing = edge_hz / math.sqrt(1 - z**2)
+    side = (f_hz - low_hz) if crossing < f_hz else (high_hz - f_hz)
+    exact = abs(crossing - f_hz) / side
+    res = robust_margin(_second_order(2 * z * w, w**2), region=region, method="mu")
+    _check(res, exact)
+    assert res.certificate["method"] == "mu"
+    every = Region(min_damping=0.1, band_hz=(0.0, np.inf))
+    assert robust_margin(_second_order(2 * z * w, w**2), region=every, method="mu").lower == 0
 
 
 def test_the_mu_route_certifies_the_family_loop():

@@ -217,8 +217,9 @@ def test_value_sets_apply_only_to_the_open_loop_and_the_half_plane(family):
         margin_lower_bound(
             family, region=Region(decay_rate=0.1), method="valueset", ladder=0, iterations=0
         )
-    # auto falls back to the eigenvalue enclosures where the route does not apply
+    # where the route does not apply, auto takes mu on the loop's LFT (the family gives its
+    # uncertain system)
     _, cert = margin_lower_bound(
         family, region=Region(decay_rate=0.1), k_hint=0.01, ladder=0, iterations=0, max_boxes=8
     )
-    assert cert["method"] == "eigenvalues"
+    assert cert["method"] == "mu"

@@ -55,6 +55,14 @@ Lower bound (:func:`margin_lower_bound`)
     half-plane (a damping-ratio requirement is checked by the upper bound only, and
     the output says so).
 
+    By mu (``method="mu"``, the automatic choice for a loop closed by a compensator and
+    wherever the value sets do not apply): the closed-loop state matrix as an LFT over
+    the scaled box, and the mixed-mu upper bound below 1 on every edge of the region, no
+    frequency grid trusted (:func:`_region_maps`: the decay line, the damping cone's
+    edges, and for a damping ratio asked in a band only the cone's edge over the band
+    and the band's edges ``|Im s| = w0``); the scales are tried downwards from just
+    below the upper bound.
+
 Modules
 -------
 The margin's parts live in modules of their own, in layers (each imports only those
@@ -193,20 +201,32 @@ def _valueset_why_not(loop, region) -> str:
 
 
 def _resolve_method(loop, region, method: str) -> str:
-    """``auto``: the value-set route for a family's open loop and the open left half-plane
-    (where it applies); mu for an uncertain system's loop and for a family's loop closed by
-    a compensator (a decay rate, and a damping ratio required of every pole); else the
-    eigenvalue enclosures (mu is the tighter on the family's compensated loops: the
-    CHANGELOG has the figures)."""
+    """``auto``: mu for an uncertain system's loop and for a family's loop closed by a
+    compensator; the value-set route for a family's open loop and the open left half-plane
+    (where it applies); mu for any other loop that gives an uncertain system; else the
+    eigenvalue enclosures (mu is the tighter on the family's loops: the CHANGELOG has the
+    figures)."""
     if method != "auto":
         return method
-    mu_region = region.min_damping == 0 or tuple(region.band_hz) == EVERY_FREQUENCY_HZ
-    if mu_region and getattr(loop, "prefers_mu", False):
+    prefers = getattr(loop, "prefers_mu", False)
+    if prefers:
         return "mu"
     if not _valueset_why_not(loop, region):
         return "valueset"
-    return "eigenvalues"
+    return "mu" if _has_system(loop) else "eigenvalues"
 
+
+def _has_system(loop) -> bool:
+    """Whether ``loop`` gives itself as an uncertain system (the mu route's input)."""
+    try:
+        loop.system  # noqa: B018 (built on first use; a family without one refuses)
+    except (AttributeError, ParameterError):
+        return False
+    return True
+
+
+#: The first scales the mu route tries, as fractions of the top of its search (then halving).
+_MU_FRACTIONS = (15 / 16, 7 / 8, 3 / 4)
 
 #: Bound of the real blocks' G scalings (relative to D) on the rotated map of the damping
 #: cone: the rotated loop is complex and its real parameters' mu bound needs larger G than
@@ -216,6 +236,60 @@ def _resolve_method(loop, region, method: str) -> str:
 CONE_G_MAX = 100.0
 
 
+def _region_maps(A0, L, region: Region, shift: float) -> list:
+    """The maps whose imaginary axis, over a band, no member's pole may reach.
+
+    ``(what, A, L, band)``: a member of ``A(delta) = A0 + L Delta (I - F Delta)^-1 R`` has a
+    pole on the boundary piece ``what`` exactly when ``A(delta)`` mapped by ``s -> a s + b``
+    (``A -> a A0 + b I``, ``L -> a L``) has an eigenvalue ``j w`` with ``w`` in ``band``
+    (rad/s, ``w >= 0``). With the centre member inside the region, the box's members stay
+    inside while no pole of any of them meets the boundary (the poles move continuously
+    along the segment from the centre): the mu cover of each map shows that none does.
+
+    * the decay rate: the line ``Re s = -shift``, ``s -> s + shift``, every frequency;
+    * a damping ratio ``zeta = cos(theta)`` of every pole: the cone's edges,
+      ``s -> e^{j(pi/2 - theta)} s`` turns its lower edge onto the negative imaginary axis
+      and the conjugate map its upper one onto the positive axis;
+    * a damping ratio in a band ``w_lo <= |Im s| <= w_hi`` only: the region is not convex,
+      and its boundary inside the left half-plane is the upper edge between the moduli
+      ``w_lo / sin(theta)`` and ``w_hi / sin(theta)`` (the conjugate map over that band)
+      and the horizontal segments ``Im s = w0`` (``w0`` = ``w_lo``, ``w_hi``) from the cone
+      edge, ``Re s = -w0 cot(theta)``, to the decay line: ``s -> -j (s - j w0)`` turns the
+      point ``x + j w0`` into ``-j x``, so the segment is the band ``shift <= w <=
+      w0 cot(theta)`` (a pole entering the band with less damping crosses it). The lower
+      half-plane's pieces are the conjugates of these: a real matrix's poles come in
+      conjugate pairs, and ``mu`` of a conjugate matrix is the same.
+    """
+    n = A0.shape[0]
+    eye = np.eye(n)
+    maps = [("decay rate", A0 + shift * eye, L, (0.0, math.inf))]
+    if region.min_damping <= 0:
+        return maps
+    sin_t, cos_t = region.cone
+    rot = complex(sin_t, cos_t)
+    band_hz = tuple(region.band_hz)
+    if band_hz == EVERY_FREQUENCY_HZ:
+        maps.append(("damping", rot * A0, rot * L, (0.0, math.inf)))
+        maps.append(("damping", rot.conjugate() * A0, rot.conjugate() * L, (0.0, math.inf)))
+        return maps
+    w_lo, w_hi = (2 * math.pi * f for f in band_hz)
+    maps.append(
+        ("damping", rot.conjugate() * A0, rot.conjugate() * L, (w_lo / sin_t, w_hi / sin_t))
+    )
+    for w0 in (w_lo, w_hi):
+        edge = cos_t * w0 / sin_t  # -Re s of the cone's edge at Im s = w0
+        if 0 < w0 < math.inf and edge > shift:
+            maps.append(
+                (
+                    f"damping at {w0 / (2 * math.pi):g} Hz",
+                    -1j * A0 - w0 * eye,
+                    -1j * L,
+                    (shift, edge),
+                )
+            )
+    return maps
+
+
 def _mu_scale(loop, k, region, max_boxes, deadline):
     """Robust pole placement of the box scaled by ``k`` by mu (:mod:`uncertainty.mucover`).
 
@@ -223,14 +297,12 @@ def _mu_scale(loop, k, region, max_boxes, deadline):
     mapped onto the open left half-plane (the main loop theorem, Zhou, Doyle & Glover 1996,
     ch. 10): shifted by the required decay rate, every member's poles lie left of
     ``-max(decay_rate, STABILITY_TOL)`` when the shifted centre is stable and
-    ``mu(R (jw I - A0 - a I)^-1 L + F) < 1`` at every frequency. For a damping ratio
-    ``zeta = cos(theta)`` the same with ``A(delta)`` rotated by ``e^{j(pi/2 - theta)}``:
-    a real matrix's poles come in conjugate pairs, so all of them lie inside the cone
-    ``|arg(-p)| < theta`` exactly when the rotated matrix is stable (the cone's upper edge
-    turned onto the imaginary axis, its lower edge into the left half-plane); the rotated
-    LFT is complex, so its negative frequencies are covered as the conjugate system's
-    positive ones (``mu`` of a conjugate matrix is the same for real and complex blocks).
-    ``max_boxes`` bounds the frequencies the cover may use over all the maps."""
+    ``mu(R (jw I - A0 - a I)^-1 L + F) < 1`` at every frequency. A damping ratio is
+    shown the same way on the maps of the region's other edges (:func:`_region_maps`: the
+    cone's edges, rotated onto the imaginary axis, and for a band only the edges of the
+    band), each over the frequencies of its piece of the boundary, with the centre member
+    inside the region. ``max_boxes`` bounds the frequencies the cover may use over all the
+    maps."""
     sysA = loop.system
     n = sysA.nstates
     lo, hi = scaled_bounds(sysA, k)
@@ -248,39 +320,29 @@ def _mu_scale(loop, k, region, max_boxes, deadline):
     A0 = np.asarray(M.A, float)
     B, C, D = (np.asarray(x, float) for x in (M.B[:, :R], M.C[:R], M.D[:R, :R]))
     stats = {"method": "mu", "blocks": [list(b) for b in form.mu_blocks]}
-    # (what, A, L) of each map onto the open left half-plane, and the halves of the axis
-    # each needs covered
-    maps = [("decay rate", A0 + shift * np.eye(n), B)]
-    if region.min_damping > 0:
-        sin_t, cos_t = region.cone
-        rot = complex(sin_t, cos_t)
-        maps.append(("damping", rot * A0, rot * B))
-    for what, Am, _ in maps:
-        if float(np.linalg.eigvals(Am).real.max()) >= 0:
-            return False, dict(
-                stats, reason=f"the box's centre member is outside the region ({what})"
-            )
+    p0 = np.linalg.eigvals(A0)
+    if float(region.violation(p0[None])[0]) >= 0:
+        return False, dict(stats, reason="the box's centre member is outside the region")
     used, peak = 0, 0.0
-    for what, Am, Lm in maps:
-        rotated = np.iscomplexobj(Am)
-        halves = [(Am, Lm)] + ([(Am.conj(), Lm.conj())] if rotated else [])
-        for Ah, Lh in halves:
-            res = mu_cover(
-                Ah,
-                Lh,
-                C,
-                D,
-                form.mu_blocks,
-                max_frequencies=max_boxes - used,
-                deadline=deadline,
-                g_max=CONE_G_MAX if rotated else G_MAX,
-            )
-            used += len(res["frequencies"])
-            peak = max([peak] + [f["mu_upper"] for f in res["frequencies"]])
-            if not res["certified"]:
-                stats.update(frequencies=used, peak_mu_upper=peak)
-                stats["reason"] = f"{what}: {res['reason']}"
-                return False, stats
+    for what, Am, Lm, band in _region_maps(A0, B, region, shift):
+        complex_map = np.iscomplexobj(Am)
+        res = mu_cover(
+            Am,
+            Lm,
+            C,
+            D,
+            form.mu_blocks,
+            max_frequencies=max_boxes - used,
+            deadline=deadline,
+            g_max=CONE_G_MAX if complex_map else G_MAX,
+            band=band,
+        )
+        used += len(res["frequencies"])
+        peak = max([peak] + [f["mu_upper"] for f in res["frequencies"]])
+        if not res["certified"]:
+            stats.update(frequencies=used, peak_mu_upper=peak)
+            stats["reason"] = f"{what}: {res['reason']}"
+            return False, stats
     stats.update(frequencies=used, peak_mu_upper=peak)
     # seeded members of the certified box, its corners first: any outside the region
     # means the certificate is wrong
@@ -369,7 +431,9 @@ def margin_lower_bound(
         Top of the search (e.g. the upper bound), > 0.
     ladder : int
         Scales tried upwards first: ``k_hint / 2^ladder, ..., k_hint / 2, k_hint``,
-        stopping at the first that is not certified.
+        stopping at the first that is not certified (by mu: downwards, ``15/16, 7/8, 3/4,
+        1/2, ..., 1/2^ladder`` of ``k_hint``, stopping at the first certified); 0: ``k_hint``
+        only.
     iterations : int
         Bisection steps after the ladder.
     max_boxes : int
@@ -380,9 +444,9 @@ def margin_lower_bound(
         budget and is the same on every machine unless this limit is hit, which the history
         records.
     method : str
-        ``"auto"`` (default: ``"valueset"`` where it applies, ``"mu"`` for an uncertain
-        system or a family's loop with a compensator unless damping is asked in a band
-        only, else ``"eigenvalues"``),
+        ``"auto"`` (default: ``"mu"`` for an uncertain system or a family's loop with a
+        compensator, else ``"valueset"`` where it applies, else ``"mu"`` where the loop
+        gives an uncertain system, else ``"eigenvalues"``),
         ``"eigenvalues"`` (verified eigenvalue enclosures over sub-boxes, see
         :func:`certify_box`), ``"lyapunov"`` (a quadratic Lyapunov certificate of the
         interval matrix, :func:`certify_interval_matrix`; decay rate only) or
@@ -393,8 +457,10 @@ def margin_lower_bound(
         loop built from the same blocks over uncertain reals
         (:func:`backhoe.families.loop.family_uss`), the mixed-mu upper bound below 1 at every
         frequency, :mod:`uncertainty.mucover`; a decay rate, and a damping ratio of every
-        pole by the cone's rotation; ``max_boxes`` caps the frequencies of one scale). The
-        method used is the certificate's ``"method"``.
+        pole by the cone's rotation, or in a band by the cone's edge and the band's edges
+        (:func:`_region_maps`); ``max_boxes`` caps the frequencies of one scale; the
+        scales are tried downwards from 15/16 of ``k_hint``, then bisected). The method
+        used is the certificate's ``"method"``.
     progress : callable, optional
         Called with a short message at each scale.
     jobs : int
@@ -425,19 +491,11 @@ def margin_lower_bound(
         if why:
             raise ParameterError(f"margin_lower_bound: method 'valueset' {why}")
     if method == "mu":
-        why = (
-            "maps the damping cone at every frequency only (a band_hz other than "
-            "EVERY_FREQUENCY_HZ is not an LMI region)"
-            if region.min_damping > 0 and tuple(region.band_hz) != EVERY_FREQUENCY_HZ
-            else ""
-        )
-        if not why and not hasattr(loop, "system"):
-            why = (
-                f"needs the loop as an uncertain system (a 'system' attribute), which "
-                f"{type(loop).__name__} does not give"
+        if not hasattr(loop, "system"):
+            raise ParameterError(
+                f"margin_lower_bound: method 'mu' needs the loop as an uncertain system (a "
+                f"'system' attribute), which {type(loop).__name__} does not give"
             )
-        if why:
-            raise ParameterError(f"margin_lower_bound: method 'mu' {why}")
     step = progress or (lambda msg: None)
     start = time.perf_counter()
     history = []
@@ -471,15 +529,34 @@ def margin_lower_bound(
             witness = (st["unstable_scale"], st["unstable_member"])
         return min(k, witness[0]) if witness is not None else k
 
-    for j in range(ladder, -1, -1):
-        k = top / 2.0**j
-        if time.perf_counter() - start > time_limit_s:
-            break
-        ok, st = attempt(k)
-        if not ok:
+    if method == "mu":
+        # mu's bound is close to exact on these loops and a cover costs about the same at
+        # any scale, so the scales are tried downwards from just below the top (the upper
+        # bound, held by a member outside the region): 15/16, 7/8, 3/4, then halving, down
+        # to top / 2^ladder, stopping at the first certified; the bisection then works
+        # between it and the last that failed (the top itself when none did)
+        # (ladder 0: the top only, as for the other methods)
+        bad = top
+        fractions = _MU_FRACTIONS + tuple(2.0**-j for j in range(1, ladder + 1))
+        for f in fractions if ladder > 0 else (1.0,):
+            k = top * f
+            if time.perf_counter() - start > time_limit_s:
+                break
+            ok, st = attempt(k)
+            if ok:
+                good, good_stats = k, st
+                break
             bad = failed(k, st)
-            break
-        good, good_stats = k, st
+    else:
+        for j in range(ladder, -1, -1):
+            k = top / 2.0**j
+            if time.perf_counter() - start > time_limit_s:
+                break
+            ok, st = attempt(k)
+            if not ok:
+                bad = failed(k, st)
+                break
+            good, good_stats = k, st
     for _ in range(iterations if bad is not None else 0):
         if time.perf_counter() - start > time_limit_s:
             break
@@ -505,7 +582,9 @@ def margin_lower_bound(
 _LOWER_TEXT = {
     "mu": "main loop theorem: the state matrix's LFT over the scaled box (Zhou, Doyle & "
     "Glover 1996, ch. 10), shifted by the decay rate, and for a damping ratio rotated by "
-    "the cone's angle (its negative frequencies covered as the conjugate system's); the "
+    "the cone's angle (its negative frequencies covered as the conjugate system's), over "
+    "the band's moduli only when the damping is asked in a band, whose edges |Im s| = "
+    "w0 are covered from the cone to the decay line by the map s -> -j (s - j w0); the "
     "mixed-mu upper bound (D-G "
     "scalings, Fan, Tits & Doyle 1991) below 1 at every frequency, each frequency's "
     "scalings holding on the interval between the nearest imaginary-axis zeros of the "
@@ -531,6 +610,16 @@ _LOWER_TEXT = {
     "norm-bounded set (Boyd et al. 1994, Sec. 5.1; Patel & Toda 1980), LMIs by cvxpy with "
     "Clarabel, each certificate re-checked in numpy; box subdivision; bisection",
 }
+
+
+def _lower_region_text(region: Region, method: str, cert: dict) -> str:
+    """What the lower bound's certificate holds for, beside the region asked."""
+    if method == "lyapunov":
+        text = Region(decay_rate=region.decay_rate).describe()
+        if region.min_damping > 0:
+            text += " (the damping requirement is checked by the upper bound only)"
+        return text
+    return region.describe()
 
 
 def robust_margin(
@@ -594,8 +683,8 @@ def robust_margin(
     >>> c = ureal("c", 1.0, 0.2, 3.0)
     >>> G = uss([[0, 1], [-4, -c]], [[0], [1]], [[1, 0]], [[0]])
     >>> res = robust_margin(G, region=Region(decay_rate=0.3))
-    >>> round(res.lower, 3), round(res.upper, 4), round(res.critical["parameters"]["c"], 4)
-    (0.485, 0.5005, 0.5996)
+    >>> round(res.lower, 4), round(res.upper, 4), round(res.critical["parameters"]["c"], 4)
+    (0.4985, 0.5005, 0.5996)
     """
     loop = margin_loop(family, controller)
     region = loop_region(loop, region)
@@ -643,14 +732,7 @@ def robust_margin(
         "segment from the nominal (bisection to 1e-3 of the scale), whose scale is the "
         "bound; the critical member is re-checked with python-control",
         "lower": _LOWER_TEXT[cert.get("method", method)],
-        "lower_region": (
-            Region(decay_rate=region.decay_rate) if method == "lyapunov" else region
-        ).describe()
-        + (
-            " (the damping requirement is checked by the upper bound only)"
-            if method == "lyapunov" and region.min_damping > 0
-            else ""
-        ),
+        "lower_region": _lower_region_text(region, cert.get("method", method), cert),
         "scaling": "each parameter scaled about its nominal in its own coordinates (log for "
         "log-uniform); non-negative linear ranges floored at 1e-6 of their upper end",
     }
