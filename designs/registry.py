@@ -310,7 +310,7 @@ def _build_design(
             seed=seed,
             max_boxes=margin_boxes,
             ladder=6,
-            iterations=2,
+            iterations=1,
             jobs=n_jobs,
         )
         # the tracking bound's robust performance margin, with the same switch

@@ -24,6 +24,20 @@ from uncertainty.randomized import coverage_consistent
 __all__: list[str] = []
 
 
+def _certificate_text(certificate: dict) -> str:
+    """What certified the lower bound: mu's frequencies and peak bound, or the sub-boxes."""
+    cert = certificate.get("certified_stats")
+    scale = certificate.get("certified_scale")
+    if scale is None or cert is None:
+        return "none: the centre member is outside the region"
+    if scale == 0:
+        return "the centre member only"
+    if certificate.get("method") == "mu":
+        return f"mu: {cert['frequencies']} frequencies, peak bound {cert['peak_mu_upper']:.3f}"
+    routes = ", ".join(f"{k} {v}" for k, v in cert.get("routes", {}).items())
+    return f"{cert.get('boxes', 0)} sub-boxes ({routes or '-'})"
+
+
 def _margin_section(page: HtmlPage, runs: dict) -> None:
     """Both bounds of every design's robust margin, the member that breaks it, the method."""
     margins = {
@@ -41,19 +55,8 @@ def _margin_section(page: HtmlPage, runs: dict) -> None:
         if len(crit.get("poles", ())):
             p = max(crit["poles"], key=lambda z: z.real)
             worst = f"{p.real:+.3f} {p.imag:+.3f}j"
-        cert = m.certificate.get("certified_stats") or {}
-        routes = ", ".join(f"{k} {v}" for k, v in cert.get("routes", {}).items())
         gap = m.upper / m.lower if m.lower > 0 else float("inf")
-        rows.append(
-            [
-                name,
-                m.lower,
-                m.upper,
-                gap,
-                worst,
-                f"{cert.get('boxes', 0)} sub-boxes ({routes or '-'})",
-            ]
-        )
+        rows.append([name, m.lower, m.upper, gap, worst, _certificate_text(m.certificate)])
     page.table(
         [
             "design",

@@ -40,7 +40,7 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
                 "--coverage-samples",
                 "60",
                 "--margin-boxes",
-                "20",
+                "60",
                 "--jobs",
                 "2",
                 "--out",
@@ -72,6 +72,12 @@ def test_design_cancellation_json_and_artifact(tmp_path, capsys):
     assert cov["violations"]["tracking"] == 60
     assert 10 < cov["violations"]["decay rate"] < 60
     assert sum(cov["binding"].values()) == 60
+    # the certified robust margin for the specification's pole region (its damping in
+    # 0.5-10 Hz) by mu on the loop's LFT: within a tenth of the upper bound, a member
+    # outside the region there
+    margin = obj["details"]["robust_margin"]
+    assert 0.9 * margin["upper"] <= margin["lower"] <= margin["upper"] < 1.0
+    assert margin["certificate"]["method"] == "mu" and margin["critical"]["violation"] > 0
     # the tracking bound's robust performance margin: the cancellation is exact on the
     # nominal member only, so the bound holds on a sliver of the box (2 % of its scale),
     # and no fresh member of the coverage sample lies that close to the nominal

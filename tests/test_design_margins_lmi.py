@@ -44,8 +44,8 @@ def test_shipped_robust_lmi_design_certified_margin_and_spec(runs):
     # certified robust margin for the specification's region (the damping asked in
     # 0.5-10 Hz): the box scaled to 0.9 of the upper bound is certified for the shipped
     # controller, by mu on the loop's LFT (the cone's edge over the band and the band's
-    # edges; the report's margin certifies 0.953 of it, the eigenvalue enclosures certified
-    # 0.31); a single scale keeps the test short
+    # edges; the report's margin certifies 0.9375 of it, the eigenvalue enclosures
+    # certified 0.31); a single scale keeps the test short
     upper, critical, _ = margin_upper_bound(
         default_family(), controller=r.controller, region=spec.region(), samples=1000, seed=0
     )
