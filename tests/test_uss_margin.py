@@ -296,3 +296,35 @@ def test_the_mu_route_certifies_a_decay_rate_and_a_damping_ratio_together(zeta, 
     res = robust_margin(_second_order(c / m, 4.0 / m), region=region)
     _check(res, min(decay, damping))
     assert res.certificate["method"] == "mu"
+
+
+def test_every_edge_of_a_band_region_is_on_some_maps_axis():
+    # the mu route's soundness: a pole anywhere on the boundary of the violating set of
+    # "decay 0.1, damping 0.1 in 0.5-10 Hz" (the cone's upper edge between the band's
+    # moduli, the band's edges from the cone to the decay line) is an imaginary eigenvalue
+    # of one of the maps, inside that map's band; a pole well inside the region is on none
+    from uncertainty.margins import _region_maps
+
+    region = Region(decay_rate=0.1, min_damping=0.1, band_hz=(0.5, 10.0))
+    sin_t, cos_t = region.cone
+    w_lo, w_hi = 2 * math.pi * 0.5, 2 * math.pi * 10.0
+
+    def hits(p):
+        A = np.array([[p.real, p.imag], [-p.imag, p.real]])  # poles p and its conjugate
+        out = set()
+        for name, Am, _, band in _region_maps(A, np.eye(2), region, 0.1):
+            for e in np.linalg.eigvals(Am):
+                if abs(e.real) < 1e-9 and band[0] - 1e-9 <= e.imag <= band[1] + 1e-9:
+                    out.add(name)
+        return out
+
+    for r in np.linspace(w_lo / sin_t, w_hi / sin_t, 7):
+        assert "damping" in hits(r * complex(-cos_t, sin_t))
+    for w0, name in ((w_lo, "damping at 0.5 Hz"), (w_hi, "damping at 10 Hz")):
+        for x in np.linspace(-cos_t * w0 / sin_t, -0.1, 5):
+            assert name in hits(complex(x, w0))
+    for y in np.linspace(-100.0, 100.0, 9):
+        assert "decay rate" in hits(complex(-0.1, y))
+    # inside: well damped in the band, and lightly damped above and below it
+    for p in (complex(-20.0, 30.0), complex(-0.5, 80.0), complex(-0.2, 1.0)):
+        assert hits(p) == set()
