@@ -89,17 +89,20 @@ def register(sub) -> None:
     p.add_argument(
         "--certify-samples",
         type=integer("--certify-samples", low=0, high=10_000),
-        default=10,
-        help="scheduled only: members (the first of the coverage members) whose design's "
-        "robust margin over the box its calibration bounds is certified, about 6 "
-        "core-seconds each (0: not computed; default: %(default)s)",
+        default=None,
+        help="scheduled and calibrated-force only: members whose design's robust margin over "
+        "the box its calibration bounds is certified (scheduled: the first of the coverage "
+        "members, about 6 core-seconds each; calibrated-force: members drawn with the "
+        "coverage seed, by mu, minutes each) (0: not computed; default: 10 for scheduled, 3 "
+        "for calibrated-force)",
     )
     p.add_argument(
         "--limit-samples",
         type=integer("--limit-samples", low=0, high=4096),
         default=64,
         help="scheduled only: Latin-hypercube members of the limit map the bank's coverage is "
-        "compared with (0: not computed; default: %(default)s)",
+        "compared with; calibrated-force: the first coverage members that also get their own "
+        "limit (0: not computed; default: %(default)s)",
     )
     add_cache_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -115,18 +118,27 @@ SCHEDULED_DESCRIPTION = (
 )
 
 
+#: The calibrated handle-force design (:mod:`designs.calibrated_force`), its own pipeline too.
+CALIBRATED_FORCE = "calibrated-force"
+
+
 def _listing() -> list[dict]:
     """Every design's name and one-line description, in report order."""
+    from designs.calibrated_force import DESCRIPTION
     from designs.registry import DESIGNS
 
     rows = [{"name": d.name, "description": d.description} for d in DESIGNS.values()]
-    return [*rows, {"name": SCHEDULED, "description": SCHEDULED_DESCRIPTION}]
+    return [
+        *rows,
+        {"name": SCHEDULED, "description": SCHEDULED_DESCRIPTION},
+        {"name": CALIBRATED_FORCE, "description": DESCRIPTION},
+    ]
 
 
 def _all_names() -> list[str]:
     from designs.registry import design_names
 
-    return [*design_names(), SCHEDULED]
+    return [*design_names(), SCHEDULED, CALIBRATED_FORCE]
 
 
 def _names() -> str:
@@ -158,7 +170,7 @@ def _run_scheduled(args) -> int:
         seed=args.seed,
         limit_samples=args.limit_samples,
         border_samples=args.border_samples,
-        certify_samples=args.certify_samples,
+        certify_samples=10 if args.certify_samples is None else args.certify_samples,
         n_jobs=args.jobs,
         progress=member_progress("calibrations"),
     )
@@ -210,6 +222,63 @@ def _run_scheduled(args) -> int:
     return 0
 
 
+def _run_calibrated_force(args) -> int:
+    """``bdft design calibrated-force``: :mod:`designs.calibrated_force`."""
+    out = check_artifact_targets("--out", args.out, [CALIBRATED_FORCE])
+    certify = 3 if args.certify_samples is None else args.certify_samples
+    from backhoe import default_family
+    from designs.calibrated_force import calibrated_force_design
+    from robust.jsonio import atomic_write_json
+
+    print(
+        f"[bdft design] calibrated handle force: coverage on {args.coverage_samples} members "
+        f"(seed {args.seed + 2}), own limits on the first {args.limit_samples}, "
+        f"{certify} operators certified ...",
+        file=sys.stderr,
+    )
+    obj = calibrated_force_design(
+        default_family(),
+        samples=args.coverage_samples,
+        limit_samples=args.limit_samples,
+        certify=certify,
+        seed=args.seed,
+        n_jobs=args.jobs,
+        progress=member_progress("calibrated designs"),
+    )
+    art = dict(obj, kind="bdft-calibrated-design")
+    obj["artifact"] = str(atomic_write_json(out / f"{CALIBRATED_FORCE}.json", art))
+    if args.json:
+        print_json(obj)
+        return 0
+    print(f"{'set':20s} {obj['set']['actuators']}/{obj['set']['sensors']}")
+    print(f"{'design dampings':20s} {obj['design_dampings']} (box members {obj['box_members']})")
+    if obj["coverage"]:
+        c = obj["coverage"]
+        cov, lim = c["coverage"], c["limit"]
+        print(
+            f"{'coverage':20s} {cov['fraction']:.4f} ({cov['failures']} failures in "
+            f"{cov['samples']}; P(failure) <= {cov['epsilon']:.4f} at {cov['confidence']})"
+        )
+        print(f"{'binding':20s} {c['binding']}")
+        print(
+            f"{'own limits':20s} {lim['coverage']:.4f} on the first {lim['samples']}; the "
+            f"calibrated design {lim['calibrated_coverage']:.4f} there (ratio {lim['ratio']:.3g})"
+        )
+        print(f"{'within bounds':20s} {c['operator_within_bound']:.4f} (operator)")
+        print(f"{'damping asked':20s} {c['dampings']}")
+    if obj["certificates"]:
+        for i, m in enumerate(obj["certificates"]["members"]):
+            text = (
+                f"[{m['lower']:.3g}, {m['upper']:.3g}] of its calibration's box ({m['method']}, "
+                f"order {m['order']})"
+                if m["designed"]
+                else f"no design ({m['binding']})"
+            )
+            print(f"{'operator ' + str(i):20s} {text}")
+    print(f"{'artifact':20s} {obj['artifact']}")
+    return 0
+
+
 def run(args) -> int:
     """List the designs, or run one through :func:`designs.registry.run_design` and print it.
 
@@ -250,6 +319,8 @@ def run(args) -> int:
         raise UsageError(f"NAME: unknown design {args.name!r}; expected one of {_names()}")
     if args.name == SCHEDULED:
         return _run_scheduled(args)
+    if args.name == CALIBRATED_FORCE:
+        return _run_calibrated_force(args)
     check_artifact_targets("--out", args.out, [args.name])
     from designs.registry import run_design
 
