@@ -268,12 +268,15 @@ def _run_calibrated_force(args) -> int:
         print(f"{'damping asked':20s} {c['dampings']}")
     if obj["certificates"]:
         for i, m in enumerate(obj["certificates"]["members"]):
-            text = (
-                f"[{m['lower']:.3g}, {m['upper']:.3g}] of its calibration's box ({m['method']}, "
-                f"order {m['order']})"
-                if m["designed"]
-                else f"no design ({m['binding']})"
-            )
+            if not m["designed"]:
+                text = f"no design ({m['binding']})"
+            elif "error" in m:
+                text = f"not certified: {m['error']}"
+            else:
+                text = (
+                    f"[{m['lower']:.3g}, {m['upper']:.3g}] of its calibration's box (mu, "
+                    f"order {m['order']})"
+                )
             print(f"{'operator ' + str(i):20s} {text}")
     print(f"{'artifact':20s} {obj['artifact']}")
     return 0

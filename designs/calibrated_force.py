@@ -60,6 +60,7 @@ from designs.spec import check_specification
 from designs.specification import Specification
 from robust.checks import check_int
 from robust.engine import run_calls
+from robust.errors import BDFTError
 from robust.synthesis.solve import deterministic_solvers
 from uncertainty import sample
 from uncertainty.margins import robust_margin
@@ -420,16 +421,19 @@ def _certify_one(family, row, seed, spec, time_limit_s):
         res, K, choice = design_for(family, cal, spec, seed=int(seed))
         if K is None:
             return {"designed": False, "binding": res.binding}
-        r = robust_margin(
-            force_operator_family(family, cal),
-            controller=K,
-            region=spec.region(),
-            samples=200,
-            ladder=6,
-            iterations=2,
-            time_limit_s=time_limit_s,
-            method="mu",
-        )
+        try:
+            r = robust_margin(
+                force_operator_family(family, cal),
+                controller=K,
+                region=spec.region(),
+                samples=200,
+                ladder=6,
+                iterations=2,
+                time_limit_s=time_limit_s,
+                method="mu",
+            )
+        except BDFTError as e:  # the certificate's own check refused its answer
+            return {"designed": True, "error": str(e), "order": int(K.nstates), "choice": choice}
         return {
             "designed": True,
             "lower": r.lower,

@@ -13,7 +13,7 @@ def test_design_list(capsys):
     assert main(["design", "--list"]) == 0
     lines = capsys.readouterr().out.splitlines()
     names = [line.split()[0] for line in lines]
-    assert names == [*design_names(), "scheduled"]
+    assert names == [*design_names(), "scheduled", "calibrated-force"]
     # each line says what the design is, the descriptions aligned in one column
     column = {len(line) - len(line[len(name) :].lstrip()) for line, name in zip(lines, names)}
     assert len(column) == 1
@@ -23,7 +23,7 @@ def test_design_list(capsys):
 def test_design_list_json(capsys):
     assert main(["design", "--list", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)["designs"]
-    assert [r["name"] for r in rows] == [*design_names(), "scheduled"]
+    assert [r["name"] for r in rows] == [*design_names(), "scheduled", "calibrated-force"]
     assert all(set(r) == {"name", "description"} and len(r["description"]) > 30 for r in rows)
 
 

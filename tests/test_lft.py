@@ -97,3 +97,31 @@ def test_the_lft_feeds_mussv_with_the_exact_margin():
     assert at2.lower == pytest.approx(1.4 / 1.6, rel=1e-6)
     assert at2.upper == pytest.approx(1.4 / 1.6, rel=1e-3) and at2.upper >= at2.lower
     assert mussv(mzw(1.0), F.mu_blocks).upper < 0.05
+
+
+def test_a_parameter_with_a_tiny_range_keeps_its_channels():
+    # b's range is 1e-12 of a's: normalised by the ranges, its channel sat below the
+    # reduction's threshold set by a's, and the reduced LFT left b out (a box scaled to 1e-4
+    # about a loop with controller gains of 1e7 lost its operator's parameters that way,
+    # and mu certified a box with a member outside the region)
+    a, b = ureal("a", 1.0, 0.5, 1.5), ureal("b", 2.0, 1.0, 3.0)
+    G = uss([[-a, 1.0], [0.0, -b]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    for width in (1e-12, 1e-6, 1.0):
+        F = lft_form(G, bounds={"a": (0.5, 1.5), "b": (2.0 - width, 2.0 + width)})
+        assert F.blocks == [("a", 1), ("b", 1)], width
+        # the member at b's upper end, closed from the reduced form, is the system's
+        A = np.asarray(F.close({"b": 1.0}).A)
+        np.testing.assert_allclose(np.sort(np.linalg.eigvals(A).real), [-(2.0 + width), -1.0])
+    # the block structure does not depend on the box's size (the family's loop as well)
+    loop = family_uss(default_family())
+    sizes = {
+        k: lft_form(
+            loop,
+            bounds={
+                n: (p.nominal - k * (p.nominal - p.low), p.nominal + k * (p.high - p.nominal))
+                for n, p in loop.parameters.items()
+            },
+        ).blocks
+        for k in (1.0, 1e-3, 1e-6)
+    }
+    assert sizes[1.0] == sizes[1e-3] == sizes[1e-6]

@@ -173,7 +173,9 @@ class LFTForm:
         return ct.ss(Ac, Bc, Cc, Dc)
 
 
-#: Relative singular-value threshold of the reduction's bases.
+#: Relative singular-value threshold of the reduction's bases (relative to the largest entry
+#: of the LFT written in the parameters' own deviations, ``p - centre``, not the normalised
+#: ``delta``: see :func:`_reduce`).
 REDUCE_RTOL = 1e-10
 
 
@@ -211,15 +213,27 @@ def _blockdiag(Q: list, sizes: list) -> np.ndarray:
     return T
 
 
-def _reduce(F, L, Rm, sizes):
+def _reduce(F, L, Rm, sizes, half):
     """The controllable, then observable, part of ``S0 + L Delta (I - F Delta)^-1 Rm``
-    (module notes): ``(F, L, Rm, sizes)`` of the reduced realization."""
-    scale = max(1.0, *(float(np.abs(X).max(initial=0.0)) for X in (F, L, Rm)))
+    (module notes): ``(F, L, Rm, sizes)`` of the reduced realization.
+
+    ``half`` holds each channel's half-width: the columns of ``F`` and ``L`` carry it
+    (``F = F_u H``, ``L = L_u H``, ``H`` one scalar per block), and the subspaces are found on
+    ``F_u`` and ``L_u``, the LFT in the parameters' own deviations. A block-structured
+    subspace is the same for both (``H`` maps it onto itself), but the rank decisions are
+    not: with the normalised matrices, a box scaled small (1e-4 about a loop with controller
+    gains of 1e7) left a block's channels below the threshold set by another's, and they
+    were dropped as if they were rounding. On ``F_u`` and ``L_u`` they do not depend on the
+    box's size."""
+    h = np.where(np.asarray(half, float) > 0, np.asarray(half, float), 1.0)
+    Fu, Lu = F / h[None, :], L / h[None, :]
+    scale = max(1.0, *(float(np.abs(X).max(initial=0.0)) for X in (Fu, Lu, Rm)))
     tol = REDUCE_RTOL * scale
-    Q = _reachable(F, Rm, sizes, tol)
+    Q = _reachable(Fu, Rm, sizes, tol)
     T = _blockdiag(Q, sizes)
-    F, L, Rm, sizes = T.T @ F @ T, L @ T, T.T @ Rm, [q.shape[1] for q in Q]
-    Q = _reachable(F.T, L.T, sizes, tol)
+    F, L, Rm, Fu, Lu = T.T @ F @ T, L @ T, T.T @ Rm, T.T @ Fu @ T, Lu @ T
+    sizes = [q.shape[1] for q in Q]
+    Q = _reachable(Fu.T, Lu.T, sizes, tol)
     U = _blockdiag(Q, sizes)
     return U.T @ F @ U, L @ U, U.T @ Rm, [q.shape[1] for q in Q]
 
@@ -302,7 +316,7 @@ def lft_form(system, *, bounds=None, reduce: bool = True) -> LFTForm:
     names = [name for name in params if name in counts]
     sizes = [counts.count(name) for name in names]
     if reduce and R:
-        F, L, Rm, sizes = _reduce(F, L, Rm, sizes)
+        F, L, Rm, sizes = _reduce(F, L, Rm, sizes, [half[name] for name in counts])
         R = sum(sizes)
     M = ct.ss(
         S0[:n, :n],
