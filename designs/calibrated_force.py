@@ -52,9 +52,18 @@ from backhoe.model.blocks import VALVE_FIELDS, block_of
 from designs.cab_calibration import identify_cab
 from designs.cab_damper import _cab_names, _identified_row, _valve_params
 from designs.calibration import IDENTIFIED, identify_operator
-from designs.calibration_record import excitation_responses, simulate_calibration
+from designs.calibration_record import (
+    CalibrationProtocol,
+    excitation_responses,
+    simulate_calibration,
+)
 from designs.coverage import COVERAGE_SEED_OFFSET
-from designs.force_calibration import FORCE_IDENTIFIED, identify_force, simulate_force_record
+from designs.force_calibration import (
+    FORCE_IDENTIFIED,
+    ForceProtocol,
+    identify_force,
+    simulate_force_record,
+)
 from designs.limit_member import member_controller
 from designs.spec import check_specification
 from designs.specification import Specification
@@ -548,9 +557,6 @@ def calibrated_force_design(
         records'), ``coverage`` (:meth:`CalibratedForceCoverage.to_json`, or ``None``),
         ``certificates`` (or ``None``), ``specification``, ``seed``.
     """
-    from designs.calibration_record import CalibrationProtocol
-    from designs.force_calibration import ForceProtocol
-
     spec = spec or Specification()
     samples = check_int("samples", samples, low=0, owner="calibrated_force_design")
     certify = check_int("certify", certify, low=0, owner="calibrated_force_design")
