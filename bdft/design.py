@@ -90,11 +90,10 @@ def register(sub) -> None:
         "--certify-samples",
         type=integer("--certify-samples", low=0, high=10_000),
         default=None,
-        help="scheduled and calibrated-force only: members whose design's robust margin over "
-        "the box its calibration bounds is certified (scheduled: the first of the coverage "
-        "members, about 6 core-seconds each; calibrated-force: members drawn with the "
-        "coverage seed, by mu, minutes each) (0: not computed; default: 10 for scheduled, 3 "
-        "for calibrated-force)",
+        help="scheduled and calibrated-force only: the first coverage members whose design's "
+        "robust margin over the box its calibration bounds is certified (scheduled: about 6 "
+        "core-seconds each; calibrated-force: by mu, a minute or so each) (0: not computed; "
+        "default: 10 for scheduled, 3 for calibrated-force)",
     )
     p.add_argument(
         "--limit-samples",
