@@ -424,7 +424,7 @@ def calibrated_force_coverage(
     )
 
 
-def _certify_one(family, row, seed, spec, time_limit_s, iterations):
+def _certify_one(family, row, seed, spec, time_limit_s, iterations, search_samples):
     with deterministic_solvers():
         cal = calibrate_operator(family, row, seed=int(seed))
         res, K, choice = design_for(family, cal, spec, seed=int(seed))
@@ -435,7 +435,7 @@ def _certify_one(family, row, seed, spec, time_limit_s, iterations):
                 force_operator_family(family, cal),
                 controller=K,
                 region=spec.region(),
-                samples=200,
+                samples=search_samples,
                 ladder=6,
                 iterations=iterations,
                 time_limit_s=time_limit_s,
@@ -464,6 +464,7 @@ def calibrated_force_certificates(
     rows=None,
     population: int = 2000,
     iterations: int = 2,
+    search_samples: int = 200,
 ) -> dict:
     """Certified margins of operators' designs over their calibration's box (module notes,
     step 5): the first ``operators`` members of a sample of ``population`` drawn with the
@@ -491,6 +492,9 @@ def calibrated_force_certificates(
     iterations : int
         Bisection steps of each margin after its first certified scale (0: the first of
         15/16, 7/8, 3/4 of the upper bound that mu certifies, then halving).
+    search_samples : int
+        Latin-hypercube members of the upper bound's search (its local searches start from
+        the worst of them).
 
     Returns
     -------
@@ -510,9 +514,14 @@ def calibrated_force_certificates(
     else:
         rows = family.check_members(rows, where="calibrated_force_certificates")
     iterations = check_int("iterations", iterations, low=0, owner="calibrated_force_certificates")
+    search_samples = check_int(
+        "search_samples", search_samples, low=1, owner="calibrated_force_certificates"
+    )
     seeds = _seeds(s, len(rows))
     calls = [
-        functools.partial(_certify_one, family, rows[i], seeds[i], spec, time_limit_s, iterations)
+        functools.partial(
+            _certify_one, family, rows[i], seeds[i], spec, time_limit_s, iterations, search_samples
+        )
         for i in range(len(rows))
     ]
     out = run_calls(calls, jobs=n_jobs) if calls else []

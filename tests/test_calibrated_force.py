@@ -74,8 +74,11 @@ def test_the_design_is_certified_on_a_fraction_of_its_box_and_broken_just_beyond
     assert K is not None and choice["damping"] in DESIGN_DAMPINGS
     assert res.verified and res.required_force <= 1.0
     assert check_specification([fam.member(row)], K, spec).holds
-    # the first certified scale (15/16 of the upper bound or below), no bisection after it
-    cert = calibrated_force_certificates(fam, rows=row[None, :], time_limit_s=120.0, iterations=0)
+    # the first certified scale (15/16 of the upper bound or below), no bisection after it,
+    # and a short search for the upper bound
+    cert = calibrated_force_certificates(
+        fam, rows=row[None, :], time_limit_s=120.0, iterations=0, search_samples=32
+    )
     (m,) = cert["members"]
     assert m["designed"] and m["choice"]["damping"] == choice["damping"]
     # tight: mu's lower bound within 5 % of the breaking member's scale; and small: the
