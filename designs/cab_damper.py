@@ -18,7 +18,7 @@ import math
 import control as ct
 import numpy as np
 
-from backhoe.model.blocks import VALVE_FIELDS, parameter_name
+from backhoe.model.blocks import VALVE_FIELDS, block_of, parameter_name
 from backhoe.model.components import ValveCylinderParams, realise_siso
 from backhoe.model.wiring import connect
 from designs.calibration import IDENTIFIED, operator_row
@@ -102,6 +102,40 @@ def _valve_params(valve) -> ValveCylinderParams:
             f"valve must hold {len(VALVE_FIELDS)} values {VALVE_FIELDS}; got {valve!r}"
         )
     return ValveCylinderParams(**{f: float(x) for f, x in zip(VALVE_FIELDS, v)})
+
+
+def calibration_box(family, where: dict, valve, name: str):
+    """The family a calibration leaves: ``where``'s parameters within their bounds.
+
+    Parameters
+    ----------
+    family : backhoe.Family
+    where : dict
+        Parameter name -> ``(estimate, (low, high))``; the estimate becomes the nominal
+        (clipped into the bounds, the lower bound at least 1e-3), the distribution uniform
+        over the bounds (``std`` dropped). Parameters not named keep the family's ranges.
+    valve : array_like
+        The machine's own valve/cylinder (:data:`VALVE_FIELDS`), which its rig knows: the
+        valve's parameters leave the family.
+    name : str
+        The new family's name.
+
+    Returns
+    -------
+    backhoe.Family
+    """
+    params = []
+    for p in family.parameters:
+        if block_of(p.name) == "valve":  # the machine's own valve, which the rig knows
+            continue
+        if p.name not in where:
+            params.append(p)
+            continue
+        v, (lo, hi) = where[p.name]
+        lo, hi = max(float(lo), 1e-3), float(hi)
+        nominal = min(max(float(v), lo), hi)
+        params.append(dataclasses.replace(p, nominal=nominal, low=lo, high=hi, std=None))
+    return family.replace(parameters=tuple(params), valve=_valve_params(valve), name=name)
 
 
 def member_valve(family, row) -> np.ndarray:

@@ -48,9 +48,9 @@ from collections.abc import Callable
 import numpy as np
 
 from backhoe.families.batched import closed_loop_matrices
-from backhoe.model.blocks import VALVE_FIELDS, block_of
+from backhoe.model.blocks import VALVE_FIELDS
 from designs.cab_calibration import identify_cab
-from designs.cab_damper import _cab_names, _identified_row, _valve_params
+from designs.cab_damper import _cab_names, _identified_row, _valve_params, calibration_box
 from designs.calibration import IDENTIFIED, identify_operator
 from designs.calibration_record import (
     CalibrationProtocol,
@@ -237,21 +237,7 @@ def force_operator_family(family, cal: OperatorCalibration):
     where = {k: (cal.force.values[k], cal.force.bounds[k]) for k in FORCE_IDENTIFIED}
     for name, key in _cab_names(cal.cab.values).items():
         where[name] = (cal.cab.values[key], cal.cab.bounds[key])
-    params = []
-    for p in family.parameters:
-        if block_of(p.name) == "valve":  # the machine's own valve, which the rig knows
-            continue
-        if p.name not in where:
-            params.append(p)
-            continue
-        v, (lo, hi) = where[p.name]
-        lo, hi = max(float(lo), 1e-3), float(hi)
-        params.append(
-            dataclasses.replace(p, nominal=min(max(float(v), lo), hi), low=lo, high=hi, std=None)
-        )
-    return family.replace(
-        parameters=tuple(params), valve=_valve_params(cal.valve), name="force-calibrated operator"
-    )
+    return calibration_box(family, where, cal.valve, "force-calibrated operator")
 
 
 def _coverage_chunk(family, rows, seeds, spec, limits):

@@ -94,20 +94,36 @@ class CalibrationProtocol:
                 "accel_rms": Spec(0.0, math.inf, False, False),
             },
         )
-        for name in ("excitation_band_hz", "band_hz"):
-            lo, hi = (float(v) for v in getattr(self, name))
-            if not (0 < lo < hi < self.fs_hz / 2):
-                raise ParameterError(
-                    f"CalibrationProtocol.{name} must be 0 < low < high < fs/2 = "
-                    f"{self.fs_hz / 2:g} Hz; got {getattr(self, name)!r}"
-                )
-            object.__setattr__(self, name, (lo, hi))
-        n = int(round(self.duration_s * self.fs_hz))
-        if isinstance(self.nperseg, bool) or not 64 <= int(self.nperseg) <= n // 2:
+        check_record_timing(self)
+
+
+def check_record_timing(protocol) -> None:
+    """Check a record protocol's bands and segment length, naming the protocol's class.
+
+    ``excitation_band_hz`` and ``band_hz`` must satisfy ``0 < low < high < fs/2`` (stored
+    back as float pairs); ``nperseg`` must be an integer leaving at least two segments in
+    ``duration_s * fs_hz`` samples.
+
+    Raises
+    ------
+    robust.errors.ParameterError
+        Naming the field, what was expected and what was got.
+    """
+    owner = type(protocol).__name__
+    for name in ("excitation_band_hz", "band_hz"):
+        lo, hi = (float(v) for v in getattr(protocol, name))
+        if not (0 < lo < hi < protocol.fs_hz / 2):
             raise ParameterError(
-                f"CalibrationProtocol.nperseg must be an integer in [64, {n // 2}] (at least "
-                f"two segments in the record); got {self.nperseg!r}"
+                f"{owner}.{name} must be 0 < low < high < fs/2 = "
+                f"{protocol.fs_hz / 2:g} Hz; got {getattr(protocol, name)!r}"
             )
+        object.__setattr__(protocol, name, (lo, hi))
+    n = int(round(protocol.duration_s * protocol.fs_hz))
+    if isinstance(protocol.nperseg, bool) or not 64 <= int(protocol.nperseg) <= n // 2:
+        raise ParameterError(
+            f"{owner}.nperseg must be an integer in [64, {n // 2}] (at least two segments in "
+            f"the record); got {protocol.nperseg!r}"
+        )
 
 
 @dataclasses.dataclass(frozen=True)

@@ -63,7 +63,7 @@ from backhoe.model.blocks import parameter_name
 from backhoe.model.wiring import connect
 from designs.calibration_fit import _fit
 from designs.calibration_models import human_response
-from designs.calibration_record import BOUND_SIGMAS, _band_noise
+from designs.calibration_record import BOUND_SIGMAS, _band_noise, check_record_timing
 from designs.limit_plant import ENCODER_MM
 from designs.specification import Specification
 from robust.checks import POSITIVE, Spec, validate_fields
@@ -134,20 +134,7 @@ class ForceProtocol:
                 "encoder_mm": Spec(0.0, math.inf, False, False),
             },
         )
-        for name in ("excitation_band_hz", "band_hz"):
-            lo, hi = (float(v) for v in getattr(self, name))
-            if not (0 < lo < hi < self.fs_hz / 2):
-                raise ParameterError(
-                    f"ForceProtocol.{name} must be 0 < low < high < fs/2 = "
-                    f"{self.fs_hz / 2:g} Hz; got {getattr(self, name)!r}"
-                )
-            object.__setattr__(self, name, (lo, hi))
-        n = int(round(self.duration_s * self.fs_hz))
-        if isinstance(self.nperseg, bool) or not 64 <= int(self.nperseg) <= n // 2:
-            raise ParameterError(
-                f"ForceProtocol.nperseg must be an integer in [64, {n // 2}] (at least two "
-                f"segments in the record); got {self.nperseg!r}"
-            )
+        check_record_timing(self)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -12,7 +12,6 @@ described in :mod:`designs.scheduled`.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import itertools
 import math
@@ -20,9 +19,8 @@ import math
 import numpy as np
 
 from backhoe import member_metrics
-from backhoe.model.blocks import block_of
 from designs.cab_calibration import CAB_IDENTIFIED, CAB_LOG_AXES
-from designs.cab_damper import _cab_names, _valve_params, damped_cancellation, member_valve
+from designs.cab_damper import _cab_names, calibration_box, damped_cancellation, member_valve
 from designs.calibration import IDENTIFIED, OPERATOR_NAMES
 from designs.calibration_fit import LOG_AXES
 from designs.calibration_region import REGION_RADIUS
@@ -341,22 +339,9 @@ def operator_family(family, cal: Calibrations, i: int):
     """
     h, c = dict(zip(IDENTIFIED, cal.estimates[i])), dict(zip(CAB_IDENTIFIED, cal.cabs[i]))
     hb, cb = dict(zip(IDENTIFIED, cal.bounds[i])), dict(zip(CAB_IDENTIFIED, cal.cab_bounds[i]))
-    where = {name: (key, h, hb) for name, key in OPERATOR_NAMES.items()}
-    where.update({name: (key, c, cb) for name, key in _cab_names(c).items()})
-    params = []
-    for p in family.parameters:
-        if block_of(p.name) == "valve":  # the machine's own valve, which the rig knows
-            continue
-        if p.name not in where:
-            params.append(p)
-            continue
-        key, v, b = where[p.name]
-        lo, hi = max(float(b[key][0]), 1e-3), float(b[key][1])
-        nominal = min(max(float(v[key]), lo), hi)
-        params.append(dataclasses.replace(p, nominal=nominal, low=lo, high=hi, std=None))
-    fam = family.replace(
-        parameters=tuple(params), valve=_valve_params(cal.valves[i]), name="calibrated operator"
-    )
+    where = {name: (h[key], hb[key]) for name, key in OPERATOR_NAMES.items()}
+    where.update({name: (c[key], cb[key]) for name, key in _cab_names(c).items()})
+    fam = calibration_box(family, where, cal.valves[i], "calibrated operator")
     return fam, h, c
 
 
